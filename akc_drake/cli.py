@@ -1,0 +1,151 @@
+"""The ``akc-drake`` command line.
+
+Each subcommand's options are declared here (they are a contract people script against, see
+DESIGN.md); its work is done by ``akc_drake.commands.<name>.main(args) -> int``. A user mistake
+raises :class:`~akc_drake.errors.UserError` (or ``ValueError`` from input validation) and becomes
+one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from akc_drake import __version__
+from akc_drake.errors import UserError
+
+METHODS = ("Raw", "KF", "EKF", "COIK(KF)", "AKC(KF)", "AKC(EKF)", "COIK(EKF)")
+
+# Subcommand -> the issue that builds it (for the "not available yet" message).
+_PENDING_ISSUE = {
+    "demo": 5,
+    "evaluate": 6,
+    "sweep": 6,
+    "graph": 4,
+    "record": 3,
+    "run": 4,
+    "calibrate": 7,
+    "bench": 8,
+}
+
+
+def _add_source_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--source",
+        default="sim",
+        help="sim | recording:DIR | bag:FILE | realsense | video:FILE (default: sim)",
+    )
+    p.add_argument("--dims", metavar="FILE.json", help="calibrated body dimensions (from 'akc-drake calibrate')")
+    p.add_argument("--pose-model", metavar="PATH", help="MediaPipe pose_landmarker .task file")
+    p.add_argument("--depth", type=float, metavar="M", help="constant depth in metres for video:FILE sources")
+    p.add_argument("--config", metavar="FILE.yaml", help="a diagram configuration file (YAML)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="akc-drake",
+        description="Markerless RGB-D arm motion capture with Arm Kinematic Correction, as a Drake diagram.",
+    )
+    parser.add_argument("--version", action="version", version=f"akc-drake {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("demo", help="teleoperate the simulated robot from the rendered operator (the main job)")
+    p.add_argument("--quick", action="store_true", help="one cycle of each motion (CI-sized)")
+    p.add_argument("--dropout", type=float, default=0.0, metavar="F", help="share of frames lost in bursts (0-1)")
+    p.add_argument("--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
+    p.add_argument("--json", metavar="FILE", help="write the summary as JSON")
+    p.add_argument("--meshcat", action="store_true", help="serve Meshcat on localhost while running")
+    p.add_argument("--html", metavar="FILE", help="save the Meshcat recording as a standalone HTML page")
+    p.add_argument("--seed", type=int, default=0)
+
+    p = sub.add_parser("evaluate", help="reproduce the paper's tables and figures against ground truth")
+    p.add_argument("--motion", default="both", choices=("I", "II", "both"))
+    p.add_argument("--motion-file", metavar="FILE", help="a BVH file, or an AMC file with --skeleton")
+    p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
+    p.add_argument("--cycles", type=int, default=30, metavar="N")
+    p.add_argument("--seed", type=int, default=0, metavar="S")
+    p.add_argument("--methods", default=",".join(METHODS), help="comma-separated, from: " + ", ".join(METHODS))
+    p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"))
+    p.add_argument("--out", metavar="DIR", help="write report.md, CSV tables and PNG figures here")
+    p.add_argument("--json", metavar="FILE")
+    p.add_argument("--width", type=int, default=640, help=argparse.SUPPRESS)
+    p.add_argument("--height", type=int, default=480, help=argparse.SUPPRESS)
+
+    p = sub.add_parser("sweep", help="AKC weight and shrink-factor sensitivity study (paper Fig. 5, Table VII)")
+    p.add_argument("--motion", default="both", choices=("I", "II", "both"))
+    p.add_argument("--cycles", type=int, default=30, metavar="N")
+    p.add_argument("--jobs", type=int, default=2, metavar="N")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", metavar="DIR")
+    p.add_argument("--json", metavar="FILE")
+
+    p = sub.add_parser("graph", help="write the system graph of a diagram as .dot and .svg")
+    p.add_argument("--diagram", required=True, choices=("mocap", "teleop"))
+    p.add_argument("--out", required=True, metavar="DIR")
+
+    p = sub.add_parser("record", help="render (or capture) a session into a recording folder")
+    p.add_argument("--motion", default="II", help="I | II | tpose | lpose | FILE.bvh | FILE.amc")
+    p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
+    p.add_argument("--source", default="sim", help="sim | realsense | bag:FILE (default: sim)")
+    p.add_argument("--cycles", type=int, default=1, metavar="N")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seconds", type=float, metavar="S", help="duration for live or bag sources")
+    p.add_argument("--out", required=True, metavar="DIR")
+
+    p = sub.add_parser("run", help="run the mocap (or teleop) diagram on a source")
+    _add_source_args(p)
+    p.add_argument("--motion", default="II", help="motion for --source sim: I | II | tpose | lpose | FILE")
+    p.add_argument("--cycles", type=int, default=1, metavar="N")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--filter", default="KF", choices=("none", "KF", "EKF"))
+    p.add_argument("--corrector", default="AKC", choices=("none", "AKC", "COIK"))
+    p.add_argument("--teleop", action="store_true", help="drive the simulated robot too")
+    p.add_argument("--meshcat", action="store_true")
+    p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources)")
+    p.add_argument("--out", metavar="DIR", help="where to write poses.npz (default: next to --json)")
+    p.add_argument("--json", metavar="FILE")
+
+    p = sub.add_parser("calibrate", help="arm lengths and shoulder width from a held T-pose or L-pose")
+    _add_source_args(p)
+    p.add_argument("--pose", default="tpose", choices=("tpose", "lpose"))
+    p.add_argument("--frames", type=int, default=100, metavar="N")
+    p.add_argument("--out", required=True, metavar="FILE.json")
+
+    p = sub.add_parser("bench", help="measure the speed of every stage (see README, Performance)")
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--json", metavar="FILE")
+
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    try:
+        module = importlib.import_module(f"akc_drake.commands.{args.command}")
+    except ModuleNotFoundError as e:
+        if e.name != f"akc_drake.commands.{args.command}":
+            raise
+        issue = _PENDING_ISSUE.get(args.command)
+        print(
+            f"akc-drake {args.command}: not available yet (it lands with issue {issue}).",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        return int(module.main(args) or 0)
+    except (UserError, ValueError, FileNotFoundError) as e:
+        msg = str(e) if not isinstance(e, FileNotFoundError) or not e.filename else f"{e.filename}: {e.strerror}"
+        print(f"akc-drake {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"akc-drake {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""One module per ``akc-drake`` subcommand, each with ``main(args) -> int``."""

@@ -1,0 +1,1 @@
+"""Recordings (folder format, RealSense bag/db3) and the MediaPipe backend."""

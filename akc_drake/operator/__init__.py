@@ -1,0 +1,1 @@
+"""The simulated human operator: model builder, motions, motion-capture file readers."""

@@ -1,0 +1,1 @@
+"""The dual-arm mobile manipulator: model loading, differential IK, controllers."""

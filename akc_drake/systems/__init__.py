@@ -1,0 +1,1 @@
+"""Thin Drake LeafSystems, one per pipeline stage, each wrapping a core object."""
