@@ -1,0 +1,74 @@
+"""System graphs: Drake's Graphviz export, made deterministic, rendered to SVG with graphviz's ``dot``."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+# Drake names graph nodes after global system ids (s12, cluster12diagram, _12), which change with the
+# number of systems created earlier in the process. Renumbering them in order of first appearance makes
+# the text depend only on the diagram, so the committed graphs can be checked for staleness.
+_ID = re.compile(r"\b(s|cluster|_)(\d+)(?=\b|diagram|subsystems|inputports|outputports|[a-z])")
+
+
+def normalize_dot(text: str) -> str:
+    """Renumber Drake's system ids in a Graphviz string in order of first appearance."""
+    mapping: dict[str, str] = {}
+
+    def repl(m: re.Match) -> str:
+        key = m.group(2)
+        if key not in mapping:
+            mapping[key] = str(len(mapping) + 1)
+        return m.group(1) + mapping[key]
+
+    return _ID.sub(repl, text)
+
+
+def diagram_dot(diagram, max_depth: int = 2) -> str:
+    """The diagram's Graphviz text (deterministic)."""
+    return normalize_dot(diagram.GetGraphvizString(max_depth=max_depth))
+
+
+def _write_atomic(path: Path, data: str | bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def render_svg(dot_text: str) -> bytes | None:
+    """SVG bytes from graphviz's ``dot``, or None when ``dot`` is not installed."""
+    exe = shutil.which("dot")
+    if exe is None:
+        return None
+    res = subprocess.run([exe, "-Tsvg"], input=dot_text.encode(), capture_output=True, check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f"dot failed: {res.stderr.decode(errors='replace').strip()}")
+    return res.stdout
+
+
+def write_graph(diagram, out_dir: str | Path, name: str, max_depth: int = 2) -> dict[str, Path | None]:
+    """Write ``out_dir/name.dot`` and (when ``dot`` exists) ``out_dir/name.svg``.
+
+    Returns:
+        ``{"dot": path, "svg": path or None}``.
+    """
+    out = Path(out_dir)
+    text = diagram_dot(diagram, max_depth=max_depth)
+    dot_path = out / f"{name}.dot"
+    _write_atomic(dot_path, text)
+    svg = render_svg(text)
+    svg_path = None
+    if svg is not None:
+        svg_path = out / f"{name}.svg"
+        _write_atomic(svg_path, svg)
+    return {"dot": dot_path, "svg": svg_path}
