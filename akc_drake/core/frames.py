@@ -1,0 +1,435 @@
+"""Stage S5's control frames (paper eq. 17) and their mapping to the robot's end-effector frames.
+
+Frames and conventions:
+
+* Camera frame C: x right, y down, z forward (metres). The operator faces the camera, so the operator's left
+  is +x_C, up is -y_C and forward (toward the camera) is -z_C.
+* Operator torso frame {0} (eq. 17): y = ps_l - ps_r (to the operator's left), x = (ph_m - ps_m) x y
+  (forward), z = x x y (up), origin at the shoulder midpoint ps_m. All functions here work in any coordinates
+  the landmarks are given in; with camera-frame landmarks the rotation returned by :func:`torso_frame` is
+  ``R_CTorso``.
+* Wrist frame {1}/{2} (eq. 17): y = p_e - p_w (from the wrist back toward the elbow), z = y x (p_i - p_p),
+  x = y x z. Note that eq. (17) uses ``p_i - p_p`` on both hands, so z (and x) point to opposite anatomical
+  sides on the two hands: with the forearm forward and the palm down, z points up on the left hand and down on
+  the right hand.
+* Mapped wrist frame {1'}: {1} rotated by -90 deg about its own y axis: x' = z, y' = y, z' = -x.
+* Robot torso frame T: x forward, y left, z up. Robot end-effector frame E (``left_ee``/``right_ee``): y from
+  the tool back toward the wrist/elbow, x along the palm normal; E is the mapped frame {1'} followed by the
+  per-side extra rotation of :class:`RobotMapping`. By default the right side uses {1'} as it is (its x' is
+  the palmar normal, out of the palm) and the left side is turned 180 deg about y so that its x is also the
+  palmar normal (eq. 17's x' on the left hand is the back-of-hand normal); both E frames are then mirror
+  images.
+
+Degenerate input (a zero-length vector, parallel vectors, NaN or inf) gives ``None``, never NaN.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from akc_drake.core.skeleton import INDEX, SIDES, check_pose
+
+#: Vectors shorter than this (metres) are degenerate.
+MIN_NORM_M = 1e-6
+#: Two directions whose angle has a sine below this are treated as parallel.
+MIN_SIN = 1e-6
+
+#: Robot arm reach (shoulder-elbow + elbow-wrist, metres) used by the default mapping (0.34 + 0.35).
+DEFAULT_ROBOT_REACH_M = 0.69
+#: Operator arm reach (upper + lower arm, metres) used by the default mapping (the paper's participant).
+DEFAULT_HUMAN_REACH_M = 0.57
+#: Operator shoulder width (metres) used to put the human shoulder on the robot's shoulder.
+DEFAULT_HUMAN_SHOULDER_WIDTH_M = 0.33
+#: Robot shoulder position in the robot torso frame T: x, |y|, z (metres); left at +y, right at -y.
+DEFAULT_ROBOT_SHOULDER_X_M = 0.0
+DEFAULT_ROBOT_SHOULDER_Y_M = 0.20
+DEFAULT_ROBOT_SHOULDER_Z_M = 0.0
+
+
+def rotation_x(angle: float) -> np.ndarray:
+    """Rotation matrix about x by ``angle`` radians."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rotation_y(angle: float) -> np.ndarray:
+    """Rotation matrix about y by ``angle`` radians."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rotation_z(angle: float) -> np.ndarray:
+    """Rotation matrix about z by ``angle`` radians."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+#: {1} -> {1'}: -90 deg about the wrist frame's own y axis (right-multiplied): x' = z, y' = y, z' = -x.
+R_WRIST_TO_MAPPED: np.ndarray = rotation_y(-math.pi / 2.0)
+
+
+def transform(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """4x4 homogeneous transform from a rotation ``R`` (3x3) and a translation ``p`` (3,)."""
+    X = np.eye(4)
+    X[:3, :3] = R
+    X[:3, 3] = p
+    return X
+
+
+def _vec(v, name: str) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.shape != (3,):
+        raise ValueError(f"{name} must be a 3-vector, got shape {a.shape}")
+    return a
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """3-vector cross product (np.cross costs ~10x more for single vectors)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _unit(v: np.ndarray) -> np.ndarray | None:
+    n = float(np.linalg.norm(v))
+    if not math.isfinite(n) or n < MIN_NORM_M:
+        return None
+    return v / n
+
+
+def _unit_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """Normalised ``a x b`` for unit ``a``, or None when ``b`` is too short or parallel to ``a``."""
+    nb = float(np.linalg.norm(b))
+    if not math.isfinite(nb) or nb < MIN_NORM_M:
+        return None
+    c = _cross(a, b)
+    nc = float(np.linalg.norm(c))
+    if nc < MIN_SIN * nb:
+        return None
+    return c / nc
+
+
+def wrist_frame(p_e, p_w, p_i, p_p) -> np.ndarray | None:
+    """The wrist frame of eq. (17) as a rotation matrix whose columns are its x, y, z axes.
+
+    Args:
+        p_e, p_w, p_i, p_p: elbow, wrist, index MCP and pinky MCP positions (3,).
+
+    Returns:
+        3x3 right-handed orthonormal ``R`` with y = unit(p_e - p_w), z = unit(y x (p_i - p_p)), x = y x z;
+        None when the forearm or the hand vector is degenerate, they are parallel, or an input is not finite.
+    """
+    p_e, p_w, p_i, p_p = (_vec(v, n) for v, n in ((p_e, "p_e"), (p_w, "p_w"), (p_i, "p_i"), (p_p, "p_p")))
+    # Eq. (17): f_w,y = p_e - p_w
+    y = _unit(p_e - p_w)
+    if y is None:
+        return None
+    # Eq. (17): f_w,z = f_w,y x (p_i - p_p)
+    z = _unit_cross(y, p_i - p_p)
+    if z is None:
+        return None
+    # Eq. (17): f_w,x = f_w,y x f_w,z
+    x = _cross(y, z)
+    return np.column_stack([x, y, z])
+
+
+def torso_frame(ps_l, ps_r, ph_l, ph_r) -> tuple[np.ndarray, np.ndarray] | None:
+    """The torso frame {0} of eq. (17).
+
+    Args:
+        ps_l, ps_r: left and right shoulder positions (3,).
+        ph_l, ph_r: left and right hip positions (3,).
+
+    Returns:
+        ``(R, origin)``: 3x3 right-handed orthonormal ``R`` with y = unit(ps_l - ps_r),
+        x = unit((ph_m - ps_m) x y), z = x x y, and the origin at the shoulder midpoint ps_m; None when the
+        shoulders coincide, the trunk (ph_m - ps_m) is degenerate or parallel to the shoulder line, or an
+        input is not finite.
+    """
+    ps_l, ps_r, ph_l, ph_r = (
+        _vec(v, n) for v, n in ((ps_l, "ps_l"), (ps_r, "ps_r"), (ph_l, "ph_l"), (ph_r, "ph_r"))
+    )
+    ps_m = 0.5 * (ps_l + ps_r)
+    ph_m = 0.5 * (ph_l + ph_r)
+    # Eq. (17): f_t,y = p_s,l - p_s,r
+    y = _unit(ps_l - ps_r)
+    if y is None or not np.all(np.isfinite(ps_m)):
+        return None
+    # Eq. (17): f_t,x = (p_h,m - p_s,m) x f_t,y   (computed as -(f_t,y x (p_h,m - p_s,m)))
+    x = _unit_cross(y, ph_m - ps_m)
+    if x is None:
+        return None
+    x = -x
+    # Eq. (17): f_t,z = f_t,x x f_t,y
+    z = _cross(x, y)
+    return np.column_stack([x, y, z]), ps_m
+
+
+def _landmark(pose: np.ndarray, name: str) -> np.ndarray:
+    return pose[INDEX[name]]
+
+
+def wrist_in_torso(pose) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Both wrist frames {1}, {2} relative to the torso frame {0}.
+
+    Args:
+        pose: ``(12, 3)`` landmarks (any frame, e.g. the camera frame C); NaN where missing.
+
+    Returns:
+        ``(X_left, X_right)``: 4x4 homogeneous transforms ``X_TorsoWrist`` (rotation of the wrist frame and
+        position of the wrist in {0}), each None when that wrist frame (or the torso frame) is degenerate.
+    """
+    pose = check_pose(pose)
+    torso = torso_frame(
+        _landmark(pose, "left_shoulder"),
+        _landmark(pose, "right_shoulder"),
+        _landmark(pose, "left_hip"),
+        _landmark(pose, "right_hip"),
+    )
+    if torso is None:
+        return None, None
+    R_0, origin = torso
+    out = []
+    for side in SIDES:
+        p_w = _landmark(pose, f"{side}_wrist")
+        R_w = wrist_frame(
+            _landmark(pose, f"{side}_elbow"),
+            p_w,
+            _landmark(pose, f"{side}_index"),
+            _landmark(pose, f"{side}_pinky"),
+        )
+        if R_w is None:
+            out.append(None)
+            continue
+        out.append(transform(R_0.T @ R_w, R_0.T @ (p_w - origin)))
+    return out[0], out[1]
+
+
+def _check_rotation(R, name: str) -> np.ndarray:
+    R = np.asarray(R, dtype=float)
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise ValueError(f"{name} must be a finite 3x3 rotation matrix, got shape {R.shape}")
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0.0:
+        raise ValueError(f"{name} must be a proper rotation matrix (orthonormal, det +1), got {R.tolist()}")
+    return R
+
+
+def _check_point(p, name: str) -> np.ndarray:
+    p = np.asarray(p, dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"{name} must be a finite 3-vector in metres, got {np.asarray(p).tolist()}")
+    return p
+
+
+@dataclass(frozen=True)
+class RobotMapping:
+    """How an operator wrist pose in the torso frame {0} becomes a robot end-effector pose in T.
+
+    ``R_TE = R_0W @ R_WRIST_TO_MAPPED @ R_extra_side`` and
+    ``p_TE = scale * p_0W + offset_side - tool_offset_m * R_TE[:, 1]``.
+
+    Attributes:
+        scale: position scale (robot arm reach / operator arm reach).
+        offset_left, offset_right: translations added in the robot torso frame T, metres.
+        R_extra_left, R_extra_right: rotations applied about the mapped frame {1'}'s own axes.
+        tool_offset_m: distance from the robot's wrist centre to its tool point E (along -y_E). With 0 (the
+            default) the scaled operator wrist is the target of E itself; with the robot's wrist-to-tool
+            distance (0.195 m for ``models/dual_arm_manipulator.urdf``) the robot's wrist centre follows the
+            scaled operator wrist and the tool point sits that far beyond it.
+
+    Use :meth:`from_shoulders` (or :meth:`default`) for offsets that put the operator's shoulder on the
+    robot's.
+    """
+
+    scale: float = DEFAULT_ROBOT_REACH_M / DEFAULT_HUMAN_REACH_M
+    offset_left: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    offset_right: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    R_extra_left: np.ndarray = field(default_factory=lambda: rotation_y(math.pi))
+    R_extra_right: np.ndarray = field(default_factory=lambda: np.eye(3))
+    tool_offset_m: float = 0.0
+
+    def __post_init__(self):
+        s = float(self.scale)
+        if not math.isfinite(s) or s <= 0.0:
+            raise ValueError(f"RobotMapping.scale must be a positive number, got {self.scale!r}")
+        object.__setattr__(self, "scale", s)
+        tool = float(self.tool_offset_m)
+        if not math.isfinite(tool) or tool < 0.0:
+            raise ValueError(
+                f"RobotMapping.tool_offset_m must be a length >= 0 in metres, got {self.tool_offset_m!r}"
+            )
+        object.__setattr__(self, "tool_offset_m", tool)
+        for name in ("offset_left", "offset_right"):
+            object.__setattr__(self, name, _check_point(getattr(self, name), f"RobotMapping.{name}"))
+        for name in ("R_extra_left", "R_extra_right"):
+            object.__setattr__(self, name, _check_rotation(getattr(self, name), f"RobotMapping.{name}"))
+
+    @classmethod
+    def from_shoulders(
+        cls,
+        *,
+        robot_reach_m: float = DEFAULT_ROBOT_REACH_M,
+        human_reach_m: float = DEFAULT_HUMAN_REACH_M,
+        human_shoulder_width_m: float = DEFAULT_HUMAN_SHOULDER_WIDTH_M,
+        robot_shoulder_x_m: float = DEFAULT_ROBOT_SHOULDER_X_M,
+        robot_shoulder_y_m: float = DEFAULT_ROBOT_SHOULDER_Y_M,
+        robot_shoulder_z_m: float = DEFAULT_ROBOT_SHOULDER_Z_M,
+        R_extra_left: np.ndarray | None = None,
+        R_extra_right: np.ndarray | None = None,
+        tool_offset_m: float = 0.0,
+    ) -> RobotMapping:
+        """A mapping whose offsets put the operator's shoulder (at ``(0, ±width/2, 0)`` in {0}) on the
+        robot's shoulder (at ``(x, ±y, z)`` in T), with ``scale = robot_reach_m / human_reach_m``.
+
+        Defaults: reach 0.69 m robot / 0.57 m operator, operator shoulder width 0.33 m, robot shoulders at
+        ``(0, ±0.20, 0)`` m; extra rotations as the class defaults (left 180 deg about y, right identity).
+        """
+        for name, v in (
+            ("robot_reach_m", robot_reach_m),
+            ("human_reach_m", human_reach_m),
+            ("human_shoulder_width_m", human_shoulder_width_m),
+        ):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0.0):
+                raise ValueError(f"RobotMapping.from_shoulders: {name} must be a positive length, got {v!r}")
+        scale = robot_reach_m / human_reach_m
+        human_y = 0.5 * human_shoulder_width_m
+        offsets = {}
+        for side, sign in (("left", 1.0), ("right", -1.0)):
+            robot_shoulder = np.array([robot_shoulder_x_m, sign * robot_shoulder_y_m, robot_shoulder_z_m])
+            offsets[side] = robot_shoulder - scale * np.array([0.0, sign * human_y, 0.0])
+        kwargs = {}
+        if R_extra_left is not None:
+            kwargs["R_extra_left"] = R_extra_left
+        if R_extra_right is not None:
+            kwargs["R_extra_right"] = R_extra_right
+        return cls(
+            scale=scale,
+            offset_left=offsets["left"],
+            offset_right=offsets["right"],
+            tool_offset_m=tool_offset_m,
+            **kwargs,
+        )
+
+    @classmethod
+    def default(cls) -> RobotMapping:
+        """:meth:`from_shoulders` with all defaults."""
+        return cls.from_shoulders()
+
+    def offset(self, side: str) -> np.ndarray:
+        return self.offset_left if _side(side) == "left" else self.offset_right
+
+    def R_extra(self, side: str) -> np.ndarray:
+        return self.R_extra_left if _side(side) == "left" else self.R_extra_right
+
+
+def _side(side: str) -> str:
+    if side not in SIDES:
+        raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+    return side
+
+
+def _check_transform(X, name: str) -> np.ndarray:
+    X = np.asarray(X, dtype=float)
+    if X.shape != (4, 4):
+        raise ValueError(f"{name} must be a 4x4 homogeneous transform, got shape {X.shape}")
+    return X
+
+
+def map_to_robot(X_TorsoWrist, side: str, mapping: RobotMapping | None = None) -> np.ndarray:
+    """Map an operator wrist frame in the torso frame {0} to the robot end-effector pose ``X_TE``.
+
+    Args:
+        X_TorsoWrist: 4x4 wrist frame {1}/{2} in {0} (from :func:`wrist_in_torso`).
+        side: ``"left"`` or ``"right"``.
+        mapping: the robot mapping (default :meth:`RobotMapping.default`).
+
+    Returns:
+        4x4 ``X_TE``: ``R_TE = R_0W R_y(-90 deg) R_extra_side``,
+        ``p_TE = scale p_0W + offset_side - tool_offset_m y_E``.
+    """
+    X = _check_transform(X_TorsoWrist, "X_TorsoWrist")
+    side = _side(side)
+    m = mapping if mapping is not None else RobotMapping.default()
+    R = X[:3, :3] @ R_WRIST_TO_MAPPED @ m.R_extra(side)
+    p = m.scale * X[:3, 3] + m.offset(side) - m.tool_offset_m * R[:, 1]
+    return transform(R, p)
+
+
+def robot_targets(pose, mapping: RobotMapping | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(X_TE_left, X_TE_right)`` for a landmark pose ``(12, 3)``; None for a side whose frame is
+    degenerate."""
+    m = mapping if mapping is not None else RobotMapping.default()
+    X_l, X_r = wrist_in_torso(pose)
+    return (
+        None if X_l is None else map_to_robot(X_l, "left", m),
+        None if X_r is None else map_to_robot(X_r, "right", m),
+    )
+
+
+def rest_operator_pose(
+    *,
+    upper_arm_m: float = 0.288,
+    lower_arm_m: float = 0.28,
+    shoulder_width_m: float = DEFAULT_HUMAN_SHOULDER_WIDTH_M,
+) -> np.ndarray:
+    """A ``(12, 3)`` operator rest posture in its own torso frame {0} (x forward, y left, z up): upper arms
+    hanging down, forearms horizontal and pointing forward, palms facing each other (thumbs up), hips 0.45 m
+    below the shoulders."""
+    pose = np.zeros((12, 3))
+    hand = 0.08
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        s = np.array([0.0, sign * 0.5 * shoulder_width_m, 0.0])
+        e = s + np.array([0.0, 0.0, -upper_arm_m])
+        w = e + np.array([lower_arm_m, 0.0, 0.0])
+        pose[INDEX[f"{side}_shoulder"]] = s
+        pose[INDEX[f"{side}_elbow"]] = e
+        pose[INDEX[f"{side}_wrist"]] = w
+        pose[INDEX[f"{side}_index"]] = w + np.array([hand, 0.0, 0.02])
+        pose[INDEX[f"{side}_pinky"]] = w + np.array([hand, 0.0, -0.02])
+        pose[INDEX[f"{side}_hip"]] = np.array([0.0, sign * 0.1, -0.45])
+    return pose
+
+
+def default_home_pose(side: str, mapping: RobotMapping | None = None, **rest_kwargs) -> np.ndarray:
+    """The 4x4 ``X_TE`` of :func:`rest_operator_pose` mapped to the robot on ``side``: the FrameMapper's home
+    pose when no robot-specific nominal pose is given."""
+    side = _side(side)
+    X_l, X_r = wrist_in_torso(rest_operator_pose(**rest_kwargs))
+    return map_to_robot(X_l if side == "left" else X_r, side, mapping)
+
+
+def rotation_angle(R: np.ndarray) -> float:
+    """Angle (radians, in [0, pi]) of the rotation ``R``, accurate for small angles."""
+    sin_vec = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    cos_t = 0.5 * (float(np.trace(R)) - 1.0)
+    return math.atan2(float(np.linalg.norm(sin_vec)), cos_t)
+
+
+def frame_jitter(X_seq, dt: float) -> tuple[float, float]:
+    """Jitter of a sequence of frames: RMS angular and linear speed between consecutive frames.
+
+    Args:
+        X_seq: ``(T, 4, 4)`` homogeneous transforms; frames with any non-finite entry are skipped (a pair
+            counts only when both of its frames are finite).
+        dt: time between consecutive frames, seconds (> 0).
+
+    Returns:
+        ``(rms angular speed rad/s, rms linear speed m/s)``; NaN when there is no valid consecutive pair.
+    """
+    X = np.asarray(X_seq, dtype=float)
+    if X.ndim != 3 or X.shape[1:] != (4, 4):
+        raise ValueError(f"X_seq must have shape (T, 4, 4), got {X.shape}")
+    dt = float(dt)
+    if not math.isfinite(dt) or dt <= 0.0:
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    finite = np.all(np.isfinite(X), axis=(1, 2))
+    ang, lin = [], []
+    for k in range(len(X) - 1):
+        if not (finite[k] and finite[k + 1]):
+            continue
+        ang.append(rotation_angle(X[k, :3, :3].T @ X[k + 1, :3, :3]) / dt)
+        lin.append(float(np.linalg.norm(X[k + 1, :3, 3] - X[k, :3, 3])) / dt)
+    if not ang:
+        return float("nan"), float("nan")
+    return float(np.sqrt(np.mean(np.square(ang)))), float(np.sqrt(np.mean(np.square(lin))))

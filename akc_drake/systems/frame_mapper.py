@@ -1,0 +1,131 @@
+"""Stage S5: the control frames of eq. (17) mapped to the robot's end-effector targets, as a Drake system."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from akc_drake.core.frames import RobotMapping, default_home_pose, robot_targets
+from akc_drake.core.skeleton import NUM_LANDMARKS, SIDES
+from akc_drake.systems import timing
+
+POSE_SIZE = 3 * NUM_LANDMARKS
+
+
+def _as_rigid_transform(X, name: str) -> RigidTransform:
+    if isinstance(X, RigidTransform):
+        return RigidTransform(X)
+    a = np.asarray(X, dtype=float)
+    if a.shape != (4, 4) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be a RigidTransform or a finite 4x4 transform, got shape {a.shape}")
+    R = a[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-9) or np.linalg.det(R) <= 0.0:
+        raise ValueError(f"{name}: the rotation part is not a proper rotation matrix: {R.tolist()}")
+    if not np.allclose(a[3], [0.0, 0.0, 0.0, 1.0]):
+        raise ValueError(
+            f"{name}: the last row of a homogeneous transform must be [0, 0, 0, 1], got {a[3].tolist()}"
+        )
+    return RigidTransform(RotationMatrix(R), a[:3, 3])
+
+
+def _to_rigid_transform(X: np.ndarray) -> RigidTransform:
+    # The rotation is built from normalised cross products (orthonormal to ~1e-15); re-orthonormalise only if
+    # Drake's check ever rejects it.
+    try:
+        R = RotationMatrix(X[:3, :3])
+    except (RuntimeError, ValueError):
+        R = RotationMatrix.ProjectToRotationMatrix(X[:3, :3])
+    return RigidTransform(R, X[:3, 3])
+
+
+class FrameMapper(LeafSystem):
+    """Builds the torso and wrist frames of eq. (17) from the corrected pose and maps the wrists to the
+    robot's end-effector targets ``X_TE`` (robot torso frame T), once per camera frame.
+
+    .. pydrake_system::
+
+        name: FrameMapper
+        input_ports:
+        - landmarks_C
+        output_ports:
+        - X_TE_desired_left
+        - X_TE_desired_right
+        - tracking_lost
+
+    ``landmarks_C`` is the ``(12, 3)`` camera-frame pose flattened row-major (36). ``X_TE_desired_*`` are
+    ``RigidTransform`` values (see :mod:`akc_drake.core.frames` for the frame conventions). ``tracking_lost``
+    is ``[left, right]``, 1.0 when that side's frame could not be built from the latest frame (missing or
+    degenerate landmarks) and the last valid target is held; before the first valid frame the target is the
+    home pose and ``tracking_lost`` is 1.0.
+
+    State: abstract groups holding the last valid ``X_TE`` per side and a discrete group ``tracking_lost``
+    (2), set by a periodic unrestricted update at the camera period, offset by
+    ``timing.stage_offset("mapper")``; outputs are the state.
+
+    Args:
+        mapping: operator-to-robot mapping (default :meth:`RobotMapping.default`).
+        X_TE_home_left, X_TE_home_right: home targets (``RigidTransform`` or 4x4), normally the robot's
+            nominal end-effector poses in T; default :func:`akc_drake.core.frames.default_home_pose` (the
+            operator's rest posture mapped through ``mapping``).
+        period_s: camera period, seconds.
+        stage_offset_s: per-stage offset (see :mod:`akc_drake.systems.timing`).
+    """
+
+    def __init__(
+        self,
+        mapping: RobotMapping | None = None,
+        *,
+        X_TE_home_left=None,
+        X_TE_home_right=None,
+        period_s: float = 1.0 / timing.DEFAULT_CAMERA_RATE_HZ,
+        stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
+    ):
+        super().__init__()
+        if not (np.isfinite(period_s) and period_s > 0.0):
+            raise ValueError(f"period_s must be a positive number of seconds, got {period_s!r}")
+        self._mapping = mapping if mapping is not None else RobotMapping.default()
+        homes = {"left": X_TE_home_left, "right": X_TE_home_right}
+        self._home = {}
+        for side in SIDES:
+            X = homes[side]
+            if X is None:
+                X = default_home_pose(side, self._mapping)
+            self._home[side] = _as_rigid_transform(X, f"X_TE_home_{side}")
+
+        self._input = self.DeclareVectorInputPort("landmarks_C", BasicVector(POSE_SIZE))
+        self._X_state = {
+            side: self.DeclareAbstractState(AbstractValue.Make(RigidTransform(self._home[side])))
+            for side in SIDES
+        }
+        self._lost = self.DeclareDiscreteState(np.ones(2))
+        for side in SIDES:
+            self.DeclareStateOutputPort(f"X_TE_desired_{side}", self._X_state[side])
+        self.DeclareStateOutputPort("tracking_lost", self._lost)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(
+            period_sec=period_s,
+            offset_sec=timing.stage_offset("mapper", stage_offset_s),
+            update=self._update,
+        )
+
+    @property
+    def mapping(self) -> RobotMapping:
+        return self._mapping
+
+    def home_pose(self, side: str) -> RigidTransform:
+        """The home target of ``side``."""
+        return RigidTransform(self._home[side])
+
+    def _update(self, context, state) -> None:
+        pose = self._input.Eval(context).reshape(NUM_LANDMARKS, 3)
+        targets = robot_targets(pose, self._mapping)
+        lost = np.array(context.get_discrete_state(self._lost).get_value(), dtype=float)
+        for k, (side, X) in enumerate(zip(SIDES, targets, strict=True)):
+            if X is None:
+                # Degenerate or missing landmarks: hold the last valid target and raise tracking_lost.
+                lost[k] = 1.0
+                continue
+            state.get_mutable_abstract_state(self._X_state[side]).set_value(_to_rigid_transform(X))
+            lost[k] = 0.0
+        state.get_mutable_discrete_state(self._lost).SetFromVector(lost)

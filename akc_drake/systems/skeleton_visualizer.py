@@ -1,0 +1,129 @@
+"""Draws the operator's skeleton in Meshcat: raw measurements in red, the corrected pose in blue (paper Fig. 1)."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.geometry import Cylinder, Meshcat, Rgba, Sphere
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.framework import LeafSystem
+
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS
+
+#: Bones drawn, as pairs of landmark names.
+BONES: tuple[tuple[str, str], ...] = (
+    ("left_shoulder", "right_shoulder"),
+    ("left_shoulder", "left_elbow"),
+    ("left_elbow", "left_wrist"),
+    ("right_shoulder", "right_elbow"),
+    ("right_elbow", "right_wrist"),
+    ("left_wrist", "left_index"),
+    ("left_wrist", "left_pinky"),
+    ("right_wrist", "right_index"),
+    ("right_wrist", "right_pinky"),
+    ("left_shoulder", "left_hip"),
+    ("right_shoulder", "right_hip"),
+    ("left_hip", "right_hip"),
+)
+_BONE_IDX = np.array([[INDEX[a], INDEX[b]] for a, b in BONES])
+
+RED = Rgba(0.85, 0.15, 0.15, 1.0)
+BLUE = Rgba(0.15, 0.35, 0.9, 1.0)
+
+
+def default_X_WC(distance_m: float = 1.8, height_m: float = 1.3, y_m: float = 1.2) -> RigidTransform:
+    """A camera pose that shows the operator upright, facing world +x, standing at (0, y_m, 0) in Meshcat.
+
+    The camera frame C is x right, y down, z forward; the operator faces the camera (-z_C).
+    """
+    R_WC = RotationMatrix(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]))
+    return RigidTransform(R_WC, [distance_m, y_m, height_m])
+
+
+def _bone_pose(a: np.ndarray, b: np.ndarray) -> tuple[RigidTransform, float] | None:
+    d = b - a
+    L = float(np.linalg.norm(d))
+    if not np.isfinite(L) or L < 1e-9:
+        return None
+    z = d / L
+    # Any x perpendicular to z completes the frame (the cylinder is symmetric about z).
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = RotationMatrix(np.column_stack([x, y, z]))
+    return RigidTransform(R, 0.5 * (a + b)), L
+
+
+class SkeletonVisualizer(LeafSystem):
+    """Publishes skeletons (one per input port) to Meshcat at the camera rate, recordable for StaticHtml.
+
+    .. pydrake_system::
+
+        name: SkeletonVisualizer
+        input_ports:
+        - landmarks_C_raw
+        - landmarks_C_corrected
+        output_ports: []
+
+    Each bone is a unit-length cylinder scaled along its axis; a bone whose ends are missing (NaN) is hidden.
+    When the Meshcat is recording, the transforms are also saved in the animation, so the exported HTML
+    replays the skeletons with the robot.
+
+    Args:
+        meshcat: the Meshcat instance.
+        X_WC: pose of the camera frame C in the Meshcat world.
+        period_s: publish period (the camera period).
+        offset_s: publish offset after the camera's sample time.
+        prefix: Meshcat path under which the skeletons are drawn.
+    """
+
+    def __init__(
+        self,
+        meshcat: Meshcat,
+        X_WC: RigidTransform | None = None,
+        period_s: float = 0.1,
+        offset_s: float = 0.005,
+        prefix: str = "/operator",
+        radius: float = 0.012,
+    ):
+        super().__init__()
+        self._meshcat = meshcat
+        self._X_WC = X_WC if X_WC is not None else default_X_WC()
+        self._prefix = prefix
+        self._names = ("raw", "corrected")
+        colors = (RED, BLUE)
+        for name in self._names:
+            self.DeclareVectorInputPort(f"landmarks_C_{name}", 3 * NUM_LANDMARKS)
+        for name, rgba in zip(self._names, colors, strict=True):
+            for k in range(len(BONES)):
+                meshcat.SetObject(f"{prefix}/{name}/bone{k}", Cylinder(radius, 1.0), rgba)
+            for j in range(NUM_LANDMARKS):
+                meshcat.SetObject(f"{prefix}/{name}/joint{j}", Sphere(1.6 * radius), rgba)
+        meshcat.SetTransform(prefix, self._X_WC)
+        self.DeclarePeriodicPublishEvent(period_s, offset_s, self._publish)
+
+    def _publish(self, context):
+        t = context.get_time()
+        recording = True  # time_in_recording is ignored by Meshcat unless a recording was started
+        for k, name in enumerate(self._names):
+            port = self.get_input_port(k)
+            if not port.HasValue(context):
+                continue
+            P = np.asarray(port.Eval(context)).reshape(NUM_LANDMARKS, 3)
+            base = f"{self._prefix}/{name}"
+            for b, (i, j) in enumerate(_BONE_IDX):
+                path = f"{base}/bone{b}"
+                pose = _bone_pose(P[i], P[j])
+                if pose is None:
+                    self._meshcat.SetProperty(path, "visible", False, t if recording else None)
+                    continue
+                X, L = pose
+                self._meshcat.SetProperty(path, "visible", True, t)
+                self._meshcat.SetTransform(path, X, t)
+                self._meshcat.SetProperty(path, "scale", [1.0, L, 1.0], t)
+            for j in range(NUM_LANDMARKS):
+                path = f"{base}/joint{j}"
+                ok = bool(np.isfinite(P[j]).all())
+                self._meshcat.SetProperty(path, "visible", ok, t)
+                if ok:
+                    self._meshcat.SetTransform(path, RigidTransform(P[j]), t)
