@@ -1,0 +1,103 @@
+"""Stage S4: Arm Kinematic Correction (AKC) as a Drake LeafSystem wrapping :mod:`akc_drake.core.akc`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from akc_drake.core.akc import AKCWeights, ArmKinematicCorrector
+from akc_drake.core.skeleton import NUM_LANDMARKS, BodyDimensions
+from akc_drake.systems import timing
+
+#: Entries of the ``diagnostics`` output port, in order.
+DIAGNOSTICS: tuple[str, ...] = (
+    "chosen_left",
+    "chosen_right",
+    "fallback_left",
+    "fallback_right",
+    "held_left",
+    "held_right",
+    "cost_left",
+    "cost_right",
+)
+_POSE_SIZE = 3 * NUM_LANDMARKS
+
+
+class ArmKinematicCorrection(LeafSystem):
+    """Replaces the filtered arm joints by the AKC-corrected ones (paper §II-D), at the camera rate.
+
+    .. pydrake_system::
+
+        name: ArmKinematicCorrection
+        input_ports:
+        - landmarks_C
+        output_ports:
+        - landmarks_C_corrected
+        - diagnostics
+
+    ``landmarks_C`` and ``landmarks_C_corrected`` carry the ``(12, 3)`` pose in the camera frame, flattened
+    row-major (36 numbers, NaN where missing). ``diagnostics`` is ``[chosen_left, chosen_right,
+    fallback_left, fallback_right, held_left, held_right, cost_left, cost_right]`` (see
+    :class:`~akc_drake.core.akc.AKCResult`; chosen is -1 and cost NaN for a held arm).
+
+    State (discrete, three groups): the corrector's state (previous corrected arm joints and validity
+    flags, 20), the last corrected pose (36) and the last diagnostics (8). A periodic discrete update at
+    the camera period, offset by ``timing.stage_offset("corrector")``, reads the input and the corrector
+    state, runs :meth:`ArmKinematicCorrector.correct` and writes all three groups; the outputs are the
+    state, so the system has no direct feedthrough. Before the first update the pose is NaN.
+
+    Args:
+        dims: the calibrated body dimensions.
+        weights: cost weights and shrink factor (default: the paper's ``Wb``).
+        rate_hz: the camera rate.
+        stage_offset_s: the per-stage offset of :func:`akc_drake.systems.timing.stage_offset`.
+    """
+
+    def __init__(
+        self,
+        dims: BodyDimensions,
+        weights: AKCWeights | None = None,
+        *,
+        rate_hz: float = timing.DEFAULT_CAMERA_RATE_HZ,
+        stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
+    ):
+        super().__init__()
+        if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
+        # The core object is created once; each update loads the context's state into it and back out.
+        self._akc = ArmKinematicCorrector(dims, weights)
+        self._period = 1.0 / float(rate_hz)
+
+        self._u = self.DeclareVectorInputPort("landmarks_C", _POSE_SIZE)
+        self._x_akc = self.DeclareDiscreteState(BasicVector(self._akc.get_state_vector()))
+        self._x_pose = self.DeclareDiscreteState(BasicVector(np.full(_POSE_SIZE, np.nan)))
+        initial_diag = np.array([-1.0, -1.0, 0.0, 0.0, 1.0, 1.0, np.nan, np.nan])
+        self._x_diag = self.DeclareDiscreteState(BasicVector(initial_diag))
+        self.DeclareStateOutputPort("landmarks_C_corrected", self._x_pose)
+        self.DeclareStateOutputPort("diagnostics", self._x_diag)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self._period,
+            offset_sec=timing.stage_offset("corrector", stage_offset_s),
+            update=self._update,
+        )
+
+    @property
+    def corrector(self) -> ArmKinematicCorrector:
+        """The wrapped core corrector (its state is whatever the last update left in it)."""
+        return self._akc
+
+    @property
+    def period_s(self) -> float:
+        return self._period
+
+    def _update(self, context, discrete_state) -> None:
+        pose = self._u.Eval(context).reshape(NUM_LANDMARKS, 3)
+        self._akc.set_state_vector(context.get_discrete_state(self._x_akc).get_value())
+        r = self._akc.correct(pose)
+        discrete_state.get_mutable_vector(self._x_akc).SetFromVector(self._akc.get_state_vector())
+        discrete_state.get_mutable_vector(self._x_pose).SetFromVector(r.pose.reshape(-1))
+        diag = np.concatenate([r.chosen, r.fallback, r.held, r.cost]).astype(float)
+        discrete_state.get_mutable_vector(self._x_diag).SetFromVector(diag)
+
