@@ -26,10 +26,10 @@ $(STAMP): pyproject.toml Makefile
 
 # Debian packages: graphviz (dot) renders the system graphs. Installed with apt-get when we are root.
 system-deps:
-	@if command -v dot >/dev/null 2>&1; then :; \
+	@if command -v dot >/dev/null 2>&1 && ldconfig -p 2>/dev/null | grep -q libusb-1.0; then :; \
 	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
-	  echo "installing Debian package graphviz (for 'akc-drake graph')"; \
-	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq graphviz >/dev/null) \
+	  echo "installing Debian packages graphviz (system graphs) and libusb-1.0-0 (pyrealsense2)"; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq graphviz libusb-1.0-0 >/dev/null) \
 	  || echo "warning: could not install graphviz; 'akc-drake graph' will write .dot files only. Install it with: sudo apt-get install graphviz"; \
 	else \
 	  echo "warning: graphviz ('dot') is missing; 'akc-drake graph' will write .dot files only. Install it with: sudo apt-get install graphviz"; \

