@@ -1,0 +1,517 @@
+"""Differential inverse kinematics per arm (stage S5's last step: end-effector pose -> joint commands).
+
+Each arm gets Drake's ``DifferentialInverseKinematicsIntegrator`` on a separate, kinematics-only plant of
+the robot in which everything except the arm's 7 joints is welded (:func:`make_arm_ik_plant`). The IK's
+frame A is the torso frame T, its frame E the arm's ``<side>_ee`` frame, so its input is exactly the teleop
+target ``X_TE_desired``. The QP respects the joint position limits (with a small margin), the joint velocity
+limits (scaled by 0.98), an end-effector translational and angular speed limit, and pulls the redundant DoF
+(the elbow swivel) toward :data:`~akc_drake.robot.model.NOMINAL_ARM_Q` with a joint-centering gain. Drake's
+QP scales the commanded spatial velocity down rather than exceed a limit, so a target is approached along the
+straight line in SE(3) for as long as the limits allow.
+
+Two guards make the command safe whatever arrives:
+
+* :class:`PoseTargetGuard` (before the integrator): a target that is not a finite proper rigid transform is
+  replaced by the current commanded pose (the arm holds still); a target out of reach is moved onto the
+  reachable shell around the shoulder (the closest point the arm can get to).
+* :class:`JointCommandGuard` (after the integrator): a non-finite command is replaced by the last command
+  (and counted); every command is clipped to the joint position limits and to ``velocity limit * IK period``
+  from the previous command. The robot is therefore never commanded with NaN nor faster than its limits.
+  The integrator linearises around this guarded command, so it always starts from a feasible point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.multibody.inverse_kinematics import (
+    DifferentialInverseKinematicsIntegrator,
+    DifferentialInverseKinematicsParameters,
+    DifferentialInverseKinematicsStatus,
+)
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.solvers import OsqpSolver
+from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
+from pydrake.systems.primitives import AffineSystem, ConstantValueSource, ConstantVectorSource
+
+from akc_drake.robot.model import (
+    HEAD_JOINTS,
+    NOMINAL_ARM_Q,
+    NUM_ARM_JOINTS,
+    SIDES,
+    TORSO_JOINT,
+    add_dual_arm_robot,
+    arm_joint_limits,
+    arm_joint_names,
+    arm_position_indices,
+    ee_frame,
+    gripper_joint_names,
+    torso_frame,
+)
+
+#: Default IK rate: 100 Hz.
+DEFAULT_IK_TIME_STEP = 0.01
+#: Default joint-centering gain (1/s) pulling the redundant DoF toward the nominal posture.
+DEFAULT_CENTERING_GAIN = 1.0
+#: Default end-effector translational speed limit per axis (m/s) and angular speed limit (rad/s).
+DEFAULT_EE_SPEED_LIMIT = 1.0
+DEFAULT_EE_ANGULAR_SPEED_LIMIT = 3.0
+#: The IK plans with the joint velocity limits times this factor (the QP solver's tolerance stays inside).
+DEFAULT_VELOCITY_LIMIT_SCALE = 0.98
+#: The IK keeps this far (rad) inside the joint position limits.
+DEFAULT_POSITION_LIMIT_MARGIN = 0.02
+#: OSQP iteration cap for the IK's QP.
+OSQP_MAX_ITER = 20000
+#: Targets are kept within this shell around the shoulder centre (metres); the straight arm reaches 0.885 m.
+DEFAULT_WORKSPACE_RADII = (0.15, 0.85)
+
+
+def make_arm_ik_plant(side: str | None = None) -> MultibodyPlant:
+    """A finalized, continuous-time plant of the robot for differential IK.
+
+    Args:
+        side: ``"left"`` or ``"right"``: only that arm's 7 joints move; ``None``: both arms' 14 joints move.
+            Everything else (base, torso lift, head, the other arm, the fingers) is welded at its default
+            position; none of those joints changes ``X_TE``.
+
+    Returns:
+        The plant; its positions are the free arm joints' angles.
+    """
+    free_sides = SIDES if side is None else (_check_side(side),)
+    to_weld = [TORSO_JOINT, *HEAD_JOINTS]
+    for s in SIDES:
+        to_weld += gripper_joint_names(s)
+        if s not in free_sides:
+            to_weld += arm_joint_names(s)
+    plant = MultibodyPlant(0.0)
+    plant.set_name(f"ik_plant_{side or 'both'}")
+    add_dual_arm_robot(plant, weld_base=True, weld_joints=to_weld)
+    plant.Finalize()
+    return plant
+
+
+def _check_side(side: str) -> str:
+    if side not in SIDES:
+        raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+    return side
+
+
+def _static_affine(D: np.ndarray, y0: np.ndarray) -> AffineSystem:
+    """A stateless affine map ``y = D u + y0``."""
+    m, n = D.shape
+    return AffineSystem(
+        A=np.zeros((0, 0)),
+        B=np.zeros((0, n)),
+        f0=np.zeros(0),
+        C=np.zeros((m, 0)),
+        D=D,
+        y0=np.asarray(y0, float),
+    )
+
+
+def _is_valid_pose(X: RigidTransform) -> bool:
+    M = X.GetAsMatrix4()
+    if not np.all(np.isfinite(M)):
+        return False
+    R = M[:3, :3]
+    return bool(np.allclose(R.T @ R, np.eye(3), atol=1e-6) and abs(np.linalg.det(R) - 1.0) < 1e-6)
+
+
+class PoseTargetGuard(LeafSystem):
+    """Makes the end-effector target safe for the IK: valid, and within the arm's reach.
+
+    A target that is not a finite proper rigid transform (non-finite entries, or a rotation that is not
+    orthonormal with determinant +1) is replaced by the pose of the current command, so the arm holds still.
+    A valid target whose position lies outside the spherical shell ``r_min <= |p - p_shoulder| <= r_max``
+    around the arm's shoulder is moved radially onto the shell (the closest point of the shell; its rotation
+    is kept), so an unreachable target is approached as closely as the arm allows without stretching it into
+    the singular straight-arm configuration. Stateless, direct feedthrough.
+
+    .. pydrake_system::
+
+        name: PoseTargetGuard
+        input_ports:
+        - X_TE_desired
+        - ik_state
+        output_ports:
+        - X_AE_desired
+
+    ``ik_state`` is the IK plant's state ``[q, v]`` of the current command (only read for an invalid target).
+    """
+
+    def __init__(self, plant: MultibodyPlant, side: str, r_min: float, r_max: float):
+        """Args:
+        plant: the IK plant.
+        side: ``"left"`` or ``"right"``.
+        r_min, r_max: the reachable shell around the shoulder, metres (0 <= r_min < r_max).
+        """
+        super().__init__()
+        if not (0.0 <= r_min < r_max and math.isfinite(r_max)):
+            raise ValueError(
+                f"PoseTargetGuard: need 0 <= r_min < r_max, got r_min={r_min!r}, r_max={r_max!r}"
+            )
+        self._plant = plant
+        self._plant_context = plant.CreateDefaultContext()
+        self._frame_T = torso_frame(plant)
+        self._frame_E = ee_frame(plant, _check_side(side))
+        shoulder = plant.GetJointByName(arm_joint_names(side)[0]).frame_on_child()
+        #: Shoulder centre in T (the first joint's origin; joints 1-3 intersect there).
+        self.p_TS = shoulder.CalcPose(self._plant_context, self._frame_T).translation().copy()
+        self._r_min, self._r_max = float(r_min), float(r_max)
+        self._target = self.DeclareAbstractInputPort("X_TE_desired", AbstractValue.Make(RigidTransform()))
+        self._x = self.DeclareVectorInputPort("ik_state", plant.num_multibody_states())
+        self.DeclareAbstractOutputPort(
+            "X_AE_desired",
+            lambda: AbstractValue.Make(RigidTransform()),
+            self._calc_target,
+            {self.all_input_ports_ticket()},
+        )
+
+    def project(self, X: RigidTransform) -> RigidTransform:
+        """``X`` with its position moved radially into the reachable shell around the shoulder."""
+        d = X.translation() - self.p_TS
+        r = float(np.linalg.norm(d))
+        if r > self._r_max:
+            return RigidTransform(X.rotation(), self.p_TS + d * (self._r_max / r))
+        if r < self._r_min:
+            # Straight ahead when the target sits on the shoulder centre itself.
+            u = d / r if r > 1e-9 else np.array([1.0, 0.0, 0.0])
+            return RigidTransform(X.rotation(), self.p_TS + u * self._r_min)
+        return X
+
+    def _calc_target(self, context: Context, output: AbstractValue) -> None:
+        X = self._target.Eval(context)
+        if _is_valid_pose(X):
+            X = self.project(X)
+        else:
+            self._plant.SetPositions(
+                self._plant_context, self._x.Eval(context)[: self._plant.num_positions()]
+            )
+            X = self._frame_E.CalcPose(self._plant_context, self._frame_T)
+        output.set_value(X)
+
+
+class JointCommandGuard(LeafSystem):
+    """Makes the arm's joint position command safe: finite, within the position limits, and never more than
+    ``velocity limit * period`` from the previous command.
+
+    A non-finite input holds the previous command and increments ``held_count``. The previous command is
+    discrete state, updated at the IK period (offset 0, the same instants as the integrator) and initialised
+    from ``q_initial`` by an initialisation event; until then the output is ``q_initial`` (clipped).
+
+    .. pydrake_system::
+
+        name: JointCommandGuard
+        input_ports:
+        - q
+        - q_initial
+        output_ports:
+        - q_commanded
+        - v_commanded
+
+    ``v_commanded`` is the velocity of the current command step, ``(q_commanded - previous) / period``: a
+    velocity feedforward for the position controller (zero before the first step and while holding).
+    """
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray, period: float):
+        """Args:
+        lower, upper: joint position limits (rad), shape ``(n,)``.
+        velocity: joint velocity limits (rad/s, > 0), shape ``(n,)``.
+        period: the command period, seconds (> 0).
+        """
+        super().__init__()
+        self._lower = np.asarray(lower, dtype=float)
+        self._upper = np.asarray(upper, dtype=float)
+        self._step = np.asarray(velocity, dtype=float) * float(period)
+        n = len(self._lower)
+        if not (len(self._upper) == n == len(self._step)) or np.any(self._step <= 0) or period <= 0:
+            raise ValueError("JointCommandGuard: limits must have equal lengths, velocities and period > 0")
+        if np.any(self._lower > self._upper):
+            raise ValueError(
+                f"JointCommandGuard: lower limits above upper limits: {self._lower}, {self._upper}"
+            )
+        self._q_in = self.DeclareVectorInputPort("q", n)
+        self._q_init = self.DeclareVectorInputPort("q_initial", n)
+        self._last = self.DeclareDiscreteState(n)
+        # [held count, initialised flag]
+        self._info = self.DeclareDiscreteState(2)
+        self._period = float(period)
+        # The outputs depend on the inputs and the discrete state only (not on time), so they stay cached
+        # between IK steps.
+        deps = {self.xd_ticket(), self._q_in.ticket(), self._q_init.ticket()}
+        self.DeclareVectorOutputPort("q_commanded", n, self._calc_command, deps)
+        self.DeclareVectorOutputPort("v_commanded", n, self._calc_velocity, deps)
+        self.DeclarePeriodicDiscreteUpdateEvent(float(period), 0.0, self._update)
+        self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
+
+    def _initial(self, context: Context) -> np.ndarray:
+        q0 = self._q_init.Eval(context)
+        if not np.all(np.isfinite(q0)):
+            raise ValueError(f"JointCommandGuard: initial joint positions are not finite: {q0}")
+        return np.clip(q0, self._lower, self._upper)
+
+    def _command(self, context: Context) -> tuple[np.ndarray, bool]:
+        if context.get_discrete_state(self._info).get_value()[1] == 0.0:
+            return self._initial(context), False
+        last = context.get_discrete_state(self._last).get_value()
+        q = self._q_in.Eval(context)
+        if not np.all(np.isfinite(q)):
+            return last.copy(), True
+        lo = np.maximum(self._lower, last - self._step)
+        hi = np.minimum(self._upper, last + self._step)
+        return np.clip(q, lo, hi), False
+
+    def _calc_command(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._command(context)[0])
+
+    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
+        q, held = self._command(context)
+        if held or context.get_discrete_state(self._info).get_value()[1] == 0.0:
+            output.SetFromVector(np.zeros(len(q)))
+            return
+        output.SetFromVector((q - context.get_discrete_state(self._last).get_value()) / self._period)
+
+    def _update(self, context: Context, discrete_state) -> None:
+        q, held = self._command(context)
+        discrete_state.get_mutable_vector(self._last).SetFromVector(q)
+        count = context.get_discrete_state(self._info).get_value()[0]
+        discrete_state.get_mutable_vector(self._info).SetFromVector([count + (1.0 if held else 0.0), 1.0])
+
+    def _initialize(self, context: Context, discrete_state) -> None:
+        discrete_state.get_mutable_vector(self._last).SetFromVector(self._initial(context))
+        discrete_state.get_mutable_vector(self._info).SetFromVector([0.0, 1.0])
+
+    def held_count(self, context: Context) -> int:
+        """How many IK periods the command was held because the IK output was not finite."""
+        return int(context.get_discrete_state(self._info).get_value()[0])
+
+
+def arm_ik_parameters(
+    plant: MultibodyPlant,
+    side: str,
+    time_step: float,
+    *,
+    centering_gain: float = DEFAULT_CENTERING_GAIN,
+    ee_speed_limit: float = DEFAULT_EE_SPEED_LIMIT,
+    ee_angular_speed_limit: float = DEFAULT_EE_ANGULAR_SPEED_LIMIT,
+    velocity_limit_scale: float = DEFAULT_VELOCITY_LIMIT_SCALE,
+    position_limit_margin: float = DEFAULT_POSITION_LIMIT_MARGIN,
+) -> DifferentialInverseKinematicsParameters:
+    """Differential-IK parameters for one arm on an IK plant from :func:`make_arm_ik_plant`.
+
+    The arm's joints get its position limits (``margin`` inside), velocity limits (times
+    ``velocity_limit_scale``) and a centering gain toward the plant's default (nominal) posture; any other
+    free joint of the plant (the other arm) is frozen (zero velocity limits, no centering).
+
+    Args:
+        plant: the IK plant.
+        side: ``"left"`` or ``"right"``.
+        time_step: the IK period, seconds.
+        centering_gain: joint-centering gain K (1/s) of the arm's joints.
+        ee_speed_limit: end-effector translational speed limit per axis (m/s).
+        ee_angular_speed_limit: end-effector angular speed limit (rad/s).
+        velocity_limit_scale: factor (0, 1] applied to the joint velocity limits.
+        position_limit_margin: distance (rad) kept from the joint position limits.
+
+    Returns:
+        The parameters.
+    """
+    for name, v in (
+        ("time_step", time_step),
+        ("ee_speed_limit", ee_speed_limit),
+        ("ee_angular_speed_limit", ee_angular_speed_limit),
+        ("velocity_limit_scale", velocity_limit_scale),
+    ):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0.0):
+            raise ValueError(f"arm_ik_parameters: {name} must be a positive number, got {v!r}")
+    if velocity_limit_scale > 1.0:
+        raise ValueError(
+            f"arm_ik_parameters: velocity_limit_scale must be <= 1, got {velocity_limit_scale!r}"
+        )
+    if not (
+        isinstance(centering_gain, (int, float)) and math.isfinite(centering_gain) and centering_gain >= 0
+    ):
+        raise ValueError(f"arm_ik_parameters: centering_gain must be >= 0, got {centering_gain!r}")
+    nq, nv = plant.num_positions(), plant.num_velocities()
+    if nq != nv:
+        raise ValueError(f"arm_ik_parameters: the IK plant must have nq == nv, got {nq} and {nv}")
+    idx = arm_position_indices(plant, _check_side(side))
+    q0 = plant.GetDefaultPositions()
+    lower, upper, vel = arm_joint_limits(side)
+    q_lo, q_hi = q0 - 1.0, q0 + 1.0
+    q_lo[idx], q_hi[idx] = lower + position_limit_margin, upper - position_limit_margin
+    v_lim = np.zeros(nv)
+    v_lim[idx] = vel * velocity_limit_scale
+    K = np.zeros((nq, nq))
+    K[idx, idx] = centering_gain
+
+    params = DifferentialInverseKinematicsParameters(nq, nv)
+    params.set_time_step(time_step)
+    params.set_nominal_joint_position(q0)
+    params.set_joint_centering_gain(K)
+    params.set_joint_position_limits((q_lo, q_hi))
+    params.set_joint_velocity_limits((-v_lim, v_lim))
+    params.set_end_effector_translational_velocity_limits(
+        np.full(3, -ee_speed_limit), np.full(3, ee_speed_limit)
+    )
+    params.set_end_effector_angular_speed_limit(ee_angular_speed_limit)
+    # OSQP's default iteration cap is too low for the QPs near joint limits (it then reports no solution).
+    params.get_mutable_solver_options().SetOption(OsqpSolver.id(), "max_iter", OSQP_MAX_ITER)
+    return params
+
+
+@dataclass
+class ArmDifferentialIK:
+    """What :func:`AddArmDifferentialIK` added for one arm, and its ports.
+
+    Attributes:
+        side: ``"left"`` or ``"right"``.
+        time_step: the IK period, seconds.
+        plant: the IK plant.
+        integrator: Drake's DifferentialInverseKinematicsIntegrator.
+        pose_guard: the :class:`PoseTargetGuard` in front of it.
+        command_guard: the :class:`JointCommandGuard` after it.
+        X_TE_desired_input: the input port for the desired end-effector pose (AbstractValue RigidTransform,
+            in the torso frame T).
+        q_commanded_output: the output port of the arm's 7 joint position commands (rad).
+        v_commanded_output: the velocity of the current command step (rad/s), a feedforward for the
+            station's ``arm_velocity_input``.
+    """
+
+    side: str
+    time_step: float
+    plant: MultibodyPlant
+    integrator: DifferentialInverseKinematicsIntegrator
+    pose_guard: PoseTargetGuard
+    command_guard: JointCommandGuard
+    X_TE_desired_input: InputPort
+    q_commanded_output: OutputPort
+    v_commanded_output: OutputPort
+
+    def status(self, root_context: Context) -> DifferentialInverseKinematicsStatus:
+        """The integrator's most recent status (solution found, no solution, stuck)."""
+        ctx = self.integrator.GetMyContextFromRoot(root_context)
+        return DifferentialInverseKinematicsStatus(int(ctx.get_discrete_state(1).get_value()[0]))
+
+    def held_count(self, root_context: Context) -> int:
+        """How many IK periods the command guard held the command because the IK output was not finite."""
+        return self.command_guard.held_count(self.command_guard.GetMyContextFromRoot(root_context))
+
+    def commanded_pose(self, root_context: Context) -> RigidTransform:
+        """``X_TE`` of the integrator's current joint positions (the pose the IK is commanding)."""
+        return self.integrator.ForwardKinematics(self.integrator.GetMyContextFromRoot(root_context))
+
+
+def AddArmDifferentialIK(
+    builder: DiagramBuilder,
+    plant_for_ik: MultibodyPlant,
+    side: str,
+    time_step: float = DEFAULT_IK_TIME_STEP,
+    *,
+    measured_q_port: OutputPort | None = None,
+    initial_q: np.ndarray | None = None,
+    parameters: DifferentialInverseKinematicsParameters | None = None,
+    workspace_radii: tuple[float, float] = DEFAULT_WORKSPACE_RADII,
+    **parameter_kwargs,
+) -> ArmDifferentialIK:
+    """Add differential IK for one arm: target guard -> Drake's integrator -> command guard.
+
+    The integrator linearises around the guarded command (its ``robot_state`` input is the command guard's
+    output and ``use_robot_state`` is true), so each step starts from a command that is inside the joint
+    limits and finite: the QP stays feasible and a non-finite step is recovered from on the next one. Nothing
+    measured is fed back: the IK is open loop with respect to the robot. The command starts from
+    ``measured_q_port`` (e.g. the station's measured arm positions) when given, else from ``initial_q``
+    (default :data:`~akc_drake.robot.model.NOMINAL_ARM_Q`).
+
+    Args:
+        builder: the diagram builder.
+        plant_for_ik: an IK plant from :func:`make_arm_ik_plant` (``side``'s or both arms); it must outlive
+            the diagram.
+        side: ``"left"`` or ``"right"``.
+        time_step: the IK period, seconds (default 0.01 s, 100 Hz).
+        measured_q_port: an output port with the arm's 7 measured joint positions, read at initialisation.
+        initial_q: the arm's 7 initial joint positions when ``measured_q_port`` is not given.
+        parameters: differential-IK parameters (default :func:`arm_ik_parameters` with ``parameter_kwargs``).
+        workspace_radii: ``(r_min, r_max)`` of the reachable shell around the shoulder, metres; targets
+            outside are moved onto it (see :class:`PoseTargetGuard`).
+        **parameter_kwargs: passed to :func:`arm_ik_parameters`.
+
+    Returns:
+        The :class:`ArmDifferentialIK`: input ``X_TE_desired_input``, output ``q_commanded_output``.
+    """
+    _check_side(side)
+    if not (isinstance(time_step, (int, float)) and math.isfinite(time_step) and time_step > 0.0):
+        raise ValueError(
+            f"AddArmDifferentialIK: time_step must be a positive number of seconds, got {time_step!r}"
+        )
+    if parameters is None:
+        parameters = arm_ik_parameters(plant_for_ik, side, time_step, **parameter_kwargs)
+    elif parameter_kwargs:
+        raise ValueError("AddArmDifferentialIK: give either parameters or parameter keyword arguments")
+    nq = plant_for_ik.num_positions()
+    idx = arm_position_indices(plant_for_ik, side)
+    q_lo, q_hi = (np.asarray(b)[idx] for b in parameters.get_joint_position_limits())
+
+    integrator = builder.AddSystem(
+        DifferentialInverseKinematicsIntegrator(
+            plant_for_ik, torso_frame(plant_for_ik), ee_frame(plant_for_ik, side), time_step, parameters
+        )
+    )
+    integrator.set_name(f"{side}_arm_diff_ik")
+    pose_guard = builder.AddSystem(PoseTargetGuard(plant_for_ik, side, *workspace_radii))
+    pose_guard.set_name(f"{side}_arm_target_guard")
+    # The command stays within the IK's own position limits (inside the joint limits by the margin) and the
+    # joint velocity limits.
+    _, _, vel = arm_joint_limits(side)
+    command_guard = builder.AddSystem(JointCommandGuard(q_lo, q_hi, vel, time_step))
+    command_guard.set_name(f"{side}_arm_command_guard")
+
+    # The IK plant's positions -> the arm's 7 (selection), and the arm's 7 -> the IK plant's state [q, v]
+    # (the other joints at their defaults, v = 0).
+    S = np.zeros((NUM_ARM_JOINTS, nq))
+    S[np.arange(NUM_ARM_JOINTS), idx] = 1.0
+    select = builder.AddSystem(_static_affine(S, np.zeros(NUM_ARM_JOINTS)))
+    select.set_name(f"{side}_arm_ik_select")
+    x0 = np.concatenate([plant_for_ik.GetDefaultPositions(), np.zeros(plant_for_ik.num_velocities())])
+    x0[idx] = 0.0
+    D = np.zeros((len(x0), NUM_ARM_JOINTS))
+    D[idx, np.arange(NUM_ARM_JOINTS)] = 1.0
+    expand = builder.AddSystem(_static_affine(D, x0))
+    expand.set_name(f"{side}_arm_ik_state")
+    if measured_q_port is None:
+        q_init = np.array(NOMINAL_ARM_Q if initial_q is None else initial_q, dtype=float)
+        if q_init.shape != (NUM_ARM_JOINTS,) or not np.all(np.isfinite(q_init)):
+            raise ValueError(
+                f"AddArmDifferentialIK: initial_q must be 7 finite joint angles, got {initial_q!r}"
+            )
+        source = builder.AddSystem(ConstantVectorSource(q_init))
+        source.set_name(f"{side}_arm_ik_initial_q")
+        measured_q_port = source.get_output_port()
+    elif initial_q is not None:
+        raise ValueError("AddArmDifferentialIK: give either measured_q_port or initial_q, not both")
+    use_state = builder.AddSystem(ConstantValueSource(AbstractValue.Make(True)))
+    use_state.set_name(f"{side}_arm_ik_use_command")
+
+    builder.Connect(measured_q_port, command_guard.GetInputPort("q_initial"))
+    builder.Connect(integrator.GetOutputPort("joint_positions"), select.get_input_port())
+    builder.Connect(select.get_output_port(), command_guard.GetInputPort("q"))
+    builder.Connect(command_guard.GetOutputPort("q_commanded"), expand.get_input_port())
+    builder.Connect(expand.get_output_port(), integrator.GetInputPort("robot_state"))
+    builder.Connect(use_state.get_output_port(), integrator.GetInputPort("use_robot_state"))
+    builder.Connect(expand.get_output_port(), pose_guard.GetInputPort("ik_state"))
+    builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), integrator.GetInputPort("X_AE_desired"))
+    return ArmDifferentialIK(
+        side=side,
+        time_step=float(time_step),
+        plant=plant_for_ik,
+        integrator=integrator,
+        pose_guard=pose_guard,
+        command_guard=command_guard,
+        X_TE_desired_input=pose_guard.GetInputPort("X_TE_desired"),
+        q_commanded_output=command_guard.GetOutputPort("q_commanded"),
+        v_commanded_output=command_guard.GetOutputPort("v_commanded"),
+    )
