@@ -32,16 +32,26 @@ class CameraConfig:
 
     width: int = 640
     height: int = 480
-    #: Horizontal field of view of the colour stream, degrees (D435 colour: about 69 deg).
-    fov_x_deg: float = 69.0
+    #: Horizontal field of view, degrees (a D435 colour stream at 640x480 has fx ~ 615 px, i.e. ~55 deg).
+    fov_x_deg: float = 54.97
     rate_hz: float = 10.0
     #: Distance from the operator's pelvis to the camera along the operator's forward axis, metres.
-    distance_m: float = 1.8
+    distance_m: float = 2.0
     #: Camera height above the operator's pelvis, metres (chest height).
-    height_m: float = 0.35
+    height_m: float = 0.45
     #: Stereo model: baseline (m) and sub-pixel disparity noise (px); sigma_z = z^2 sigma_d / (f b).
     baseline_m: float = 0.05
     disparity_noise_px: float = 0.08
+
+    def intrinsics(self):
+        """The :class:`~akc_drake.core.camera.CameraIntrinsics` of this camera (pinhole, centred)."""
+        import math
+
+        from akc_drake.core.camera import CameraIntrinsics
+
+        f = 0.5 * self.width / math.tan(math.radians(self.fov_x_deg) / 2.0)
+        return CameraIntrinsics(width=int(self.width), height=int(self.height), fx=f, fy=f,
+                                cx=(self.width - 1) / 2.0, cy=(self.height - 1) / 2.0, rate_hz=float(self.rate_hz))
 
 
 @dataclass

@@ -1,0 +1,91 @@
+"""Helpers shared by the subcommands: motions from names or files, body dimensions, JSON output."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from akc_drake.errors import UserError
+
+MOTION_FILE_SUFFIXES = (".bvh", ".amc")
+
+
+def motion_from_spec(spec: str, *, cycles: int = 1, seed: int = 0, skeleton: str | None = None, rate_hz=10.0):
+    """An :class:`~akc_drake.operator.motions.OperatorMotion` from a name (I, II, tpose, lpose) or a BVH/AMC file."""
+    from akc_drake.operator.motions import make_motion
+
+    if str(spec).lower().endswith(MOTION_FILE_SUFFIXES) or os.sep in str(spec):
+        from akc_drake.operator.retarget import load_motion_file
+
+        path = Path(spec)
+        if not path.is_file():
+            raise UserError(f"{path}: motion file not found")
+        if skeleton is not None and not Path(skeleton).is_file():
+            raise UserError(f"{skeleton}: skeleton file not found")
+        return load_motion_file(path, skeleton, rate_hz=rate_hz)
+    try:
+        return make_motion(spec, cycles, seed)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+
+
+def load_dims_option(path: str | None):
+    """BodyDimensions from ``--dims FILE.json`` (None when not given)."""
+    if not path:
+        return None
+    from akc_drake.core.calibration import load_dims
+
+    return load_dims(path)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.bool_,)):
+        return bool(x)
+    return x
+
+
+def write_json(path: str | Path, data: dict) -> Path:
+    """Write ``data`` as JSON atomically (temp file + rename); non-finite floats become null."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(_jsonable(data), f, indent=2, allow_nan=False)
+            f.write("\n")
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return p
+
+
+def save_npz_atomic(path: str | Path, **arrays) -> Path:
+    """``np.savez_compressed`` to a temp file, then rename (no pickled objects)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.stem}.", suffix=".npz")
+    os.close(fd)
+    try:
+        np.savez_compressed(tmp, **{k: np.asarray(v) for k, v in arrays.items()})
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return p

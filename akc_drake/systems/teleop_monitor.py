@@ -1,0 +1,117 @@
+"""Watches the teleoperation: targets, commands and the achieved end-effector poses, for the demo's figures."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import LeafSystem
+
+from akc_drake.robot.model import arm_joint_limits, ee_frame, torso_frame
+
+SIDES = ("left", "right")
+
+
+class TeleopMonitor(LeafSystem):
+    """Samples the teleop loop at the IK rate and keeps running statistics (and, optionally, the history).
+
+    .. pydrake_system::
+
+        name: TeleopMonitor
+        input_ports:
+        - X_TE_desired_left
+        - X_TE_desired_right
+        - tracking_lost
+        - q_commanded_left
+        - q_commanded_right
+        - robot_state
+        output_ports: []
+
+    Statistics: NaN commands, the largest commanded joint speed as a fraction of its limit, commands at a
+    position or velocity limit, and the distance between the target and the achieved end-effector position.
+
+    Args:
+        plant: the station's plant (for forward kinematics of the measured state).
+        robot: the robot's model instance.
+        period_s: sampling period (the IK period).
+        keep_history: keep every sample (for plots); off for long runs, where only statistics are kept
+            (memory stays flat).
+    """
+
+    def __init__(self, plant, robot, period_s: float = 0.01, keep_history: bool = True):
+        super().__init__()
+        self._plant = plant
+        self._robot = robot
+        self._plant_context = plant.CreateDefaultContext()
+        self._ee = {s: ee_frame(plant, s, robot) for s in SIDES}
+        self._torso = torso_frame(plant, robot)
+        self._limits = {s: arm_joint_limits(s) for s in SIDES}
+        self._period = period_s
+        self._keep = keep_history
+        for s in SIDES:
+            self.DeclareAbstractInputPort(f"X_TE_desired_{s}", AbstractValue.Make(RigidTransform()))
+        self.DeclareVectorInputPort("tracking_lost", 2)
+        for s in SIDES:
+            self.DeclareVectorInputPort(f"q_commanded_{s}", 7)
+        nx = plant.num_positions(robot) + plant.num_velocities(robot)
+        self.DeclareVectorInputPort("robot_state", nx)
+        self.DeclarePeriodicPublishEvent(period_s, 0.0, self._sample)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything recorded."""
+        self.samples = 0
+        self.nan_commands = 0
+        self.max_speed_ratio = 0.0
+        self.position_limit_hits = 0
+        self.velocity_limit_hits = 0
+        self.tracking_lost_samples = 0
+        self._prev_q = {s: None for s in SIDES}
+        self._errors = {s: [] for s in SIDES}  # decimated to the camera rate, so tiny even for long runs
+        self.history = {k: [] for k in ("t", "target_left", "target_right", "ee_left", "ee_right",
+                                        "q_left", "q_right", "lost")}
+
+    def _sample(self, context):
+        t = context.get_time()
+        self.samples += 1
+        state = self.GetInputPort("robot_state").Eval(context)
+        self._plant.SetPositionsAndVelocities(self._plant_context, self._robot, state)
+        lost = self.GetInputPort("tracking_lost").Eval(context)
+        if np.any(lost > 0.5):
+            self.tracking_lost_samples += 1
+        row = {"t": t, "lost": np.array(lost, copy=True)}
+        for s in SIDES:
+            q = np.array(self.GetInputPort(f"q_commanded_{s}").Eval(context), copy=True)
+            lo, hi, vel = self._limits[s]
+            if not np.all(np.isfinite(q)):
+                self.nan_commands += 1
+            else:
+                if np.any(q <= lo + 1e-3) or np.any(q >= hi - 1e-3):
+                    self.position_limit_hits += 1
+                prev = self._prev_q[s]
+                if prev is not None:
+                    ratio = float(np.max(np.abs(q - prev) / (vel * self._period)))
+                    self.max_speed_ratio = max(self.max_speed_ratio, ratio)
+                    if ratio >= 0.97:
+                        self.velocity_limit_hits += 1
+                self._prev_q[s] = q
+            X_target = self.GetInputPort(f"X_TE_desired_{s}").Eval(context)
+            X_ee = self._ee[s].CalcPose(self._plant_context, self._torso)
+            err = float(np.linalg.norm(X_target.translation() - X_ee.translation()))
+            if self.samples % max(int(round(0.1 / self._period)), 1) == 0 and np.isfinite(err):
+                self._errors[s].append(err)
+            if self._keep:
+                row[f"target_{s}"] = X_target.GetAsMatrix4()
+                row[f"ee_{s}"] = X_ee.GetAsMatrix4()
+                row[f"q_{s}"] = q
+        if self._keep:
+            for k, v in row.items():
+                self.history[k].append(v)
+
+    def ee_errors(self, side: str) -> np.ndarray:
+        """Target-to-achieved end-effector distances (m), sampled at ~10 Hz."""
+        return np.asarray(self._errors[side])
+
+    def history_arrays(self) -> dict[str, np.ndarray]:
+        """The recorded history as arrays (empty when ``keep_history`` is off)."""
+        return {k: np.asarray(v) for k, v in self.history.items()}
