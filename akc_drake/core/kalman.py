@@ -1,0 +1,795 @@
+"""Constant-velocity Kalman filter (paper eq. 1-3) and the bone-length-constrained EKF (eq. 4-6).
+
+Stage S3b of the pipeline. Every landmark ``p = [x, y, z]`` (camera frame C, metres) is tracked
+with a constant-velocity model, state ``x_k = [p_k, p_dot_k]`` (eq. 1)::
+
+    x_k = A x_{k-1} + w_k,    z_k = H x_k + v_k                                   (eq. 2)
+    R = diag(sigma_x^2, sigma_y^2, sigma_z^2),    sigma_z >> sigma_x, sigma_y       (eq. 3)
+
+with ``A = [[I, dt I], [0, I]]``, ``H = [I, 0]`` and the white-noise-acceleration process noise
+``Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]`` per axis (``q`` the acceleration spectral density).
+
+**Decoupled KF.** With a diagonal ``R`` and a per-axis ``Q`` the 6-state filter of one landmark
+splits exactly into three independent 2-state filters (position, velocity) along x, y and z.
+:class:`ConstantVelocityKF` therefore keeps ``p, v, P_pp, P_pv, P_vv`` as rows of ``3 J`` numbers
+and runs all ``3 J`` two-state filters at once: about fifteen whole-array numpy operations per
+frame, no loop over landmarks. It is equal (to rounding) to the textbook 6-state filter with
+full matrices; the tests check that to 1e-12.
+
+**Constrained EKF.** :class:`ExtendedKalmanFilterCV` adds, after the measurement update, one
+pseudo-measurement per connected pair (LUA, LLA, RUA, RLA, SW)::
+
+    h(x) = |p_i - p_j| = l                                                         (eq. 4)
+    H_c = [(p_i - p_j)^T / |p_i - p_j|, 0, 0, 0]  (and the negative for p_j)        (eq. 5)
+    x <- x + K_c (l - h(x))                                                        (eq. 6)
+
+with its own variance ``sigma_c^2``: a soft constraint toward the calibrated lengths. The six
+arm landmarks (shoulders, elbows, wrists) are coupled through it and carry a full 36 x 36
+covariance; the other six landmarks keep the decoupled KF.
+
+**Missing data.** A measurement is a ``(J, 3)`` array with NaN where missing (the occlusion filter
+drops a depth by setting only ``z`` to NaN). Each axis that is present is used: all three ->
+full update; ``z`` missing -> the partial update of the paper with ``x`` and ``y`` only; nothing
+-> prediction only. The first measurement of an axis initialises it (``p = z``, ``v = 0``,
+``P = diag(r, init_vel_var)``); an axis that was never measured reads NaN.
+
+**Losing a track.** An axis extrapolates for at most ``max_predict_s`` after its last
+measurement; a prediction step that would take it beyond that is replaced by holding: the
+velocity is zeroed (in the EKF also its covariance, every step) and the position no longer moves
+by the motion model (the EKF's bone constraints may still correct it). The next measurement of a held axis
+re-initialises it rather than being fused with the stale estimate. A landmark none of whose
+axes has been measured for longer than ``max_predict_s`` has status :data:`LOST`.
+
+**Innovation gate** (off by default). With ``gate_sigma`` set, a measured axis whose normalised
+innovation ``|y| / sqrt(S)`` exceeds it is treated as missing; after ``gate_max_rejects``
+consecutive rejections of the same axis the measurement is accepted and the axis re-initialised,
+so the filter can never lock itself out of a track that really moved.
+
+All filter state lives in one flat float vector (:meth:`get_state_vector` /
+:meth:`set_state_vector`) so a Drake context can carry it and a simulation can be replayed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+from scipy.linalg import lapack
+
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SEGMENT_NAMES, SEGMENTS, BodyDimensions
+
+#: Tracking status codes (:attr:`ConstantVelocityKF.status`).
+UNINITIALISED = 0
+TRACKING = 1
+PREDICTING = 2
+LOST = 3
+STATUS_NAMES: tuple[str, ...] = ("UNINITIALISED", "TRACKING", "PREDICTING", "LOST")
+_STATUS_OF_BIN = np.array([TRACKING, PREDICTING, LOST, UNINITIALISED], dtype=np.int64)
+
+# Slack on time comparisons: ages are sums of float periods (10 x 0.1 = 0.9999999999999999).
+_T_EPS = 1e-9
+# The EKF re-symmetrises its covariance every this many steps.
+_SYMMETRISE_EVERY = 16
+# Constraint skipped when the two ends are closer than this (metres): the direction is undefined.
+_MIN_CONSTRAINT_DIST = 1e-6
+
+
+def _positive(name: str, value, *, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise ValueError(f"{name} must be a {kind} finite number, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class KFConfig:
+    """Noise model and track management of the constant-velocity Kalman filter.
+
+    Defaults are for an Intel RealSense D435 seeing the operator at about 2 m, 640x480, with a 2D
+    landmark detector:
+
+    * ``sigma_x = sigma_y = 0.01`` m: a 2D landmark jitters by about 3 px; at 2 m with
+      ``fx = 615`` px one pixel is 3.3 mm.
+    * ``sigma_z = 0.05`` m: the D435's depth RMS error is about 2 % of the range (4 cm at 2 m),
+      and the depth is read on the body surface, not at the joint centre.
+    * ``accel_psd = 0.3`` m^2/s^3 per axis: the paper's motions (6 s cycles with arm-length
+      amplitudes) accelerate by about 0.5 m/s^2; 0.3 allows a velocity change of
+      ``sqrt(q dt) = 0.17`` m/s per 10 Hz frame. On a simulated 6 s, 0.3 m sinusoid with these
+      sigmas values between 0.05 and 0.5 give RMSEs within 15 % of each other; larger values
+      follow faster motion with less lag, smaller ones smooth more.
+    * ``init_vel_var = 0.25`` (m/s)^2: a new track's velocity is unknown to about 0.5 m/s.
+
+    Attributes:
+        sigma_x, sigma_y, sigma_z: measurement standard deviations in metres (eq. 3).
+        accel_psd: white-noise acceleration spectral density ``q`` per axis (x, y, z), m^2/s^3.
+        init_vel_var: variance of the velocity of a newly initialised axis, (m/s)^2.
+        max_predict_s: longest extrapolation after an axis's last measurement, seconds.
+        gate_sigma: innovation gate in standard deviations, or None (default) for no gate.
+        gate_max_rejects: consecutive gate rejections after which a measurement is accepted and
+            the axis re-initialised.
+    """
+
+    sigma_x: float = 0.01
+    sigma_y: float = 0.01
+    sigma_z: float = 0.05
+    accel_psd: tuple[float, float, float] = (0.3, 0.3, 0.3)
+    init_vel_var: float = 0.25
+    max_predict_s: float = 1.0
+    gate_sigma: float | None = None
+    gate_max_rejects: int = 5
+
+    def __post_init__(self):
+        cls = type(self).__name__
+        for name in ("sigma_x", "sigma_y", "sigma_z", "init_vel_var", "max_predict_s"):
+            object.__setattr__(self, name, _positive(f"{cls}.{name}", getattr(self, name)))
+        q = self.accel_psd
+        if isinstance(q, (int, float, np.integer, np.floating)):
+            q = (q, q, q)
+        try:
+            q = tuple(q)
+        except TypeError:
+            raise ValueError(f"{cls}.accel_psd must be 3 numbers (x, y, z), got {self.accel_psd!r}") from None
+        if len(q) != 3:
+            raise ValueError(f"{cls}.accel_psd must be 3 numbers (x, y, z), got {self.accel_psd!r}")
+        q = tuple(_positive(f"{cls}.accel_psd[{i}]", qi, allow_zero=True) for i, qi in enumerate(q))
+        object.__setattr__(self, "accel_psd", q)
+        if self.gate_sigma is not None:
+            object.__setattr__(self, "gate_sigma", _positive(f"{cls}.gate_sigma", self.gate_sigma))
+        g = self.gate_max_rejects
+        if isinstance(g, bool) or not isinstance(g, (int, np.integer)) or g < 1:
+            raise ValueError(f"{cls}.gate_max_rejects must be an integer >= 1, got {g!r}")
+
+    @property
+    def r(self) -> np.ndarray:
+        """Measurement variances ``(3,)``: the diagonal of R (eq. 3)."""
+        return np.array([self.sigma_x, self.sigma_y, self.sigma_z]) ** 2
+
+
+@dataclass(frozen=True)
+class EKFConfig(KFConfig):
+    """:class:`KFConfig` plus the bone-length constraint of the EKF (eq. 4-6).
+
+    Attributes:
+        sigma_c: standard deviation of the bone-length pseudo-measurement, metres. 0.01 m: about
+            the accuracy of a T-pose calibration; smaller values hold the lengths harder.
+        segments: which segments are constrained (names of ``skeleton.SEGMENTS``).
+    """
+
+    sigma_c: float = 0.01
+    segments: tuple[str, ...] = SEGMENT_NAMES
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "sigma_c", _positive("EKFConfig.sigma_c", self.sigma_c))
+        segs = (self.segments,) if isinstance(self.segments, str) else tuple(self.segments)
+        unknown = [s for s in segs if s not in SEGMENTS]
+        if unknown or not segs or len(set(segs)) != len(segs):
+            known = ", ".join(SEGMENT_NAMES)
+            raise ValueError(f"EKFConfig.segments must be distinct names from {known}, got {self.segments!r}")
+        object.__setattr__(self, "segments", segs)
+
+    def kf_config(self) -> KFConfig:
+        """The plain :class:`KFConfig` part."""
+        return KFConfig(**{f.name: getattr(self, f.name) for f in fields(KFConfig)})
+
+
+def _check_dt(dt) -> float:
+    try:
+        d = float(dt)
+    except (TypeError, ValueError):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}") from None
+    if not (0.0 < d < math.inf):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    return d
+
+
+def _check_z(z, shape: tuple[int, int]) -> np.ndarray:
+    a = np.asarray(z, dtype=np.float64)
+    if a.shape != shape:
+        raise ValueError(f"measurement z must have shape {shape}, got {a.shape}")
+    return a
+
+
+def _process_noise(q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]] per axis: the (pp, pv, vv) entries, each ``(3,)``."""
+    return q * (dt**3 / 3.0), q * (dt**2 / 2.0), q * dt
+
+
+def status_from(initialised: np.ndarray, age: np.ndarray, max_predict_s: float) -> np.ndarray:
+    """Per-landmark status from which axes are initialised ``(J, 3)`` bool and their ages ``(J, 3)``.
+
+    Returns:
+        ``(J,)`` int: :data:`UNINITIALISED` if no axis was ever measured, :data:`TRACKING` if an
+        axis was measured at the last step, :data:`LOST` if no axis has been measured for longer
+        than ``max_predict_s``, :data:`PREDICTING` otherwise.
+    """
+    # Age of each landmark's most recent measurement (inf if never measured), binned:
+    # (-inf, 0] TRACKING, (0, max] PREDICTING, (max, 1e300] LOST, inf UNINITIALISED.
+    newest = np.where(initialised, age, np.inf).min(axis=1)
+    bins = np.array([0.0, max_predict_s + _T_EPS, 1e300])
+    return _STATUS_OF_BIN[np.searchsorted(bins, newest)]
+
+
+def _gate(cfg: KFConfig, use, y, S, rejects, reinit):
+    """Innovation gate on the axes ``use`` (bool, updated in place together with ``reinit``).
+
+    ``y`` are the innovations and ``S`` their variances (same shape). Returns nothing; ``rejects``
+    counts consecutive rejections per axis.
+    """
+    g = cfg.gate_sigma
+    with np.errstate(invalid="ignore"):
+        bad = use & (y * y > (g * g) * S)
+    rejects[use & ~bad] = 0.0
+    rejects[bad] += 1.0
+    force = bad & (rejects >= cfg.gate_max_rejects)
+    rejects[force] = 0.0
+    reinit |= force
+    use &= ~bad
+
+
+class ConstantVelocityKF:
+    """Constant-velocity Kalman filter for ``J`` landmarks (eq. 1-3), vectorised over axes.
+
+    Args:
+        num_landmarks: number of landmarks ``J`` (12 for the pipeline).
+        config: noise model and track management.
+
+    Each of the ``3 J`` axes is an independent 2-state filter (exact for diagonal R and per-axis
+    Q, see the module docstring). Internally every quantity is a contiguous row of ``3 J`` floats
+    (landmark-major, x/y/z innermost) of one ``(8, 3 J)`` buffer with rows
+    ``[p, v, P_pp, P_pv, P_vv, age, initialised, rejects]`` (``p`` is 0, not NaN, on uninitialised
+    axes so that the matrix product of the prediction never meets a NaN). A step is about fifteen
+    numpy operations on whole rows (the prediction, ageing included, is one 6 x 6 matrix product).
+    """
+
+    _P, _V, _PPP, _PPV, _PVV, _AGE, _INIT, _REJ = range(8)
+
+    def __init__(self, num_landmarks: int = NUM_LANDMARKS, config: KFConfig | None = None):
+        bad = isinstance(num_landmarks, bool) or not isinstance(num_landmarks, (int, np.integer))
+        if bad or num_landmarks < 1:
+            raise ValueError(f"num_landmarks must be a positive integer, got {num_landmarks!r}")
+        config = KFConfig() if config is None else config
+        if not isinstance(config, KFConfig):
+            raise ValueError(f"config must be a KFConfig, got {type(config).__name__}")
+        self.num_landmarks = J = int(num_landmarks)
+        self.config = config
+        self._shape = (J, 3)
+        N = 3 * J
+        self._r = np.tile(config.r, J)
+        self._q = np.tile(np.array(config.accel_psd, dtype=np.float64), J)
+        self._limit = config.max_predict_s + _T_EPS
+        self._s = s = np.empty((8, N))
+        self._p, self._v, self._Ppp, self._Ppv, self._Pvv, self._age, self._init, self._rej = s
+        self._p_v = s[0:2]
+        self._Ppp_Ppv = s[2:4]
+        self._first6 = s[:6]
+        # Prediction: rows 0..5 <- L @ rows 0..5 + Q (L and Q set with dt), and scratch arrays.
+        self._L = np.eye(6)
+        self._Q = np.zeros((6, N))
+        self._T6 = np.empty((6, N))
+        self._t = np.empty(N)
+        self._S = np.empty(N)
+        self._y = np.empty(N)
+        self._T2 = np.empty((2, N))
+        self._K = np.empty((2, N))
+        self._dt = None
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def state_size(self) -> int:
+        """Length of :meth:`get_state_vector`."""
+        return self._s.size
+
+    def reset(self) -> None:
+        """Forget every track (all landmarks back to UNINITIALISED)."""
+        self._s[...] = 0.0
+        self._all_init = False
+        self._oldest = 0.0
+
+    def get_state_vector(self) -> np.ndarray:
+        """All filter state as a new 1-D float array."""
+        return self._s.flatten()
+
+    def set_state_vector(self, v) -> None:
+        """Load the state written by :meth:`get_state_vector` (of a filter with the same size)."""
+        a = np.asarray(v, dtype=np.float64).reshape(-1)
+        if a.size != self._s.size:
+            raise ValueError(f"state vector must have {self._s.size} entries, got {a.size}")
+        self._s.reshape(-1)[...] = a
+        self._all_init = bool(self._init.all())
+        self._oldest = float(self._age.max())
+
+    def _view(self, row: np.ndarray, nan_uninit: bool) -> np.ndarray:
+        out = row.reshape(self._shape).copy()
+        if nan_uninit and not self._all_init:
+            out[self._init.reshape(self._shape) == 0.0] = np.nan
+        return out
+
+    @property
+    def initialised(self) -> np.ndarray:
+        """``(J, 3)`` bool: the axis has been measured at least once."""
+        return self._init.reshape(self._shape) != 0.0
+
+    @property
+    def position(self) -> np.ndarray:
+        """Estimated positions ``(J, 3)``, NaN for axes never measured."""
+        return self._view(self._p, True)
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Estimated velocities ``(J, 3)`` (m/s), NaN for axes never measured."""
+        return self._view(self._v, True)
+
+    @property
+    def position_variance(self) -> np.ndarray:
+        """Variance of each position axis ``(J, 3)``, NaN for axes never measured."""
+        return self._view(self._Ppp, True)
+
+    @property
+    def axis_age(self) -> np.ndarray:
+        """Seconds since each axis was last measured ``(J, 3)`` (0 for axes never measured)."""
+        return self._view(self._age, False)
+
+    @property
+    def status(self) -> np.ndarray:
+        """``(J,)`` int: 0 UNINITIALISED, 1 TRACKING, 2 PREDICTING, 3 LOST."""
+        return status_from(self.initialised, self._age.reshape(self._shape), self.config.max_predict_s)
+
+    # ------------------------------------------------------------------ step
+    def _set_dt(self, dt: float) -> None:
+        P, V, PPP, PPV, PVV, AGE = self._P, self._V, self._PPP, self._PPV, self._PVV, self._AGE
+        Q = self._Q
+        Q[PPP], Q[PPV], Q[PVV] = _process_noise(self._q, dt)
+        Q[AGE] = dt
+        L = self._L
+        L[P, V] = dt  # p += dt v
+        L[PPP, PPV] = 2.0 * dt  # P_pp += 2 dt P_pv + dt^2 P_vv
+        L[PPP, PVV] = dt * dt
+        L[PPV, PVV] = dt  # P_pv += dt P_vv
+        self._dt = dt
+
+    def step(self, z, dt: float) -> np.ndarray:
+        """Advance by ``dt`` seconds and fuse measurement ``z``.
+
+        Args:
+            z: ``(J, 3)`` measured positions, NaN where missing.
+            dt: time since the previous step, seconds (> 0).
+
+        Returns:
+            ``(J, 3)`` estimated positions (a new array), NaN only for axes never measured.
+
+        Raises:
+            ValueError: ``z`` has the wrong shape or ``dt`` is not positive.
+        """
+        return self._step(_check_z(z, self._shape).reshape(-1), _check_dt(dt))
+
+    def _step(self, z: np.ndarray, dt: float) -> np.ndarray:
+        """:meth:`step` on a checked flat ``z`` (3 J,) and ``dt``."""
+        if dt != self._dt:
+            self._set_dt(dt)
+        p, age = self._p, self._age
+        m = np.isfinite(z)
+        # Track management only when some axis is uninitialised or may pass max_predict_s this step
+        # (``_oldest`` is an upper bound of the oldest axis age).
+        limit = self._limit
+        slow = not self._all_init or self._oldest + dt > limit
+        if slow:
+            # Unmeasured axes whose extrapolation would go beyond max_predict_s stop (v = 0); this
+            # also covers axes already LOST. Their velocity covariance keeps growing, unused: their
+            # next measurement re-initialises them.
+            np.copyto(self._v, 0.0, where=(age > limit - dt) & ~m)
+            reinit = m & (age > limit)
+            if not self._all_init:
+                reinit |= m & (self._init == 0.0)
+            use = m & ~reinit
+        else:
+            use = m
+
+        # eq. (2), prediction x = A x, P = A P A^T + Q for every axis at once, as one linear map
+        # of the rows: p += dt v; P_pp += 2 dt P_pv + dt^2 P_vv; P_pv += dt P_vv; + Q; age += dt.
+        np.dot(self._L, self._first6, out=self._T6)
+        np.add(self._T6, self._Q, out=self._first6)
+
+        # eq. (3), measurement update of the measured axes only (``where=use``): the partial
+        # update when only x, y are present.
+        # S = H P H^T + R (a scalar per axis)
+        S = np.add(self._Ppp, self._r, out=self._S)
+        # y = z - H x
+        y = np.subtract(z, p, out=self._y)
+        if self.config.gate_sigma is not None:
+            if not slow:
+                reinit = np.zeros_like(m)
+                slow = True
+            _gate(self.config, use, y, S, self._rej, reinit)
+        # K = P H^T S^-1 = [P_pp, P_pv] / S
+        K = np.divide(self._Ppp_Ppv, S, out=self._K)
+        # x = x + K y
+        T2 = np.multiply(K, y, out=self._T2)
+        np.add(self._p_v, T2, out=self._p_v, where=use)
+        # P = (I - K H) P:  P_vv -= K_v P_pv;  [P_pp, P_pv] -= K_p [P_pp, P_pv]
+        t = np.multiply(K[1], self._Ppv, out=self._t)
+        np.subtract(self._Pvv, t, out=self._Pvv, where=use)
+        np.multiply(self._Ppp_Ppv, K[0], out=T2)
+        np.subtract(self._Ppp_Ppv, T2, out=self._Ppp_Ppv, where=use)
+
+        if slow:
+            if reinit.any():
+                p[reinit] = z[reinit]
+                self._v[reinit] = 0.0
+                self._Ppp[reinit] = self._r[reinit]
+                self._Ppv[reinit] = 0.0
+                self._Pvv[reinit] = self.config.init_vel_var
+                self._rej[reinit] = 0.0
+                use |= reinit
+            if not self._all_init:
+                self._init[reinit] = 1.0
+                age[self._init == 0.0] = 0.0
+                self._all_init = bool(self._init.all())
+        age[use] = 0.0
+        # Refresh the bound on the oldest age only when it matters.
+        self._oldest += dt
+        if self._oldest + dt > limit:
+            self._oldest = float(age.max())
+        if self._all_init:
+            return p.reshape(self._shape).copy()
+        return np.where(self._init == 0.0, np.nan, p).reshape(self._shape)
+
+
+# Landmarks of the constrained (coupled) block of the EKF. With the order of ``skeleton.LANDMARKS``
+# they are the first six (shoulders, elbows, wrists), which lets the EKF use slices, not copies.
+_ARM = tuple(sorted({INDEX[n] for seg in SEGMENT_NAMES for n in SEGMENTS[seg]}))
+if _ARM != tuple(range(len(_ARM))):  # pragma: no cover - guards a change of skeleton.LANDMARKS
+    raise RuntimeError("the EKF expects the segment landmarks first in skeleton.LANDMARKS")
+_NA = len(_ARM)
+
+
+class ExtendedKalmanFilterCV:
+    """Constant-velocity EKF with bone-length pseudo-measurements (eq. 4-6).
+
+    The arm landmarks (both shoulders, elbows and wrists) share one 36-state filter, state
+    ``x = [p (18), v (18)]`` (landmark-major, x/y/z innermost) with a full 36 x 36 covariance.
+    After the measurement update each constrained segment adds the pseudo-measurement
+    ``|p_i - p_j| = l`` with variance ``sigma_c^2``, all segments in one batch linearised at the
+    updated state. A segment is skipped when an axis of either end is uninitialised or the ends
+    coincide. The other landmarks run the decoupled :class:`ConstantVelocityKF`.
+
+    A held axis (see the module docstring) has its velocity and the velocity's covariance
+    zeroed every step, so the motion model no longer moves it, but its position stays in the
+    filter: the bone constraints keep correcting it (that is how the EKF recovers the depth of
+    a joint whose depth measurement has been dropped for a long time).
+
+    Args:
+        dims: the operator's calibrated segment lengths (``l`` of eq. 4).
+        config: noise model, track management and constraint settings.
+
+    Same API as :class:`ConstantVelocityKF`.
+    """
+
+    def __init__(self, dims: BodyDimensions, config: EKFConfig | None = None):
+        if not isinstance(dims, BodyDimensions):
+            raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
+        config = EKFConfig() if config is None else config
+        if not isinstance(config, EKFConfig):
+            raise ValueError(f"config must be an EKFConfig, got {type(config).__name__}")
+        self.dims = dims
+        self.config = config
+        self.num_landmarks = NUM_LANDMARKS
+        self._n3 = n3 = 3 * _NA
+        self._n = n = 2 * n3
+        self._limit = config.max_predict_s + _T_EPS
+        self._r = np.tile(config.r, _NA)
+        self._R = np.diag(self._r)
+        self._q = np.tile(np.array(config.accel_psd, dtype=np.float64), _NA)
+        self._side = ConstantVelocityKF(NUM_LANDMARKS - _NA, config.kf_config())
+
+        # One buffer: M = [P | x] (n x (n + 1)), then age, initialised, rejects (n3 each) and a step
+        # counter. Keeping x as the last column of P lets one matrix operation update both: the
+        # prediction's row operation A [P | x] = [A P | A x], and each update
+        # [P | x] -= P H^T S^-1 [(P H^T)^T | H x - z].
+        # Positions are 0, not NaN, on uninitialised axes (their rows of P stay decoupled).
+        self._buf = b = np.zeros(n * (n + 1) + 3 * n3 + 1)
+        self._M = M = b[: n * (n + 1)].reshape(n, n + 1)
+        self._P = M[:, :n]
+        self._x = M[:, n]
+        self._p = self._x[:n3]
+        self._v = self._x[n3:]
+        o = n * (n + 1)
+        self._age = b[o : o + n3]
+        self._init = b[o + n3 : o + 2 * n3]
+        self._rej = b[o + 2 * n3 : o + 3 * n3]
+        self._count = b[o + 3 * n3 :]
+        self._M_top, self._M_bottom = M[:n3], M[n3:]
+        self._P_left, self._P_right = M[:, :n3], M[:, n3:n]
+        self._P_pp = M[:n3, :n3]
+
+        # Constraint k: segment between arm landmarks a_k and b_k.
+        segs = config.segments
+        self._seg_names = segs
+        ca = np.array([INDEX[SEGMENTS[s][0]] for s in segs], dtype=np.intp)
+        cb = np.array([INDEX[SEGMENTS[s][1]] for s in segs], dtype=np.intp)
+        self._ca, self._cb = ca, cb
+        nc = len(segs)
+        self._l = np.array([getattr(dims, s) for s in segs])
+        # D: (3 nc, n3) with diff = D p = p_a - p_b per segment and axis.
+        self._D = np.zeros((3 * nc, n3))
+        rows = np.arange(3 * nc)
+        self._D[rows, 3 * np.repeat(ca, 3) + np.tile(np.arange(3), nc)] = 1.0
+        self._D[rows, 3 * np.repeat(cb, 3) + np.tile(np.arange(3), nc)] = -1.0
+        # Axes (flat position indices) of both ends of each segment, for the skip test.
+        self._seg_axes = np.stack([self._D[3 * k : 3 * k + 3].any(axis=0) for k in range(nc)])
+        # H_c is written through flat indices: row k gets u_k at the columns of a_k, -u_k at b_k.
+        self._Hc = np.zeros((nc, n))
+        rk = np.repeat(np.arange(nc), 3)
+        self._hc_flat = np.stack(
+            (
+                rk * n + 3 * np.repeat(ca, 3) + np.tile(np.arange(3), nc),
+                rk * n + 3 * np.repeat(cb, 3) + np.tile(np.arange(3), nc),
+            )
+        )
+        self._sign2 = np.array([[1.0], [-1.0]])
+        self._Rc = np.eye(nc) * config.sigma_c**2
+        # Scratch.
+        self._Q = np.zeros((n, n))
+        self._T_rows = np.empty((n3, n + 1))
+        self._T_cols = np.empty((n, n3))
+        self._B = np.empty((n3, n + 1))
+        self._Bc = np.empty((nc, n + 1))
+        self._T_sym = np.empty((n, n))
+        self._S = np.empty((n3, n3))
+        self._S_diag = self._S.reshape(-1)[:: n3 + 1]
+        self._vals = np.empty((2, 3 * nc))
+        self._dt = None
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def state_size(self) -> int:
+        """Length of :meth:`get_state_vector`."""
+        return self._buf.size + self._side.state_size
+
+    def reset(self) -> None:
+        """Forget every track."""
+        self._buf[...] = 0.0
+        self._all_init = False
+        self._oldest = 0.0
+        self._side.reset()
+
+    def get_state_vector(self) -> np.ndarray:
+        """All filter state as a new 1-D float array."""
+        return np.concatenate((self._buf, self._side.get_state_vector()))
+
+    def set_state_vector(self, v) -> None:
+        """Load the state written by :meth:`get_state_vector`."""
+        a = np.asarray(v, dtype=np.float64).reshape(-1)
+        if a.size != self.state_size:
+            raise ValueError(f"state vector must have {self.state_size} entries, got {a.size}")
+        nb = self._buf.size
+        self._buf[...] = a[:nb]
+        self._side.set_state_vector(a[nb:])
+        self._all_init = bool(self._init.all())
+        self._oldest = float(self._age.max())
+
+    def _arm_view(self, flat: np.ndarray, nan_uninit: bool) -> np.ndarray:
+        out = flat.reshape(_NA, 3).copy()
+        if nan_uninit and not self._all_init:
+            out[self._init.reshape(_NA, 3) == 0.0] = np.nan
+        return out
+
+    @property
+    def initialised(self) -> np.ndarray:
+        """``(12, 3)`` bool: the axis has been measured at least once."""
+        return np.concatenate((self._init.reshape(_NA, 3) != 0.0, self._side.initialised))
+
+    @property
+    def position(self) -> np.ndarray:
+        """Estimated positions ``(12, 3)``, NaN for axes never measured."""
+        return np.concatenate((self._arm_view(self._p, True), self._side.position))
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Estimated velocities ``(12, 3)`` (m/s), NaN for axes never measured."""
+        return np.concatenate((self._arm_view(self._v, True), self._side.velocity))
+
+    @property
+    def position_variance(self) -> np.ndarray:
+        """Marginal variance of each position axis ``(12, 3)``, NaN for axes never measured."""
+        d = np.diagonal(self._P)[: self._n3]
+        return np.concatenate((self._arm_view(d, True), self._side.position_variance))
+
+    @property
+    def axis_age(self) -> np.ndarray:
+        """Seconds since each axis was last measured ``(12, 3)`` (0 for axes never measured)."""
+        return np.concatenate((self._arm_view(self._age, False), self._side.axis_age))
+
+    @property
+    def arm_covariance(self) -> np.ndarray:
+        """Copy of the 36 x 36 covariance of the arm block: positions then velocities, landmarks in
+        the order of ``skeleton.ARM_JOINTS``, x/y/z innermost."""
+        return self._P.copy()
+
+    @property
+    def status(self) -> np.ndarray:
+        """``(12,)`` int: 0 UNINITIALISED, 1 TRACKING, 2 PREDICTING, 3 LOST."""
+        init = self._init.reshape(_NA, 3) != 0.0
+        arm = status_from(init, self._age.reshape(_NA, 3), self.config.max_predict_s)
+        return np.concatenate((arm, self._side.status))
+
+    def bone_lengths(self) -> dict[str, float]:
+        """Current estimated length of every constrained segment (NaN if an end is uninitialised)."""
+        pa = self._arm_view(self._p, True)
+        d = np.linalg.norm(pa[self._ca] - pa[self._cb], axis=1)
+        return dict(zip(self._seg_names, d.tolist(), strict=True))
+
+    # ------------------------------------------------------------------ step
+    def _set_dt(self, dt: float) -> None:
+        n3 = self._n3
+        Qpp, Qpv, Qvv = _process_noise(self._q, dt)
+        i = np.arange(n3)
+        Q = self._Q
+        Q[i, i] = Qpp
+        Q[i, i + n3] = Qpv
+        Q[i + n3, i] = Qpv
+        Q[i + n3, i + n3] = Qvv
+        self._dt = dt
+
+    def _zero_rows_cols(self, rows: np.ndarray) -> None:
+        """Zero the state entries ``rows`` with their rows and columns of P."""
+        self._M[rows, :] = 0.0
+        self._P[:, rows] = 0.0
+
+    def step(self, z, dt: float) -> np.ndarray:
+        """Advance by ``dt`` seconds and fuse measurement ``z``, then the bone-length constraints.
+
+        Args:
+            z: ``(12, 3)`` measured positions, NaN where missing.
+            dt: time since the previous step, seconds (> 0).
+
+        Returns:
+            ``(12, 3)`` estimated positions (a new array), NaN only for axes never measured.
+
+        Raises:
+            ValueError: ``z`` has the wrong shape or ``dt`` is not positive.
+        """
+        z = _check_z(z, (NUM_LANDMARKS, 3))
+        dt = _check_dt(dt)
+        if dt != self._dt:
+            self._set_dt(dt)
+        side_est = self._side._step(z[_NA:].reshape(-1), dt)
+
+        n3, n = self._n3, self._n
+        M, P, p, age = self._M, self._P, self._p, self._age
+        za = z[:_NA].reshape(-1)
+        m = np.isfinite(za)
+        limit = self._limit
+        slow = not self._all_init or self._oldest + dt > limit
+        if slow:
+            # Held axes: stop extrapolating (zero the velocity, its rows of P and of x).
+            held = np.flatnonzero((age > limit - dt) & ~m & (self._init != 0.0)) + n3
+            if held.size:
+                self._zero_rows_cols(held)
+            reinit = m & ((self._init == 0.0) | (age > limit))
+            use = m & ~reinit
+        else:
+            use = m
+
+        # eq. (2), prediction x = A x, P = A P A^T + Q with A = [[I, dt I], [0, I]]:
+        # A [P | x]: position rows += dt velocity rows; (A P) A^T: position cols += dt velocity cols
+        self._M_top += np.multiply(self._M_bottom, dt, out=self._T_rows)
+        self._P_left += np.multiply(self._P_right, dt, out=self._T_cols)
+        P += self._Q
+        if slow and held.size:
+            self._zero_rows_cols(held)
+
+        if self.config.gate_sigma is not None:
+            if not slow:
+                reinit = np.zeros_like(m)
+                slow = True
+            _gate(self.config, use, za - p, np.diagonal(P)[:n3] + self._r, self._rej, reinit)
+
+        # eq. (3), measurement update of the measured axes (H selects them; z-less -> x, y only):
+        #   S = H P H^T + R,  K = P H^T S^-1,  x += K (z - H x),  P -= K H P
+        # as one solve and one product: [P | x] -= P H^T S^-1 [(P H^T)^T | H x - z]. (Only the
+        # columns P H^T are used, never the rows H P: with P symmetric they are equal, but using
+        # the rows would let rounding asymmetry grow from step to step.)
+        PHt = self._P_left
+        B = self._B
+        if all(use.tolist()):
+            B[:, :n] = PHt.T
+            np.subtract(p, za, out=B[:, n])
+            S = np.add(self._P_pp, self._R, out=self._S)
+        elif use.any():
+            # Axes without a measurement are left out exactly: their rows of B are zero and their
+            # rows and columns of S are those of the identity, so their rows of S^-1 B are zero.
+            u = use.astype(np.float64)
+            np.multiply(PHt.T, u[:, None], out=B[:, :n])
+            B[:, n] = np.where(use, p - za, 0.0)
+            S = np.multiply(self._P_pp, np.multiply.outer(u, u), out=self._S)
+            self._S_diag += np.where(use, self._r, 1.0)
+        else:
+            S = None
+        if S is not None:
+            M -= PHt @ _spd_solve(S, B)
+
+        if slow:
+            if reinit.any():
+                ri = np.flatnonzero(reinit)
+                vi = ri + n3
+                self._zero_rows_cols(ri)
+                self._zero_rows_cols(vi)
+                p[ri] = za[ri]
+                P[ri, ri] = self._r[ri]
+                P[vi, vi] = self.config.init_vel_var
+                self._rej[ri] = 0.0
+                self._init[ri] = 1.0
+                use |= reinit
+            if not self._all_init:
+                self._all_init = bool(self._init.all())
+        age += dt
+        if not self._all_init:
+            age[self._init == 0.0] = 0.0
+        age[use] = 0.0
+        self._oldest += dt
+        if self._oldest + dt > limit:
+            self._oldest = float(age.max())
+
+        self._constrain()
+        arm = p.reshape(_NA, 3)
+        if not self._all_init:
+            arm = np.where(self._init.reshape(_NA, 3) == 0.0, np.nan, arm)
+        return np.concatenate((arm, side_est))
+
+    def _constrain(self) -> None:
+        """Bone-length pseudo-measurements (eq. 4-6) of all segments in one batch."""
+        n = self._n
+        diff = (self._D @ self._p).reshape(-1, 3)
+        # eq. (4): h(x) = |p_i - p_j|
+        h = np.sqrt(np.add.reduce(diff * diff, axis=1))
+        if self._all_init and min(h.tolist()) > _MIN_CONSTRAINT_DIST:
+            u = diff / h[:, None]
+            # -(l - h(x))
+            neg_resid = h - self._l
+        else:
+            active = h > _MIN_CONSTRAINT_DIST
+            if not self._all_init:
+                active &= ~(self._seg_axes & (self._init == 0.0)).any(axis=1)
+            if not active.any():
+                return
+            # Skipped segments get a zero row in H_c and a zero residual: their gain column is zero,
+            # exactly as if they were left out.
+            u = np.where(active[:, None], diff / np.where(active, h, 1.0)[:, None], 0.0)
+            neg_resid = np.where(active, h - self._l, 0.0)
+        # eq. (5): H_c row k = [u_k^T at p_a, -u_k^T at p_b, 0 elsewhere], u_k = (p_a - p_b) / h_k
+        Hc = self._Hc
+        Hc.reshape(-1)[self._hc_flat] = np.multiply(self._sign2, u.reshape(1, -1), out=self._vals)
+        PHt = np.dot(self._P, Hc.T)
+        # S_c = H_c P H_c^T + sigma_c^2 I
+        S = Hc @ PHt
+        S += self._Rc
+        # eq. (6): x <- x + K_c (l - h(x)), P <- P - K_c H_c P, with K_c = P H_c^T S_c^-1:
+        # [P | x] -= P H_c^T S_c^-1 [(P H_c^T)^T | h(x) - l]
+        B = self._Bc
+        B[:, :n] = PHt.T
+        B[:, n] = neg_resid
+        self._M -= PHt @ _spd_solve(S, B)
+        # Make P exactly symmetric again every few steps: rounding makes it drift slowly (the
+        # step counter is part of the state, so a replay symmetrises at the same steps).
+        self._count += 1.0
+        if self._count >= _SYMMETRISE_EVERY:
+            self._count[...] = 0.0
+            P = self._P
+            np.add(P, P.T, out=self._T_sym)
+            np.multiply(self._T_sym, 0.5, out=P)
+
+
+def _spd_solve(S: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``S^-1 B`` for a symmetric positive definite ``S`` (LAPACK dposv; LU if S is not SPD)."""
+    _, X, info = lapack.dposv(S, B)
+    if info != 0:
+        X = np.linalg.solve(S, B)
+    return X

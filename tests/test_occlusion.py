@@ -1,0 +1,175 @@
+"""Tests of akc_drake.core.occlusion (paper §II-C): cases worked out by hand, then invariants."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from akc_drake.core.occlusion import occlusion_filter
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PROXIMAL_DISTAL_PAIRS
+
+W = 640  # 5 % of the width = 32 px
+
+
+def scene():
+    """A T-pose-like frame: every landmark visible and well apart in the image."""
+    points = np.array([[0.1 * j - 0.6, 0.05 * j, 2.0 + 0.01 * j] for j in range(NUM_LANDMARKS)])
+    pixels = np.array([[40.0 + 50.0 * j, 100.0 + 20.0 * (j % 3)] for j in range(NUM_LANDMARKS)])
+    visibility = np.full(NUM_LANDMARKS, 0.95)
+    return points, pixels, visibility
+
+
+def test_everything_visible_and_apart_passes_unchanged():
+    points, pixels, vis = scene()
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    np.testing.assert_array_equal(accepted, points)
+    assert not info.rejected.any() and not info.depth_dropped.any()
+    assert accepted is not points
+
+
+def test_visibility_below_threshold_rejects_the_whole_landmark():
+    points, pixels, vis = scene()
+    le, rw, lh = INDEX["left_elbow"], INDEX["right_wrist"], INDEX["left_hip"]
+    vis[le] = 0.69
+    vis[rw] = np.nan
+    vis[lh] = 0.7  # exactly at the threshold: kept
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    assert np.isnan(accepted[le]).all() and np.isnan(accepted[rw]).all()
+    np.testing.assert_array_equal(accepted[lh], points[lh])
+    np.testing.assert_array_equal(np.flatnonzero(info.rejected), sorted([le, rw]))
+    # a custom threshold
+    accepted, info = occlusion_filter(points, pixels, vis, W, visibility_threshold=0.5)
+    assert np.flatnonzero(info.rejected).tolist() == [rw]
+
+
+def test_proximal_depth_dropped_within_5_percent_of_width_of_a_distal_joint():
+    points, pixels, vis = scene()
+    le, lw = INDEX["left_elbow"], INDEX["left_wrist"]
+    pixels[le] = pixels[lw] + [20.0, 24.0]  # 31.2 px < 32 px: occluded by the wrist
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    assert np.isnan(accepted[le, 2])
+    np.testing.assert_array_equal(accepted[le, :2], points[le, :2])  # x, y kept
+    np.testing.assert_array_equal(accepted[lw], points[lw])  # the distal joint keeps its depth
+    assert np.flatnonzero(info.depth_dropped).tolist() == [le]
+    assert not info.rejected.any()
+
+
+def test_proximal_depth_kept_outside_the_radius():
+    points, pixels, vis = scene()
+    le, lw = INDEX["left_elbow"], INDEX["left_wrist"]
+    pixels[le] = pixels[lw] + [20.0, 26.0]  # 32.8 px > 32 px
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    np.testing.assert_array_equal(accepted, points)
+    assert not info.depth_dropped.any()
+    # the radius scales with the width and the proximity fraction
+    accepted, info = occlusion_filter(points, pixels, vis, W, proximity=0.06)
+    assert np.flatnonzero(info.depth_dropped).tolist() == [le]
+    accepted, info = occlusion_filter(points, pixels, vis, 700)
+    assert np.flatnonzero(info.depth_dropped).tolist() == [le]
+
+
+def test_shoulder_depth_dropped_behind_the_hand_and_both_sides_independent():
+    points, pixels, vis = scene()
+    rs, ri = INDEX["right_shoulder"], INDEX["right_index"]
+    ls, lp = INDEX["left_shoulder"], INDEX["left_pinky"]
+    pixels[rs] = pixels[ri] + [5.0, 0.0]
+    pixels[ls] = pixels[lp] + [0.0, -10.0]
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    assert sorted(np.flatnonzero(info.depth_dropped).tolist()) == sorted([rs, ls])
+    assert np.isnan(accepted[[rs, ls], 2]).all()
+
+
+def test_joint_of_the_other_arm_does_not_count():
+    points, pixels, vis = scene()
+    le, rw = INDEX["left_elbow"], INDEX["right_wrist"]
+    pixels[le] = pixels[rw] + [1.0, 1.0]
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    np.testing.assert_array_equal(accepted, points)
+    assert not info.depth_dropped.any()
+
+
+def test_distal_joint_is_never_dropped_and_rejected_distal_cannot_occlude():
+    points, pixels, vis = scene()
+    le, lw = INDEX["left_elbow"], INDEX["left_wrist"]
+    pixels[lw] = pixels[le]
+    vis[lw] = 0.2  # the wrist is the hidden one: the elbow's depth is right
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    np.testing.assert_array_equal(accepted[le], points[le])
+    assert np.isnan(accepted[lw]).all()
+    assert info.rejected.tolist() == [j == lw for j in range(NUM_LANDMARKS)]
+    assert not info.depth_dropped.any()
+
+
+def test_rejected_proximal_is_not_also_marked_depth_dropped_and_nan_pixels_are_ignored():
+    points, pixels, vis = scene()
+    le, lw, re = INDEX["left_elbow"], INDEX["left_wrist"], INDEX["right_elbow"]
+    pixels[le] = pixels[lw]
+    vis[le] = 0.1
+    pixels[re] = np.nan
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    assert info.rejected[le] and not info.depth_dropped[le]
+    np.testing.assert_array_equal(accepted[re], points[re])
+
+
+def test_inputs_are_not_modified():
+    points, pixels, vis = scene()
+    pixels[INDEX["left_elbow"]] = pixels[INDEX["left_wrist"]]
+    vis[0] = 0.0
+    copies = points.copy(), pixels.copy(), vis.copy()
+    occlusion_filter(points, pixels, vis, W)
+    for a, b in zip((points, pixels, vis), copies, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(points_C=np.zeros((11, 3))), "points_C"),
+        (dict(pixels=np.zeros((12, 3))), "pixels"),
+        (dict(visibility=np.zeros(13)), "visibility"),
+        (dict(image_width=0), "image_width"),
+        (dict(image_width=float("nan")), "image_width"),
+        (dict(visibility_threshold=1.5), "visibility_threshold"),
+        (dict(proximity=-0.1), "proximity"),
+    ],
+)
+def test_bad_input_raises_value_error_naming_it(kwargs, match):
+    points, pixels, vis = scene()
+    args = dict(points_C=points, pixels=pixels, visibility=vis, image_width=W)
+    args.update(kwargs)
+    extra = {k: args.pop(k) for k in ("visibility_threshold", "proximity") if k in args}
+    with pytest.raises(ValueError, match=match):
+        occlusion_filter(args["points_C"], args["pixels"], args["visibility"], args["image_width"], **extra)
+
+
+def test_pairs_cover_elbow_and_shoulder_against_all_distal_joints():
+    proximal = {p for p, _ in PROXIMAL_DISTAL_PAIRS}
+    assert proximal == {"left_shoulder", "left_elbow", "right_shoulder", "right_elbow"}
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    points=arrays(np.float64, (NUM_LANDMARKS, 3), elements=st.floats(-5, 5)),
+    pixels=arrays(np.float64, (NUM_LANDMARKS, 2), elements=st.floats(0, 640) | st.just(np.nan)),
+    vis=arrays(np.float64, (NUM_LANDMARKS,), elements=st.floats(0, 1) | st.just(np.nan)),
+    proximity=st.floats(0.0, 0.5),
+)
+def test_output_is_input_with_entries_removed(points, pixels, vis, proximity):
+    accepted, info = occlusion_filter(points, pixels, vis, W, proximity=proximity)
+    kept = ~np.isnan(accepted)
+    np.testing.assert_array_equal(accepted[kept], points[kept])
+    # rejected rows are all NaN; a dropped depth only removes z
+    assert np.isnan(accepted[info.rejected]).all()
+    assert np.isnan(accepted[info.depth_dropped, 2]).all()
+    np.testing.assert_array_equal(accepted[info.depth_dropped, :2], points[info.depth_dropped, :2])
+    assert not (info.rejected & info.depth_dropped).any()
+    np.testing.assert_array_equal(info.rejected, ~(vis >= 0.7))
+    # only proximal joints can lose their depth
+    proximal = [INDEX[p] for p, _ in PROXIMAL_DISTAL_PAIRS]
+    assert not np.delete(info.depth_dropped, proximal).any()
+    # with zero proximity nothing is dropped
+    if proximity == 0.0:
+        assert not info.depth_dropped.any()

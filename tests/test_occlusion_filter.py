@@ -1,0 +1,104 @@
+"""Tests of the OcclusionFilter LeafSystem (stage S3a)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+
+from akc_drake.core.occlusion import occlusion_filter
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS
+from akc_drake.systems.occlusion_filter import AddOcclusionFilter, OcclusionFilter
+
+
+def frame(seed=0):
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-0.5, 0.5, (NUM_LANDMARKS, 3)) + [0, 0, 2]
+    pixels = np.array([[30.0 + 50.0 * j, 240.0] for j in range(NUM_LANDMARKS)])
+    vis = np.full(NUM_LANDMARKS, 0.9)
+    pixels[INDEX["right_elbow"]] = pixels[INDEX["right_wrist"]] + [10.0, 10.0]  # occluded elbow
+    vis[INDEX["left_hip"]] = 0.3  # low visibility
+    return points, pixels, vis
+
+
+def test_ports_names_and_sizes():
+    system = OcclusionFilter(640)
+    assert [system.get_input_port(i).get_name() for i in range(3)] == ["landmarks_C", "visibility", "pixels"]
+    assert [system.get_input_port(i).size() for i in range(3)] == [36, 12, 24]
+    assert [system.get_output_port(i).get_name() for i in range(2)] == ["landmarks_C_accepted", "rejected"]
+    assert [system.get_output_port(i).size() for i in range(2)] == [36, 24]
+    # stateless, direct feedthrough from every input to every output
+    context = system.CreateDefaultContext()
+    assert context.num_total_states() == 0
+    for i in range(3):
+        for o in range(2):
+            assert system.HasDirectFeedthrough(i, o)
+
+
+def test_outputs_equal_the_core_function():
+    points, pixels, vis = frame()
+    system = OcclusionFilter(640, visibility_threshold=0.7, proximity=0.05)
+    context = system.CreateDefaultContext()
+    system.GetInputPort("landmarks_C").FixValue(context, points.reshape(-1))
+    system.GetInputPort("visibility").FixValue(context, vis)
+    system.GetInputPort("pixels").FixValue(context, pixels.reshape(-1))
+    accepted = system.GetOutputPort("landmarks_C_accepted").Eval(context).reshape(NUM_LANDMARKS, 3)
+    flags = system.GetOutputPort("rejected").Eval(context)
+    expected, info = occlusion_filter(points, pixels, vis, 640)
+    np.testing.assert_array_equal(accepted, expected)
+    np.testing.assert_array_equal(flags[:12], info.rejected.astype(float))
+    np.testing.assert_array_equal(flags[12:], info.depth_dropped.astype(float))
+    # the hand-made cases really happened
+    assert np.isnan(accepted[INDEX["left_hip"]]).all() and flags[INDEX["left_hip"]] == 1.0
+    assert np.isnan(accepted[INDEX["right_elbow"], 2]) and flags[12 + INDEX["right_elbow"]] == 1.0
+    np.testing.assert_array_equal(accepted[INDEX["right_elbow"], :2], points[INDEX["right_elbow"], :2])
+    assert flags.sum() == 2.0
+    # parameters reach the core: a smaller radius keeps the elbow's depth, a low threshold the hip
+    loose = OcclusionFilter(640, visibility_threshold=0.2, proximity=0.01)
+    c2 = loose.CreateDefaultContext()
+    loose.GetInputPort("landmarks_C").FixValue(c2, points.reshape(-1))
+    loose.GetInputPort("visibility").FixValue(c2, vis)
+    loose.GetInputPort("pixels").FixValue(c2, pixels.reshape(-1))
+    np.testing.assert_array_equal(loose.GetOutputPort("landmarks_C_accepted").Eval(c2), points.reshape(-1))
+
+
+def test_unconnected_visibility_and_pixels_pass_landmarks_through():
+    points, _, _ = frame()
+    points[3] = np.nan
+    system = OcclusionFilter(640)
+    context = system.CreateDefaultContext()
+    system.GetInputPort("landmarks_C").FixValue(context, points.reshape(-1))
+    out = system.GetOutputPort("landmarks_C_accepted").Eval(context)
+    np.testing.assert_array_equal(out, points.reshape(-1))
+    np.testing.assert_array_equal(system.GetOutputPort("rejected").Eval(context), np.zeros(24))
+
+
+def test_add_helper_wires_a_diagram():
+    points, pixels, vis = frame(1)
+    builder = DiagramBuilder()
+    src_l = builder.AddSystem(ConstantVectorSource(points.reshape(-1)))
+    src_v = builder.AddSystem(ConstantVectorSource(vis))
+    src_p = builder.AddSystem(ConstantVectorSource(pixels.reshape(-1)))
+    occ = AddOcclusionFilter(
+        builder, src_l.get_output_port(), src_v.get_output_port(), src_p.get_output_port(), image_width=640
+    )
+    builder.ExportOutput(occ.GetOutputPort("landmarks_C_accepted"), "accepted")
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    out = diagram.GetOutputPort("accepted").Eval(context).reshape(NUM_LANDMARKS, 3)
+    np.testing.assert_array_equal(out, occlusion_filter(points, pixels, vis, 640)[0])
+    assert occ.get_name() == "OcclusionFilter"
+
+
+@pytest.mark.parametrize(
+    "args, kwargs, match",
+    [
+        ((0,), {}, "image_width"),
+        ((640,), {"visibility_threshold": -0.1}, "visibility_threshold"),
+        ((640,), {"proximity": float("inf")}, "proximity"),
+    ],
+)
+def test_bad_parameters(args, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        OcclusionFilter(*args, **kwargs)
