@@ -165,6 +165,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
         src = builder.AddSystem(
             DepthCameraSource(motion, intrinsics=intrinsics, camera_pose=placement, noise=noise, seed=cfg.seed)
         )
+        src.set_name("DepthCameraSource")
         num_frames = int(np.floor(motion.duration * cfg.camera.rate_hz + 1e-9)) + 1
         # detector None -> the extractor's simulated detector (uses the render's labels and the truth)
     systems["source"] = src

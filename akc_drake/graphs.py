@@ -12,11 +12,11 @@ from pathlib import Path
 # Drake names graph nodes after global system ids (s12, cluster12diagram, _12), which change with the
 # number of systems created earlier in the process. Renumbering them in order of first appearance makes
 # the text depend only on the diagram, so the committed graphs can be checked for staleness.
-_ID = re.compile(r"\b(s|cluster|_)(\d+)(?=\b|diagram|subsystems|inputports|outputports|[a-z])")
+_ID = re.compile(r"(?<![A-Za-z0-9])(clusters|cluster|Source_|s|_)(\d+)")
 
 
 def normalize_dot(text: str) -> str:
-    """Renumber Drake's system ids in a Graphviz string in order of first appearance."""
+    """Renumber Drake's system ids in order of first appearance and sort the edges (deterministic text)."""
     mapping: dict[str, str] = {}
 
     def repl(m: re.Match) -> str:
@@ -25,7 +25,20 @@ def normalize_dot(text: str) -> str:
             mapping[key] = str(len(mapping) + 1)
         return m.group(1) + mapping[key]
 
-    return _ID.sub(repl, text)
+    renumbered = _ID.sub(repl, text)
+    # Drake lists the edges of a diagram in an order that depends on memory addresses: sort each run of edges.
+    lines = renumbered.split("\n")
+    out: list[str] = []
+    run: list[str] = []
+    for line in lines:
+        if " -> " in line:
+            run.append(line)
+            continue
+        out.extend(sorted(run))
+        run = []
+        out.append(line)
+    out.extend(sorted(run))
+    return "\n".join(out)
 
 
 def diagram_dot(diagram, max_depth: int = 2) -> str:
