@@ -1,0 +1,792 @@
+"""The simulated operator: a human upper body built from primitives, as SDF, and its arm kinematics.
+
+Operator frame O: origin at the pelvis (midpoint of the two hip joint centres), x forward (the way the
+person faces), y to the person's left, z up. The camera looks at the operator from the front, so its
+optical axis is -x of O.
+
+Each arm has :data:`NUM_ARM_DOF` = 5 revolute joints, in this order::
+
+    q[0] shoulder horizontal adduction  (0: arm out to the side, +90 deg: arm points forward)
+    q[1] shoulder elevation             (+: arm raised toward the head)
+    q[2] humeral rotation               (roll of the upper arm about its own axis)
+    q[3] elbow flexion                  (0: straight, +: forearm folds toward the palm side)
+    q[4] forearm roll (pronation/supination, about the forearm axis; the hand is rigid on the forearm)
+
+At q = 0 the arm points straight out to the side (T-pose), the elbow would flex forward and the palm faces
+forward with the thumb up. The left arm's rotation is ``Rz(-q0) Rx(q1) Ry(q2) . Rz(-q3) . Ry(q4)``
+(each factor about an axis fixed in the previous body, all frames aligned with O at q = 0). The right arm
+is the mirror image of the left one through the sagittal plane (y -> -y), so equal q give mirrored poses:
+its joint axes are the left axes mirrored and negated.
+
+The five joint angles are exactly what the 12 landmarks can tell: the upper-arm direction (2), the
+forearm direction (elbow flexion + humeral rotation) and the palm orientation (forearm roll), which
+:func:`arm_angles_from_directions` inverts in closed form.
+
+Landmarks are joint centres (shoulder, elbow, wrist, hip) and knuckle points (index and pinky MCP) inside
+the body; the camera sees the limb surfaces around them (capsules with realistic radii), so a landmark's
+rendered depth is its surface depth, or an occluder's.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS, SIDES, BodyDimensions
+
+#: Revolute joints per arm (3 shoulder, elbow flexion, forearm roll).
+NUM_ARM_DOF = 5
+
+#: Joint name suffixes per arm, in the order of an arm's q vector.
+ARM_JOINT_SUFFIXES: tuple[str, ...] = (
+    "shoulder_adduction",
+    "shoulder_elevation",
+    "humeral_rotation",
+    "elbow_flexion",
+    "forearm_roll",
+)
+
+#: Name of the operator's model instance.
+MODEL_INSTANCE_NAME = "operator"
+
+#: Default camera position in O: this far in front of the pelvis (along +x of O) ...
+DEFAULT_CAMERA_DISTANCE_M = 2.0
+#: ... at chest height above the pelvis. The camera looks back along -x of O.
+DEFAULT_CAMERA_HEIGHT_M = 0.45
+
+#: Forearm roll that puts the palm down in a T-pose (and thumb up with the arm forward, elbow flexed up).
+NEUTRAL_FOREARM_ROLL = math.pi / 2
+
+# Joint axes of the left arm in the (zero-configuration) body frames; the right arm uses -M a with
+# M = diag(1, -1, 1), so that R_right(q) = M R_left(q) M.
+_LEFT_AXES = np.array(
+    [
+        [0.0, 0.0, -1.0],  # shoulder adduction
+        [1.0, 0.0, 0.0],  # shoulder elevation
+        [0.0, 1.0, 0.0],  # humeral rotation (upper-arm long axis)
+        [0.0, 0.0, -1.0],  # elbow flexion
+        [0.0, 1.0, 0.0],  # forearm roll (forearm long axis)
+    ]
+)
+_MIRROR = np.array([1.0, -1.0, 1.0])
+
+
+def arm_joint_names(side: str) -> tuple[str, ...]:
+    """Names of ``side``'s arm joints in the order of its q vector."""
+    if side not in SIDES:
+        raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+    return tuple(f"{side}_{s}" for s in ARM_JOINT_SUFFIXES)
+
+
+def arm_joint_axes(side: str) -> np.ndarray:
+    """``(NUM_ARM_DOF, 3)`` joint axes of ``side``'s arm, each in its body frame (aligned with O at q = 0)."""
+    if side == "left":
+        return _LEFT_AXES.copy()
+    if side == "right":
+        return -_LEFT_AXES * _MIRROR
+    raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+
+
+@dataclass(frozen=True)
+class OperatorParams:
+    """Dimensions of the simulated operator, in metres (defaults: the paper's participant).
+
+    Attributes:
+        dims: arm segment lengths and shoulder width (joint centre to joint centre).
+        torso_height: hip-joint centre line to shoulder-joint centre line.
+        hip_width: distance between the two hip joint centres.
+        upper_arm_radius: radius of the upper-arm capsule.
+        forearm_radius: radius of the forearm capsule.
+        deltoid_radius: radius of the sphere around each shoulder joint.
+        hand_length: wrist to fingertips.
+        hand_width: palm width at the knuckles.
+        hand_thickness: palm thickness.
+        knuckle_distance: wrist to the index MCP along the hand.
+        knuckle_offset: half the distance between the index and pinky MCP, across the palm.
+        chest_depth, chest_width: front-back and left-right size of the chest.
+        pelvis_depth, pelvis_width: same for the pelvis.
+        neck_radius, head_radius: neck cylinder and head sphere radii.
+        thigh_radius, thigh_length: the upper legs (so the pelvis does not float).
+        shirt_rgba, skin_rgba, trousers_rgba: colours (RGBA in [0, 1]).
+    """
+
+    dims: BodyDimensions = field(default_factory=BodyDimensions.paper_participant)
+    torso_height: float = 0.50
+    hip_width: float = 0.18
+    upper_arm_radius: float = 0.045
+    forearm_radius: float = 0.035
+    deltoid_radius: float = 0.055
+    hand_length: float = 0.185
+    hand_width: float = 0.085
+    hand_thickness: float = 0.03
+    knuckle_distance: float = 0.09
+    knuckle_offset: float = 0.03
+    chest_depth: float = 0.21
+    chest_width: float = 0.30
+    pelvis_depth: float = 0.19
+    pelvis_width: float = 0.32
+    neck_radius: float = 0.055
+    head_radius: float = 0.105
+    thigh_radius: float = 0.075
+    thigh_length: float = 0.40
+    shirt_rgba: tuple[float, float, float, float] = (0.20, 0.35, 0.65, 1.0)
+    skin_rgba: tuple[float, float, float, float] = (0.87, 0.70, 0.58, 1.0)
+    trousers_rgba: tuple[float, float, float, float] = (0.22, 0.22, 0.25, 1.0)
+
+    def __post_init__(self):
+        if not isinstance(self.dims, BodyDimensions):
+            raise ValueError(f"OperatorParams.dims must be a BodyDimensions, got {type(self.dims).__name__}")
+        for f in fields(self):
+            if f.name == "dims":
+                continue
+            v = getattr(self, f.name)
+            if f.name.endswith("_rgba"):
+                a = np.asarray(v, dtype=float)
+                if a.shape != (4,) or not np.all((a >= 0) & (a <= 1)):
+                    raise ValueError(f"OperatorParams.{f.name} must be 4 numbers in [0, 1], got {v!r}")
+                continue
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or not 0.0 < v <= 1.5:
+                raise ValueError(f"OperatorParams.{f.name} must be a length in (0, 1.5] m, got {v!r}")
+        if self.knuckle_distance >= self.hand_length:
+            raise ValueError(
+                f"OperatorParams.knuckle_distance ({self.knuckle_distance}) must be shorter than "
+                f"hand_length ({self.hand_length})"
+            )
+        if 2 * self.knuckle_offset >= self.hand_width:
+            raise ValueError(
+                f"OperatorParams.knuckle_offset ({self.knuckle_offset}) must be less than half of "
+                f"hand_width ({self.hand_width})"
+            )
+
+    def shoulder_O(self, side: str) -> np.ndarray:
+        """Shoulder joint centre of ``side`` in O."""
+        s = _side_sign(side)
+        return np.array([0.0, s * self.dims.SW / 2.0, self.torso_height])
+
+    def hip_O(self, side: str) -> np.ndarray:
+        """Hip joint centre of ``side`` in O."""
+        s = _side_sign(side)
+        return np.array([0.0, s * self.hip_width / 2.0, 0.0])
+
+    def index_H(self, side: str) -> np.ndarray:
+        """Index MCP in ``side``'s hand frame (origin at the wrist, aligned with O at q = 0)."""
+        s = _side_sign(side)
+        return np.array([0.0, s * self.knuckle_distance, self.knuckle_offset])
+
+    def pinky_H(self, side: str) -> np.ndarray:
+        """Pinky MCP in ``side``'s hand frame (a little closer to the wrist than the index MCP)."""
+        s = _side_sign(side)
+        return np.array([0.0, s * (self.knuckle_distance - 0.008), -self.knuckle_offset])
+
+
+def _side_sign(side: str) -> float:
+    if side == "left":
+        return 1.0
+    if side == "right":
+        return -1.0
+    raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+
+
+# --------------------------------------------------------------------------------------------------
+# Forward and inverse kinematics (pure numpy).
+# --------------------------------------------------------------------------------------------------
+
+
+def _rot(axis: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Rotations ``(T, 3, 3)`` about a coordinate ``axis`` (signed unit basis vector) by angles ``q`` (T,)."""
+    q = np.asarray(q, dtype=float)
+    c, s = np.cos(q), np.sin(q)
+    k = int(np.argmax(np.abs(axis)))
+    s = s * np.sign(axis[k])
+    R = np.zeros(q.shape + (3, 3))
+    i, j = (k + 1) % 3, (k + 2) % 3
+    R[..., k, k] = 1.0
+    R[..., i, i] = c
+    R[..., j, j] = c
+    R[..., i, j] = -s
+    R[..., j, i] = s
+    return R
+
+
+def arm_rotations(side: str, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Orientations in O of ``side``'s upper arm, forearm and hand for joint angles ``q`` (T, NUM_ARM_DOF).
+
+    Returns:
+        ``(R_OU, R_OF, R_OH)``, each ``(T, 3, 3)``.
+    """
+    q = _check_q(q, f"q_{side}")
+    axes = arm_joint_axes(side)
+    R_OU = _rot(axes[0], q[:, 0]) @ _rot(axes[1], q[:, 1]) @ _rot(axes[2], q[:, 2])
+    R_OF = R_OU @ _rot(axes[3], q[:, 3])
+    R_OH = R_OF @ _rot(axes[4], q[:, 4])
+    return R_OU, R_OF, R_OH
+
+
+def arm_forward_kinematics(side: str, q: np.ndarray, params: OperatorParams | None = None) -> np.ndarray:
+    """Landmark positions in O of one arm.
+
+    Args:
+        side: "left" or "right".
+        q: ``(T, NUM_ARM_DOF)`` or ``(NUM_ARM_DOF,)`` joint angles in radians.
+        params: the operator's dimensions (default: the paper's participant).
+
+    Returns:
+        ``(T, 5, 3)`` positions of shoulder, elbow, wrist, index MCP, pinky MCP (``(5, 3)`` for a single q).
+    """
+    params = params or OperatorParams()
+    single = np.ndim(q) == 1
+    q2 = np.atleast_2d(np.asarray(q, dtype=float))
+    s = _side_sign(side)
+    R_OU, R_OF, R_OH = arm_rotations(side, q2)
+    p_S = params.shoulder_O(side)
+    y = np.array([0.0, s, 0.0])
+    p_E = p_S + params.dims.upper(side) * (R_OU @ y)
+    p_W = p_E + params.dims.lower(side) * (R_OF @ y)
+    p_I = p_W + R_OH @ params.index_H(side)
+    p_P = p_W + R_OH @ params.pinky_H(side)
+    out = np.stack([np.broadcast_to(p_S, p_E.shape), p_E, p_W, p_I, p_P], axis=1)
+    return out[0] if single else out
+
+
+def landmarks_from_q(
+    q_left: np.ndarray, q_right: np.ndarray, params: OperatorParams | None = None
+) -> np.ndarray:
+    """All 12 landmarks in O, ``(T, 12, 3)`` in :data:`~akc_drake.core.skeleton.LANDMARKS` order."""
+    params = params or OperatorParams()
+    ql = np.atleast_2d(np.asarray(q_left, dtype=float))
+    qr = np.atleast_2d(np.asarray(q_right, dtype=float))
+    if ql.shape != qr.shape:
+        raise ValueError(f"q_left and q_right must have the same shape, got {ql.shape} and {qr.shape}")
+    T = ql.shape[0]
+    out = np.empty((T, NUM_LANDMARKS, 3))
+    for side, q in (("left", ql), ("right", qr)):
+        fk = arm_forward_kinematics(side, q, params)
+        for k, name in enumerate(("shoulder", "elbow", "wrist", "index", "pinky")):
+            out[:, LANDMARKS.index(f"{side}_{name}")] = fk[:, k]
+        out[:, LANDMARKS.index(f"{side}_hip")] = params.hip_O(side)
+    return out
+
+
+def _check_q(q, name: str) -> np.ndarray:
+    a = np.atleast_2d(np.asarray(q, dtype=float))
+    if a.ndim != 2 or a.shape[1] != NUM_ARM_DOF:
+        raise ValueError(f"{name} must have shape (T, {NUM_ARM_DOF}), got {np.shape(q)}")
+    return a
+
+
+def _unit_rows(v, name: str, T: int | None = None) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.ndim != 2 or a.shape[1] != 3 or (T is not None and a.shape[0] != T):
+        want = f"({T if T is not None else 'T'}, 3)"
+        raise ValueError(f"{name} must have shape {want}, got {np.shape(v)}")
+    n = np.linalg.norm(a, axis=1)
+    bad = ~np.isfinite(n) | (n < 1e-12)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{name}[{k}] must be a finite non-zero direction, got {a[k].tolist()}")
+    return a / n[:, None]
+
+
+def _fill_undetermined(values: np.ndarray, ok: np.ndarray, default: float) -> np.ndarray:
+    """Replace values where ``ok`` is False by the nearest earlier determined value (else the next one)."""
+    out = values.copy()
+    if not np.any(ok):
+        out[:] = default
+        return out
+    idx = np.where(ok, np.arange(len(values)), -1)
+    idx = np.maximum.accumulate(idx)
+    first = int(np.flatnonzero(ok)[0])
+    idx[idx < 0] = first
+    return out[idx]
+
+
+def _nearest_turn(a: float, ref: float) -> float:
+    """``a + 2 pi k`` closest to ``ref``."""
+    return a + 2.0 * math.pi * round((ref - a) / (2.0 * math.pi))
+
+
+def _shoulder_branch(q0a: np.ndarray, q1a: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous shoulder angles from the principal solution ``(q0a, q1a)`` (q1a in [-pi/2, pi/2]).
+
+    Every direction has two solutions, ``(q0, q1)`` and ``(q0 + pi, pi - q1)``; frame by frame the one
+    closest to the previous frame's angles is taken (both unwrapped), so an arm passing over the top keeps
+    continuous angles. Where the arm is vertical (``ok`` False) the adduction angle is held (taken from the
+    first determined frame before any).
+    """
+    T = len(q0a)
+    out0, out1 = np.empty(T), np.empty(T)
+    first = np.flatnonzero(ok)
+    prev0 = float(q0a[first[0]]) if len(first) else 0.0
+    prev1 = None
+    a0, a1, oks = q0a.tolist(), q1a.tolist(), ok.tolist()
+    for t in range(T):
+        if oks[t]:
+            cands = ((a0[t], a1[t]), (a0[t] + math.pi, math.pi - a1[t]))
+        else:
+            cands = ((prev0, a1[t]),)
+        best = None
+        for c0, c1 in cands:
+            c0 = _nearest_turn(c0, prev0)
+            c1 = c1 if prev1 is None else _nearest_turn(c1, prev1)
+            cost = abs(c0 - prev0) + (0.0 if prev1 is None else abs(c1 - prev1))
+            if best is None or cost < best[0] - 1e-12:
+                best = (cost, c0, c1)
+        _, prev0, prev1 = best
+        out0[t], out1[t] = prev0, prev1
+    return out0, out1
+
+
+def arm_angles_from_directions(
+    side: str,
+    upper_dir_O: np.ndarray,
+    fore_dir_O: np.ndarray,
+    palm_normal_O: np.ndarray | None = None,
+    *,
+    singular_tol: float = 1e-6,
+) -> np.ndarray:
+    """Joint angles that point ``side``'s upper arm and forearm along the given directions (closed form).
+
+    The exact inverse of :func:`arm_forward_kinematics` for the directions: ``R_OU y`` is the upper-arm
+    direction, ``R_OF y`` the forearm direction (``y`` = +y for the left arm, -y for the right) and the palm
+    normal is ``R_OH x``.
+
+    The angles are continuous across frames: every upper-arm direction has two shoulder solutions and the one
+    closest to the previous frame is taken; where an angle is undetermined (the upper arm vertical: shoulder
+    adduction; the elbow straight: humeral rotation) it is held from the nearest frame where it is
+    determined; angles that wrap are unwrapped along time. The elbow flexion stays anatomical (>= 0), so
+    an elbow that straightens and then bends the other way turns the humerus in one frame.
+
+    Args:
+        side: "left" or "right".
+        upper_dir_O: ``(T, 3)`` shoulder-to-elbow directions in O (normalised here).
+        fore_dir_O: ``(T, 3)`` elbow-to-wrist directions in O.
+        palm_normal_O: optional ``(T, 3)`` palm normals in O (out of the palm); only its component
+            perpendicular to the forearm matters. None: the neutral forearm roll
+            (:data:`NEUTRAL_FOREARM_ROLL`: palm down in a T-pose).
+        singular_tol: below this sine an angle counts as undetermined.
+
+    Returns:
+        ``(T, NUM_ARM_DOF)`` joint angles in radians.
+
+    Raises:
+        ValueError: a wrong shape, or a non-finite or zero direction (naming the argument and frame).
+    """
+    s = _side_sign(side)
+    u = _unit_rows(upper_dir_O, "upper_dir_O")
+    T = u.shape[0]
+    f = _unit_rows(fore_dir_O, "fore_dir_O", T)
+    n = None if palm_normal_O is None else _unit_rows(palm_normal_O, "palm_normal_O", T)
+    # Solve the left arm's equations on the mirrored directions (R_right = M R_left M).
+    if s < 0:
+        u, f = u * _MIRROR, f * _MIRROR
+        n = None if n is None else n * _MIRROR
+    # Upper arm: u = Rz(-q0) Rx(q1) y = (sin q0 cos q1, cos q0 cos q1, sin q1).
+    horiz = np.hypot(u[:, 0], u[:, 1])
+    q0, q1 = _shoulder_branch(np.arctan2(u[:, 0], u[:, 1]), np.arctan2(u[:, 2], horiz), horiz > singular_tol)
+    # Elbow flexion: the angle between u and f.
+    cross = np.cross(u, f)
+    sin4 = np.linalg.norm(cross, axis=1)
+    q3 = np.arctan2(sin4, np.einsum("ij,ij->i", u, f))
+    # Humeral rotation: g = (Rz(-q0) Rx(q1))^T f = (sin q3 cos q2, cos q3, -sin q3 sin q2).
+    axes = _LEFT_AXES
+    R12 = _rot(axes[0], q0) @ _rot(axes[1], q1)
+    g = np.einsum("tji,tj->ti", R12, f)
+    q2 = _fill_undetermined(np.arctan2(-g[:, 2], g[:, 0]), sin4 > singular_tol, 0.0)
+    q2 = np.unwrap(q2)
+    # Forearm roll: palm normal in the forearm frame = (cos q4, 0, -sin q4).
+    if n is None:
+        q4 = np.full(T, NEUTRAL_FOREARM_ROLL)
+    else:
+        R_OF = R12 @ _rot(axes[2], q2) @ _rot(axes[3], q3)
+        nF = np.einsum("tji,tj->ti", R_OF, n)
+        ok = np.hypot(nF[:, 0], nF[:, 2]) > singular_tol
+        q4 = np.unwrap(_fill_undetermined(np.arctan2(-nF[:, 2], nF[:, 0]), ok, NEUTRAL_FOREARM_ROLL))
+    return np.stack([q0, q1, q2, q3, q4], axis=1)
+
+
+# --------------------------------------------------------------------------------------------------
+# Meshes and SDF
+# --------------------------------------------------------------------------------------------------
+
+#: Folder (next to the SDF) holding the operator's low-polygon unit meshes.
+MESH_FOLDER = "operator_meshes"
+_MESH_SEGMENTS = 16
+_MESH_RINGS = 10
+
+
+def unit_sphere_obj(segments: int = _MESH_SEGMENTS, rings: int = _MESH_RINGS) -> str:
+    """A low-polygon unit sphere as OBJ text (smooth normals).
+
+    Drake's built-in curved shapes are finely tessellated, which makes software rendering slow
+    (~25 ms per depth image for this model); scaled low-polygon meshes render several times faster with
+    a surface error below 2 % of the radius.
+    """
+    v = [(0.0, 0.0, 1.0)]
+    for i in range(1, rings):
+        th = math.pi * i / rings
+        for j in range(segments):
+            ph = 2 * math.pi * j / segments
+            v.append((math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th)))
+    v.append((0.0, 0.0, -1.0))
+
+    def k(i, j):  # 1-based OBJ index of ring i (1..rings-1), segment j
+        return 2 + (i - 1) * segments + (j % segments)
+
+    faces = [(1, k(1, j), k(1, j + 1)) for j in range(segments)]
+    for i in range(1, rings - 1):
+        for j in range(segments):
+            faces.append((k(i, j), k(i + 1, j), k(i + 1, j + 1)))
+            faces.append((k(i, j), k(i + 1, j + 1), k(i, j + 1)))
+    last = len(v)
+    faces += [(last, k(rings - 1, j + 1), k(rings - 1, j)) for j in range(segments)]
+    lines = ["# unit sphere, generated by akc_drake.operator.model.unit_sphere_obj()\n"]
+    lines += [f"v {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in v]
+    lines += [f"vn {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in v]
+    lines += [f"f {a}//{a} {b}//{b} {c}//{c}\n" for a, b, c in faces]
+    return "".join(lines)
+
+
+def unit_cylinder_obj(segments: int = _MESH_SEGMENTS) -> str:
+    """A low-polygon cylinder of radius 1 and length 1 along z (centred at the origin), as OBJ text."""
+    v, n, faces = [], [], []
+    for z in (-0.5, 0.5):
+        for j in range(segments):
+            ph = 2 * math.pi * j / segments
+            v.append((math.cos(ph), math.sin(ph), z))
+            n.append((math.cos(ph), math.sin(ph), 0.0))
+    for j in range(segments):  # side: vertex/normal indices 1..2*segments
+        a, b = 1 + j, 1 + (j + 1) % segments
+        faces.append(((a, a), (b, b), (b + segments, b + segments)))
+        faces.append(((a, a), (b + segments, b + segments), (a + segments, a + segments)))
+    for z, sign in ((-0.5, -1.0), (0.5, 1.0)):  # caps: a centre vertex and a flat normal
+        centre = len(v) + 1
+        v.append((0.0, 0.0, z))
+        n.append((0.0, 0.0, sign))
+        nc = len(n)
+        base = 1 if z < 0 else 1 + segments
+        for j in range(segments):
+            a, b = base + j, base + (j + 1) % segments
+            tri = ((centre, nc), (a, nc), (b, nc)) if sign > 0 else ((centre, nc), (b, nc), (a, nc))
+            faces.append(tri)
+    lines = [
+        "# unit cylinder (radius 1, length 1, axis z), "
+        "generated by akc_drake.operator.model.unit_cylinder_obj()\n"
+    ]
+    lines += [f"v {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in v]
+    lines += [f"vn {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in n]
+    lines += ["f " + " ".join(f"{vi}//{ni}" for vi, ni in f) + "\n" for f in faces]
+    return "".join(lines)
+
+
+#: Mesh file name -> generator.
+MESHES = {"unit_sphere.obj": unit_sphere_obj, "unit_cylinder.obj": unit_cylinder_obj}
+
+
+def write_meshes(folder) -> Path:
+    """Write the operator's unit meshes into ``folder`` (only files whose content differs); returns it."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, gen in MESHES.items():
+        path = folder / name
+        text = gen()
+        if not path.exists() or path.read_text(encoding="utf-8") != text:
+            _atomic_write(path, text)
+    return folder
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _fmt(*values: float) -> str:
+    return " ".join(f"{v:.6g}" for v in np.asarray(values, dtype=float).ravel())
+
+
+def _inertial(mass: float, ixx: float, iyy: float, izz: float) -> str:
+    return (
+        f"      <inertial><mass>{mass:.6g}</mass><inertia><ixx>{ixx:.6g}</ixx><iyy>{iyy:.6g}</iyy>"
+        f"<izz>{izz:.6g}</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial>\n"
+    )
+
+
+class _Geometry:
+    """Visual geometry of one link: boxes, and spheres/ellipsoids/cylinders as scaled unit meshes."""
+
+    def __init__(self, mesh_prefix: str):
+        self.prefix = mesh_prefix
+        self.parts: list[str] = []
+
+    def _add(self, name, xyz, rpy, geometry, rgba):
+        self.parts.append(
+            f'      <visual name="{name}">\n'
+            f"        <pose>{_fmt(*xyz, *rpy)}</pose>\n"
+            f"        <geometry>{geometry}</geometry>\n"
+            f"        <material><diffuse>{_fmt(*rgba)}</diffuse></material>\n"
+            f"      </visual>\n"
+        )
+
+    def box(self, name, xyz, size, rgba, rpy=(0, 0, 0)):
+        self._add(name, xyz, rpy, f"<box><size>{_fmt(*size)}</size></box>", rgba)
+
+    def ellipsoid(self, name, xyz, radii, rgba):
+        mesh = f"<mesh><uri>{self.prefix}unit_sphere.obj</uri><scale>{_fmt(*radii)}</scale></mesh>"
+        self._add(name, xyz, (0, 0, 0), mesh, rgba)
+
+    def sphere(self, name, xyz, radius, rgba):
+        self.ellipsoid(name, xyz, (radius, radius, radius), rgba)
+
+    def cylinder(self, name, xyz, radius, length, rgba, rpy=(0, 0, 0)):
+        scale = _fmt(radius, radius, length)
+        mesh = f"<mesh><uri>{self.prefix}unit_cylinder.obj</uri><scale>{scale}</scale></mesh>"
+        self._add(name, xyz, rpy, mesh, rgba)
+
+    def text(self) -> str:
+        return "".join(self.parts)
+
+
+def _link(name: str, xyz, inertial: str, geometry: _Geometry | None = None) -> str:
+    body = inertial + (geometry.text() if geometry is not None else "")
+    return f'    <link name="{name}">\n      <pose>{_fmt(*xyz, 0, 0, 0)}</pose>\n{body}    </link>\n'
+
+
+def _revolute(name: str, parent: str, child: str, axis) -> str:
+    return (
+        f'    <joint name="{name}" type="revolute">\n'
+        f"      <parent>{parent}</parent>\n      <child>{child}</child>\n"
+        f"      <axis><xyz>{_fmt(*axis)}</xyz></axis>\n"
+        f"    </joint>\n"
+    )
+
+
+def _frame(name: str, attached_to: str, xyz) -> str:
+    return (
+        f'    <frame name="{name}" attached_to="{attached_to}"><pose>{_fmt(*xyz, 0, 0, 0)}</pose></frame>\n'
+    )
+
+
+def operator_sdf(params: OperatorParams | None = None, mesh_dir=None) -> str:
+    """The operator model as SDF text (deterministic: the same arguments give the same text).
+
+    Links: ``pelvis`` (with the thighs), ``torso`` (chest, abdomen, clavicles, neck, head; welded to the
+    pelvis), and per side ``<side>_shoulder_link1``, ``<side>_shoulder_link2`` (small links between the
+    shoulder's three revolute joints), ``<side>_upper_arm`` (deltoid and upper-arm cylinder, origin at the
+    shoulder joint centre), ``<side>_forearm`` (elbow sphere and forearm, origin at the elbow),
+    ``<side>_hand`` (wrist sphere, palm, fingers, thumb; origin at the wrist). All link frames are aligned
+    with the model frame (= O) at q = 0. Frames named as the landmarks (``left_shoulder``, ``left_index``,
+    ...) mark the 12 landmarks.
+
+    Args:
+        params: the operator's dimensions (default: the paper's participant).
+        mesh_dir: where the unit meshes are; None: the relative folder :data:`MESH_FOLDER` (for an SDF
+            file written next to it, as ``models/operator.sdf``).
+    """
+    p = params or OperatorParams()
+    d = p.dims
+    H = p.torso_height
+    prefix = f"{MESH_FOLDER}/" if mesh_dir is None else Path(mesh_dir).resolve().as_uri() + "/"
+    shirt, skin, trousers = p.shirt_rgba, p.skin_rgba, p.trousers_rgba
+    half_pi = math.pi / 2
+    out = [
+        '<?xml version="1.0"?>\n',
+        "<!-- Generated by akc_drake.operator.model.write_operator_sdf(); do not edit by hand. -->\n",
+        '<sdf version="1.9">\n',
+        f'  <model name="{MODEL_INSTANCE_NAME}">\n',
+    ]
+
+    g = _Geometry(prefix)
+    g.box("pelvis", (0, 0, 0.02), (p.pelvis_depth, p.pelvis_width, 0.18), trousers)
+    for side in SIDES:
+        hip = p.hip_O(side)
+        g.cylinder(
+            f"{side}_thigh", (0.01, hip[1], -p.thigh_length / 2), p.thigh_radius, p.thigh_length, trousers
+        )
+    out.append(_link("pelvis", (0, 0, 0), _inertial(10.0, 0.1, 0.1, 0.1), g))
+
+    # Torso, origin at the centre of the shoulder line.
+    g = _Geometry(prefix)
+    chest_h = 0.30
+    g.ellipsoid(
+        "chest",
+        (0, 0, -chest_h / 2 + 0.02),
+        (p.chest_depth / 2, p.chest_width / 2, chest_h / 2 + 0.03),
+        shirt,
+    )
+    abdomen_h = H - chest_h + 0.02
+    g.box(
+        "abdomen",
+        (0, 0, -H + 0.09 + abdomen_h / 2),
+        (p.chest_depth * 0.9, p.chest_width * 0.92, abdomen_h),
+        shirt,
+    )
+    g.cylinder("clavicles", (-0.01, 0, -0.01), 0.045, d.SW - 2 * p.deltoid_radius, shirt, rpy=(half_pi, 0, 0))
+    g.cylinder("neck", (-0.01, 0, 0.09), p.neck_radius, 0.14, skin)
+    g.ellipsoid(
+        "head",
+        (0.0, 0, 0.12 + p.head_radius),
+        (p.head_radius * 0.95, p.head_radius * 0.8, p.head_radius * 1.15),
+        skin,
+    )
+    out.append(_link("torso", (0, 0, H), _inertial(25.0, 0.6, 0.5, 0.3), g))
+    out.append(
+        '    <joint name="pelvis_torso" type="fixed">\n'
+        "      <parent>pelvis</parent>\n      <child>torso</child>\n    </joint>\n"
+    )
+
+    for side in SIDES:
+        s = _side_sign(side)
+        sh = p.shoulder_O(side)
+        lu, lf = d.upper(side), d.lower(side)
+        el = sh + np.array([0.0, s * lu, 0.0])
+        wr = el + np.array([0.0, s * lf, 0.0])
+        small = _inertial(0.05, 1e-4, 1e-4, 1e-4)
+        out.append(_link(f"{side}_shoulder_link1", sh, small))
+        out.append(_link(f"{side}_shoulder_link2", sh, small))
+        g = _Geometry(prefix)
+        g.sphere(f"{side}_deltoid", (0, s * 0.01, 0.005), p.deltoid_radius, shirt)
+        g.cylinder(
+            f"{side}_upper_arm", (0, s * lu / 2, 0), p.upper_arm_radius, lu, shirt, rpy=(half_pi, 0, 0)
+        )
+        out.append(_link(f"{side}_upper_arm", sh, _inertial(2.0, 0.015, 0.002, 0.015), g))
+        g = _Geometry(prefix)
+        g.sphere(f"{side}_elbow", (0, 0, 0), p.upper_arm_radius, skin)
+        g.cylinder(f"{side}_forearm", (0, s * lf / 2, 0), p.forearm_radius, lf, skin, rpy=(half_pi, 0, 0))
+        out.append(_link(f"{side}_forearm", el, _inertial(1.2, 0.008, 0.001, 0.008), g))
+        # Hand: palm normal +x and thumb toward +z at q = 0.
+        g = _Geometry(prefix)
+        palm_len = p.knuckle_distance + 0.01
+        fing_len = p.hand_length - palm_len
+        g.sphere(f"{side}_wrist", (0, 0, 0), p.forearm_radius * 0.9, skin)
+        g.box(f"{side}_palm", (0, s * palm_len / 2, 0), (p.hand_thickness, palm_len, p.hand_width), skin)
+        g.box(
+            f"{side}_fingers",
+            (0, s * (palm_len + fing_len / 2), -0.004),
+            (p.hand_thickness * 0.7, fing_len, p.hand_width * 0.9),
+            skin,
+        )
+        g.cylinder(
+            f"{side}_thumb",
+            (0.012, s * 0.045, p.hand_width / 2 + 0.006),
+            0.011,
+            0.05,
+            skin,
+            rpy=(half_pi + s * 0.5, 0, 0),
+        )
+        out.append(_link(f"{side}_hand", wr, _inertial(0.4, 0.001, 0.0005, 0.001), g))
+        chain = ("torso", f"{side}_shoulder_link1", f"{side}_shoulder_link2", f"{side}_upper_arm")
+        chain += (f"{side}_forearm", f"{side}_hand")
+        names = arm_joint_names(side)
+        axes = arm_joint_axes(side)
+        for k in range(NUM_ARM_DOF):
+            out.append(_revolute(names[k], chain[k], chain[k + 1], axes[k]))
+        out.append(_frame(f"{side}_shoulder", f"{side}_upper_arm", (0, 0, 0)))
+        out.append(_frame(f"{side}_elbow", f"{side}_forearm", (0, 0, 0)))
+        out.append(_frame(f"{side}_wrist", f"{side}_hand", (0, 0, 0)))
+        out.append(_frame(f"{side}_index", f"{side}_hand", p.index_H(side)))
+        out.append(_frame(f"{side}_pinky", f"{side}_hand", p.pinky_H(side)))
+        out.append(_frame(f"{side}_hip", "pelvis", p.hip_O(side)))
+    out.append("  </model>\n</sdf>\n")
+    return "".join(out)
+
+
+def write_operator_sdf(path, params: OperatorParams | None = None) -> Path:
+    """Write :func:`operator_sdf` to ``path`` and its unit meshes to ``<dir>/operator_meshes/``.
+
+    Files are written atomically (temp file + rename). Returns the SDF's path.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_meshes(path.parent / MESH_FOLDER)
+    _atomic_write(path, operator_sdf(params))
+    return path
+
+
+def mesh_dir() -> Path:
+    """A folder with the current unit meshes: ``models/operator_meshes`` when up to date, else a cache."""
+    from akc_drake.resources import MODELS_DIR
+
+    folder = MODELS_DIR / MESH_FOLDER
+    if all(
+        (folder / n).is_file() and (folder / n).read_text(encoding="utf-8") == g() for n, g in MESHES.items()
+    ):
+        return folder
+    digest = hashlib.sha256("".join(g() for g in MESHES.values()).encode()).hexdigest()[:12]
+    return write_meshes(Path(tempfile.gettempdir()) / f"akc_drake_meshes_{os.getuid()}_{digest}")
+
+
+# --------------------------------------------------------------------------------------------------
+# Drake
+# --------------------------------------------------------------------------------------------------
+
+
+def add_operator(plant, params: OperatorParams | None = None, X_WO=None):
+    """Add the operator to ``plant`` (not finalized), its pelvis welded to the world at ``X_WO``.
+
+    Args:
+        plant: a ``MultibodyPlant``.
+        params: the operator's dimensions (default: the paper's participant).
+        X_WO: pose of the operator frame O in the world (a ``RigidTransform``; default identity).
+
+    Returns:
+        The operator's ``ModelInstanceIndex``.
+    """
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.parsing import Parser
+
+    parser = Parser(plant)
+    parser.SetAutoRenaming(True)
+    (instance,) = parser.AddModelsFromString(operator_sdf(params, mesh_dir=mesh_dir()), "sdf")
+    X = X_WO if X_WO is not None else RigidTransform()
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("pelvis", instance), X)
+    return instance
+
+
+def operator_position_indices(plant, instance) -> np.ndarray:
+    """Indices into the plant's q of ``[left arm q (5), right arm q (5)]``, i.e. of :func:`full_q` order."""
+    idx = []
+    for side in SIDES:
+        for name in arm_joint_names(side):
+            idx.append(plant.GetJointByName(name, instance).position_start())
+    return np.array(idx, dtype=np.intp)
+
+
+def full_q(q_left: np.ndarray, q_right: np.ndarray) -> np.ndarray:
+    """The operator's joint vector in our canonical order: ``[q_left, q_right]``, ``(T, 2 * NUM_ARM_DOF)``."""
+    ql = _check_q(q_left, "q_left")
+    qr = _check_q(q_right, "q_right")
+    if ql.shape != qr.shape:
+        raise ValueError(f"q_left and q_right must have the same shape, got {ql.shape} and {qr.shape}")
+    return np.concatenate([ql, qr], axis=1)
+
+
+def landmark_positions(plant, context, instance=None, frame=None) -> np.ndarray:
+    """The 12 true landmark positions ``(12, 3)`` (joint centres and knuckles) from the plant's state.
+
+    Args:
+        plant: a finalized plant containing the operator.
+        context: the plant's context.
+        instance: the operator's model instance (default: the one named :data:`MODEL_INSTANCE_NAME`).
+        frame: the frame to express them in (default: the world frame).
+    """
+    if instance is None:
+        instance = plant.GetModelInstanceByName(MODEL_INSTANCE_NAME)
+    F = frame if frame is not None else plant.world_frame()
+    out = np.empty((NUM_LANDMARKS, 3))
+    for k, name in enumerate(LANDMARKS):
+        out[k] = plant.GetFrameByName(name, instance).CalcPose(context, F).translation()
+    return out

@@ -1,0 +1,345 @@
+"""Joint-space motions of the simulated operator: T-pose and L-pose holds, the paper's Motion I and Motion II.
+
+A motion is a sampled trajectory of both arms' joint angles (see :mod:`akc_drake.operator.model` for the
+joint conventions). Motion I and II follow the paper (§III): 6 s per cycle, N cycles, both arms at once;
+each cycle varies a little (seeded), as a person's repetitions do.
+
+* Motion I (forward arm movement): T-pose, horizontal adduction until the arm points at the camera, back
+  to T-pose. When the arm points at the camera the hand hides the elbow and shoulder.
+* Motion II (elbow flexion-extension): the arm extended toward the camera, elbow flexion to about 90 deg
+  (forearm up), back to extension. The upper arm keeps pointing at the camera, so the shoulder stays
+  hidden behind the elbow for the whole motion.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from akc_drake.operator.model import (
+    DEFAULT_CAMERA_DISTANCE_M,
+    DEFAULT_CAMERA_HEIGHT_M,
+    NEUTRAL_FOREARM_ROLL,
+    NUM_ARM_DOF,
+    OperatorParams,
+    full_q,
+    landmarks_from_q,
+)
+
+#: Period of one cycle of Motion I or II (paper §III).
+CYCLE_SECONDS = 6.0
+#: Duration of one "cycle" of a held pose: 100 frames at 10 Hz, one calibration's worth (paper §III).
+HOLD_SECONDS = 10.0
+#: Sampling step of generated motions (the renderer interpolates between samples).
+SAMPLE_DT = 0.01
+#: Where the generated motions point the arms by default: the default camera position in O
+#: (in front of the pelvis at chest height; see ``akc_drake.systems.depth_camera_source.CameraPlacement``).
+DEFAULT_TARGET_O = (DEFAULT_CAMERA_DISTANCE_M, 0.0, DEFAULT_CAMERA_HEIGHT_M)
+
+MOTION_NAMES = ("I", "II", "tpose", "lpose")
+
+_DEG = math.pi / 180.0
+
+
+@dataclass
+class OperatorMotion:
+    """A sampled joint trajectory of both arms.
+
+    Attributes:
+        times: ``(T,)`` strictly increasing sample times in seconds, starting anywhere (usually 0).
+        q_left: ``(T, NUM_ARM_DOF)`` left-arm joint angles (radians).
+        q_right: ``(T, NUM_ARM_DOF)`` right-arm joint angles.
+        name: a label ("I", "II", "tpose", "lpose", or a file name).
+        cycle_starts: optional start times of the motion's cycles (for cycle-wise evaluation).
+    """
+
+    times: np.ndarray
+    q_left: np.ndarray
+    q_right: np.ndarray
+    name: str = "motion"
+    cycle_starts: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.times = np.asarray(self.times, dtype=float).reshape(-1)
+        T = self.times.shape[0]
+        if T < 2:
+            raise ValueError(f"OperatorMotion {self.name!r}: needs at least 2 samples, got {T}")
+        if not np.all(np.isfinite(self.times)) or np.any(np.diff(self.times) <= 0):
+            raise ValueError(f"OperatorMotion {self.name!r}: times must be finite and strictly increasing")
+        for attr in ("q_left", "q_right"):
+            q = np.asarray(getattr(self, attr), dtype=float)
+            if q.shape != (T, NUM_ARM_DOF):
+                raise ValueError(
+                    f"OperatorMotion {self.name!r}: {attr} must have shape ({T}, {NUM_ARM_DOF}), "
+                    f"got {q.shape}"
+                )
+            if not np.all(np.isfinite(q)):
+                k = int(np.flatnonzero(~np.all(np.isfinite(q), axis=1))[0])
+                raise ValueError(f"OperatorMotion {self.name!r}: {attr}[{k}] is not finite: {q[k].tolist()}")
+            setattr(self, attr, q)
+        if self.cycle_starts is not None:
+            self.cycle_starts = np.asarray(self.cycle_starts, dtype=float).reshape(-1)
+
+    @property
+    def start(self) -> float:
+        return float(self.times[0])
+
+    @property
+    def end(self) -> float:
+        return float(self.times[-1])
+
+    @property
+    def duration(self) -> float:
+        return self.end - self.start
+
+    def q(self) -> np.ndarray:
+        """``(T, 2 * NUM_ARM_DOF)`` samples in the canonical order ``[q_left, q_right]``."""
+        return full_q(self.q_left, self.q_right)
+
+    def trajectory(self):
+        """A Drake ``PiecewisePolynomial`` (first-order hold) of ``[q_left, q_right]`` over :attr:`times`."""
+        from pydrake.trajectories import PiecewisePolynomial
+
+        return PiecewisePolynomial.FirstOrderHold(self.times, self.q().T)
+
+    def sample(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Joint angles at times ``t`` (clamped to the motion's span) by linear interpolation.
+
+        Returns:
+            ``(q_left, q_right)``, each ``(len(t), NUM_ARM_DOF)`` (interpolated as :meth:`trajectory` does).
+        """
+        t = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), self.start, self.end)
+        ql = np.stack([np.interp(t, self.times, self.q_left[:, k]) for k in range(NUM_ARM_DOF)], axis=1)
+        qr = np.stack([np.interp(t, self.times, self.q_right[:, k]) for k in range(NUM_ARM_DOF)], axis=1)
+        return ql, qr
+
+    def frame_times(self, rate_hz: float) -> np.ndarray:
+        """Camera sample times ``start + k / rate_hz`` within the motion's span."""
+        if not (rate_hz > 0 and math.isfinite(rate_hz)):
+            raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
+        n = int(math.floor(self.duration * rate_hz + 1e-9)) + 1
+        return self.start + np.arange(n) / rate_hz
+
+    def landmarks_O(self, t=None, params: OperatorParams | None = None) -> np.ndarray:
+        """True landmarks in O, ``(T, 12, 3)``, at ``t`` (default: the sample times)."""
+        if t is None:
+            ql, qr = self.q_left, self.q_right
+        else:
+            ql, qr = self.sample(t)
+        return landmarks_from_q(ql, qr, params)
+
+
+# --------------------------------------------------------------------------------------------------
+# Generators
+# --------------------------------------------------------------------------------------------------
+
+
+def _smootherstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
+
+
+def _pointing_angles(shoulder_O: np.ndarray, target_O, side: str) -> tuple[float, float]:
+    """Shoulder adduction and elevation that point ``side``'s upper arm from its shoulder at ``target_O``."""
+    d = np.asarray(target_O, dtype=float) - shoulder_O
+    d = d / np.linalg.norm(d)
+    if side == "right":
+        d = d * np.array([1.0, -1.0, 1.0])
+    return math.atan2(d[0], d[1]), math.asin(d[2])
+
+
+def _cyclic(
+    cycles: int,
+    seed: int,
+    name: str,
+    rest_fn,
+    peak_fn,
+    jitter: float = 1.0,
+    start_pose: np.ndarray | None = None,
+) -> OperatorMotion:
+    """Cycles of rest -> peak -> rest for both arms, with seeded per-cycle variation.
+
+    ``rest_fn(rng, side)`` and ``peak_fn(rng, side)`` draw one pose (NUM_ARM_DOF,) each; ``jitter`` scales
+    the per-cycle variation of the timing. The rest pose drifts smoothly from one cycle boundary's draw to
+    the next (from ``start_pose`` at t = 0 when given); within a cycle the arm moves from the rest pose to
+    that cycle's peak and back with a smooth profile (short holds at both ends, a hold at the peak).
+    """
+    if not isinstance(cycles, (int, np.integer)) or cycles < 1:
+        raise ValueError(f"cycles must be a positive integer, got {cycles!r}")
+    rng = np.random.default_rng(seed)
+    T = int(round(cycles * CYCLE_SECONDS / SAMPLE_DT)) + 1
+    t = np.arange(T) * SAMPLE_DT
+    c = np.minimum((t // CYCLE_SECONDS).astype(int), cycles - 1)
+    phase = (t - c * CYCLE_SECONDS) / CYCLE_SECONDS
+    out = {}
+    for side in ("left", "right"):
+        rests = np.array([rest_fn(rng, side) for _ in range(cycles + 1)])
+        if start_pose is not None:
+            rests[0] = start_pose
+        peaks = np.array([peak_fn(rng, side) for _ in range(cycles)])
+        # Per cycle: when the arm leaves the rest pose, reaches the peak, leaves it, and is back.
+        a = 0.05 + jitter * rng.uniform(-0.02, 0.02, cycles)
+        b = 0.40 + jitter * rng.uniform(-0.03, 0.03, cycles)
+        e = 0.60 + jitter * rng.uniform(-0.03, 0.03, cycles)
+        f = 0.95 + jitter * rng.uniform(-0.02, 0.02, cycles)
+        up = _smootherstep((phase - a[c]) / (b[c] - a[c]))
+        down = _smootherstep((phase - e[c]) / (f[c] - e[c]))
+        shape = up * (1.0 - down)
+        rest = rests[c] + (rests[c + 1] - rests[c]) * _smootherstep(phase)[:, None]
+        out[side] = rest + (peaks[c] - rest) * shape[:, None]
+    return OperatorMotion(t, out["left"], out["right"], name, cycle_starts=np.arange(cycles) * CYCLE_SECONDS)
+
+
+def motion_I(
+    cycles: int = 1,
+    seed: int = 0,
+    *,
+    params: OperatorParams | None = None,
+    target_O=DEFAULT_TARGET_O,
+    variation: float = 1.0,
+) -> OperatorMotion:
+    """Motion I: T-pose -> horizontal adduction until the arm points at the camera -> T-pose (6 s/cycle).
+
+    Args:
+        cycles: number of 6 s cycles.
+        seed: seeds the per-cycle variation.
+        params: the operator (for the shoulder positions).
+        target_O: the point the arms point at (the camera) in O.
+        variation: scales the per-cycle variation (0: identical cycles).
+    """
+    params = params or OperatorParams()
+    v = float(variation) * _DEG
+
+    def rest(rng, side):
+        return np.array(
+            [
+                rng.normal(0.0, 3.0) * v,
+                rng.normal(0.0, 2.0) * v,
+                rng.normal(0.0, 2.0) * v,
+                abs(rng.normal(4.0, 2.0)) * v,
+                NEUTRAL_FOREARM_ROLL + rng.normal(0.0, 3.0) * v,
+            ]
+        )
+
+    def peak(rng, side):
+        add, elev = _pointing_angles(params.shoulder_O(side), target_O, side)
+        return np.array(
+            [
+                add + rng.normal(0.0, 2.0) * v,
+                elev + rng.normal(0.0, 1.5) * v,
+                rng.normal(0.0, 2.0) * v,
+                abs(rng.normal(4.0, 2.0)) * v,
+                NEUTRAL_FOREARM_ROLL + rng.normal(0.0, 3.0) * v,
+            ]
+        )
+
+    return _cyclic(cycles, seed, "I", rest, peak, jitter=float(variation))
+
+
+def motion_II(
+    cycles: int = 1,
+    seed: int = 0,
+    *,
+    params: OperatorParams | None = None,
+    target_O=DEFAULT_TARGET_O,
+    flexion_deg: float = 90.0,
+    variation: float = 1.0,
+    start_from_tpose: bool = True,
+) -> OperatorMotion:
+    """Motion II: arm extended toward the camera -> elbow flexion to about 90 deg -> extension (6 s/cycle).
+
+    The humerus is rotated so that the forearm rises (palm facing the body's midline) while the upper arm
+    keeps pointing at the camera.
+
+    Args:
+        cycles: number of 6 s cycles.
+        seed: seeds the per-cycle variation.
+        params: the operator (for the shoulder positions).
+        target_O: the point the arms point at (the camera) in O.
+        flexion_deg: mean elbow flexion at the peak.
+        variation: scales the per-cycle variation (0: identical cycles).
+        start_from_tpose: the first cycle starts from a T-pose (the operator raising the arms into position,
+            the shoulders in view) instead of from the extended pose. Without it the shoulders are hidden
+            from the very first frame and a filter has nothing to start its track from. The paper uses the
+            first cycle only to tune weights.
+    """
+    params = params or OperatorParams()
+    v = float(variation) * _DEG
+
+    def base(rng, side):
+        add, elev = _pointing_angles(params.shoulder_O(side), target_O, side)
+        return np.array(
+            [
+                add + rng.normal(0.0, 2.0) * v,
+                elev + rng.normal(0.0, 1.5) * v,
+                -math.pi / 2 + rng.normal(0.0, 3.0) * v,
+                abs(rng.normal(3.0, 1.5)) * v,
+                NEUTRAL_FOREARM_ROLL + rng.normal(0.0, 3.0) * v,
+            ]
+        )
+
+    def peak(rng, side):
+        q = base(rng, side)
+        q[3] = (flexion_deg * _DEG) + rng.normal(0.0, 4.0) * v
+        return q
+
+    start = np.array([0.0, 0.0, -math.pi / 2, 0.0, NEUTRAL_FOREARM_ROLL]) if start_from_tpose else None
+    return _cyclic(cycles, seed, "II", base, peak, jitter=float(variation), start_pose=start)
+
+
+def _hold(pose: np.ndarray, seconds: float, seed: int, name: str, sway_deg: float) -> OperatorMotion:
+    if not (isinstance(seconds, (int, float)) and math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"seconds must be a positive number, got {seconds!r}")
+    rng = np.random.default_rng(seed)
+    T = int(round(seconds / SAMPLE_DT)) + 1
+    t = np.arange(T) * SAMPLE_DT
+    out = {}
+    for side in ("left", "right"):
+        # A slow, small sway: two sinusoids per joint with random phases (nobody holds perfectly still).
+        freq = rng.uniform(0.1, 0.4, (2, NUM_ARM_DOF))
+        phase = rng.uniform(0, 2 * math.pi, (2, NUM_ARM_DOF))
+        sway = np.sin(2 * math.pi * freq[0] * t[:, None] + phase[0]) + 0.5 * np.sin(
+            2 * math.pi * freq[1] * t[:, None] + phase[1]
+        )
+        out[side] = pose[None, :] + sway * (sway_deg * _DEG / 1.5)
+    return OperatorMotion(t, out["left"], out["right"], name)
+
+
+def tpose(seconds: float = HOLD_SECONDS, seed: int = 0, *, sway_deg: float = 0.5) -> OperatorMotion:
+    """Hold a T-pose (arms straight out to the sides, palms down) for ``seconds``, with a slight sway."""
+    pose = np.array([0.0, 0.0, 0.0, 0.0, NEUTRAL_FOREARM_ROLL])
+    return _hold(pose, seconds, seed, "tpose", sway_deg)
+
+
+def lpose(seconds: float = HOLD_SECONDS, seed: int = 0, *, sway_deg: float = 0.5) -> OperatorMotion:
+    """Hold an L-pose (upper arms out to the sides, elbows at 90 deg, forearms up, palms forward)."""
+    pose = np.array([0.0, 0.0, -math.pi / 2, math.pi / 2, NEUTRAL_FOREARM_ROLL])
+    return _hold(pose, seconds, seed, "lpose", sway_deg)
+
+
+def make_motion(name: str, cycles: int = 1, seed: int = 0, **kwargs) -> OperatorMotion:
+    """A motion by name.
+
+    Args:
+        name: "I", "II", "tpose" or "lpose" (case-insensitive; "1"/"2" also accepted).
+        cycles: cycles of Motion I/II (6 s each); for holds, the number of :data:`HOLD_SECONDS` periods.
+        seed: seeds the variation.
+        **kwargs: passed to the generator.
+
+    Raises:
+        ValueError: an unknown name or a non-positive cycle count.
+    """
+    key = str(name).strip().lower()
+    if not isinstance(cycles, (int, np.integer)) or cycles < 1:
+        raise ValueError(f"cycles must be a positive integer, got {cycles!r}")
+    if key in ("i", "1", "motion_i"):
+        return motion_I(cycles, seed, **kwargs)
+    if key in ("ii", "2", "motion_ii"):
+        return motion_II(cycles, seed, **kwargs)
+    if key in ("tpose", "t-pose", "t"):
+        return tpose(HOLD_SECONDS * cycles, seed, **kwargs)
+    if key in ("lpose", "l-pose", "l"):
+        return lpose(HOLD_SECONDS * cycles, seed, **kwargs)
+    raise ValueError(f"unknown motion {name!r}; choose one of {', '.join(MOTION_NAMES)} (or a motion file)")
