@@ -62,7 +62,8 @@ def test_pearson_equals_scipy(xy):
         assume(False)  # near-constant series: scipy warns and both are ill-conditioned
     ref = scipy.stats.pearsonr(x, y)
     assert r == pytest.approx(ref.statistic, abs=1e-10)
-    assert p == pytest.approx(ref.pvalue, abs=1e-10)
+    # p is ill-conditioned as |r| -> 1 (for n = 3, r = 1 - 1e-16 gives p ~ 1e-8 where scipy says 0).
+    assert p == pytest.approx(ref.pvalue, abs=1e-6)
 
 
 def test_pearson_per_axis_matches_scipy_on_a_trajectory_with_nan_frames():
