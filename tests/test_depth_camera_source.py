@@ -59,14 +59,19 @@ def test_t_pose_elbow_pixel_reads_the_elbows_own_surface():
     assert names[int(_at(label, project(truth[INDEX["right_shoulder"]], SMALL)))] == "right_upper_arm"
 
 
-def test_forearm_pointing_at_the_camera_hides_the_elbow_behind_the_hand():
-    """Real occlusion from the render, not injected: the elbow's pixel reads the near end of its own hand."""
-    params = OperatorParams()
+def _forearm_at_camera(params):
     placement = CameraPlacement()
     elbow_O = params.shoulder_O("left") + [0.0, params.dims.LUA, 0.0]
     to_camera = placement.position_O() - elbow_O
     q_left = arm_angles_from_directions("left", [[0.0, 1.0, 0.0]], [to_camera])[0]
-    source, ctx, depth, truth = _first_frame(_static(q_left, np.zeros(NUM_ARM_DOF)), camera_pose=placement)
+    return _first_frame(_static(q_left, np.zeros(NUM_ARM_DOF)), camera_pose=placement, params=params)
+
+
+def test_forearm_pointing_at_the_camera_hides_the_elbow_behind_the_hand():
+    """Real occlusion from the render, not injected: the elbow's pixel reads the near end of its own hand
+    (with a straight wrist, the hand a rigid extension of the forearm)."""
+    params = OperatorParams(wrist_extension_deg=0.0)
+    source, ctx, depth, truth = _forearm_at_camera(params)
     e, w = INDEX["left_elbow"], INDEX["left_wrist"]
     uv_e, uv_w = project(truth[e], SMALL), project(truth[w], SMALL)
     assert np.linalg.norm(uv_e - uv_w) < 0.5  # the wrist is right in front of the elbow
@@ -77,6 +82,19 @@ def test_forearm_pointing_at_the_camera_hides_the_elbow_behind_the_hand():
     expected = truth[e, 2] * (dist - params.dims.LLA - params.hand_length) / dist
     assert d_elbow == pytest.approx(expected, abs=0.004)
     assert truth[e, 2] - d_elbow > 0.4  # raw elbow depth off by more than 40 cm
+    assert truth[w, 2] - d_wrist > 0.15  # and the wrist reads the fingertips
+
+
+def test_natural_wrist_posture_lets_the_wrist_pixel_see_the_wrist():
+    """With the default wrist extension the hand tilts out of the forearm's line: the wrist's pixel sees the
+    wrist and the base of the palm (a few cm in front of the joint centre), while the elbow stays hidden."""
+    params = OperatorParams()
+    assert params.wrist_extension_deg > 0
+    source, ctx, depth, truth = _forearm_at_camera(params)
+    e, w = INDEX["left_elbow"], INDEX["left_wrist"]
+    d_elbow, d_wrist = _at(depth, project(truth[e], SMALL)), _at(depth, project(truth[w], SMALL))
+    assert 0.02 < truth[w, 2] - d_wrist < 0.06
+    assert truth[e, 2] - d_elbow > params.dims.LLA  # the elbow still reads its own wrist region
 
 
 def test_motion_II_shoulder_depth_is_wrong_while_x_y_stay_close():
@@ -244,3 +262,17 @@ def test_pipeline_config_builds_the_described_camera():
     np.testing.assert_allclose(truth.reshape(12, 3)[INDEX["left_hip"]], [0.09, 0.35, 1.8], atol=1e-12)
     with pytest.raises(ValueError, match="fov_x_deg"):
         intrinsics_from_config(CameraConfig(fov_x_deg=0.0))
+
+
+def test_surface_to_centre_correction_removes_the_t_pose_depth_bias():
+    """In a T-pose nothing is occluded: the raw depth of each joint is its surface, short by the body's
+    half-thickness; the extractor's default correction brings it back to the joint centre."""
+    motion = tpose(0.4, sway_deg=0.0)
+    idx = [INDEX[n] for n in ("left_shoulder", "right_shoulder", "left_elbow", "left_wrist", "left_hip")]
+    off = render_session(motion, MEDIUM, noise=StereoDepthNoise.ideal(), surface_offset_m=0)
+    on = render_session(motion, MEDIUM, noise=StereoDepthNoise.ideal())
+    bias_off = (off.raw - off.truth)[:, idx, 2]
+    bias_on = (on.raw - on.truth)[:, idx, 2]
+    assert np.all(bias_off < -0.025)  # surfaces 2.5-10 cm in front of the joint centres
+    assert np.all(np.abs(bias_on) < 0.015)  # corrected to within 1.5 cm
+    np.testing.assert_array_equal(on.pixels, off.pixels)

@@ -9,7 +9,13 @@ from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detection2D
 from akc_drake.core.sim_detector import SimulatedDetector
 from akc_drake.core.skeleton import NUM_LANDMARKS
 from akc_drake.systems import timing
-from akc_drake.systems.landmark_extractor import LandmarkExtractor, extract_landmarks
+from akc_drake.systems.landmark_extractor import (
+    DEFAULT_SURFACE_OFFSET_M,
+    LandmarkExtractor,
+    extract_landmarks,
+    surface_offsets,
+    surface_to_centre_depth,
+)
 
 K = CameraIntrinsics(width=80, height=60, fx=70.0, fy=72.0, cx=39.5, cy=29.5, rate_hz=10.0)
 
@@ -46,7 +52,7 @@ def _frame(depth, t=0.0):
 def test_extract_deprojects_the_detected_pixels_at_the_looked_up_depth():
     uv = _uv()
     vis = np.linspace(0.1, 1.0, NUM_LANDMARKS)
-    points, v, pix = extract_landmarks(_frame(_depth(1.5)), FixedDetector(uv, vis))
+    points, v, pix = extract_landmarks(_frame(_depth(1.5)), FixedDetector(uv, vis), surface_offset_m=0)
     np.testing.assert_allclose(points[:, 0], (uv[:, 0] - K.cx) * 1.5 / K.fx, atol=1e-12)
     np.testing.assert_allclose(points[:, 1], (uv[:, 1] - K.cy) * 1.5 / K.fy, atol=1e-12)
     np.testing.assert_allclose(points[:, 2], 1.5, atol=1e-6)
@@ -62,10 +68,13 @@ def test_depth_is_the_window_median_and_nan_without_valid_depth():
     depth[18:23, 18:23] = 1.0  # 25 pixels at 1 m under landmark 0's 5x5 window ...
     depth[18, 18] = 3.0  # ... but one is an outlier: the median ignores it
     depth[38:43, 58:63] = 0.0  # no valid depth under landmark 1
-    points, _, _ = extract_landmarks(_frame(depth), FixedDetector(uv, np.ones(NUM_LANDMARKS)))
+    det = FixedDetector(uv, np.ones(NUM_LANDMARKS))
+    points, _, _ = extract_landmarks(_frame(depth), det, surface_offset_m=0)
     assert points[0, 2] == pytest.approx(1.0)
     assert np.all(np.isnan(points[1])) and np.all(np.isnan(points[2]))
-    points, _, _ = extract_landmarks(_frame(depth), FixedDetector(uv, np.ones(NUM_LANDMARKS)), window=1)
+    points, _, _ = extract_landmarks(
+        _frame(depth), FixedDetector(uv, np.ones(NUM_LANDMARKS)), window=1, surface_offset_m=0
+    )
     assert points[0, 2] == pytest.approx(1.0)
 
 
@@ -153,7 +162,9 @@ def test_default_detector_is_the_simulated_one():
     system.GetInputPort("landmarks_true_C").FixValue(context, truth.ravel())
     _step(system, context, 0.3 + timing.stage_offset("extractor"))
     points = system.GetOutputPort("landmarks_C").Eval(context).reshape(12, 3)
-    np.testing.assert_allclose(points[:, 2], 1.98, atol=1e-6)
+    # The surface depth 1.98 plus each joint's surface-to-centre offset along its ray (rays within 15 deg).
+    off = surface_offsets()
+    assert np.all(points[:, 2] > 1.98 + 0.95 * off) and np.all(points[:, 2] <= 1.98 + off + 1e-6)
     frame = _frame(_depth(1.98), t=0.3)
     frame.truth_C = truth
     expected, vis, _ = extract_landmarks(frame, SimulatedDetector(seed=5))
@@ -175,3 +186,69 @@ def test_bad_arguments_and_inputs():
     system.GetInputPort("camera_info").FixValue(context, AbstractValue.Make(CameraIntrinsics()))
     with pytest.raises(ValueError, match="does not match camera_info 640x480"):
         system.frame_from_inputs(context)
+
+
+def test_surface_offsets_spec_forms_and_errors():
+    d = surface_offsets()
+    assert d.shape == (NUM_LANDMARKS,)
+    assert d[0] == DEFAULT_SURFACE_OFFSET_M["shoulder"] and d[4] == DEFAULT_SURFACE_OFFSET_M["wrist"]
+    assert d[10] == DEFAULT_SURFACE_OFFSET_M["hip"] == d[11]
+    np.testing.assert_array_equal(surface_offsets(0), np.zeros(NUM_LANDMARKS))
+    np.testing.assert_array_equal(surface_offsets(0.03), np.full(NUM_LANDMARKS, 0.03))
+    mixed = surface_offsets({"hip": 0.1, "left_wrist": 0.0})
+    assert mixed[10] == mixed[11] == 0.1 and mixed[4] == 0.0 and mixed[5] == d[5] and mixed[0] == d[0]
+    np.testing.assert_array_equal(surface_offsets(np.arange(12) / 100), np.arange(12) / 100)
+    with pytest.raises(ValueError, match="unknown joint 'knee'"):
+        surface_offsets({"knee": 0.05})
+    with pytest.raises(ValueError, match="'left_shoulder'.*-0.01"):
+        surface_offsets(-0.01)
+    with pytest.raises(ValueError, match="shape \\(3,\\)"):
+        surface_offsets([0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="left_elbow"):
+        surface_offsets({"left_elbow": float("nan")})
+    with pytest.raises(ValueError, match="surface_offset_m"):
+        LandmarkExtractor(K, FixedDetector(_uv(), np.ones(12)), surface_offset_m=2.0)
+
+
+def test_correction_moves_a_sphere_surface_reading_to_its_centre():
+    """A sphere of radius r centred at c: the ray through c meets it at range |c| - r; + r is the centre."""
+    r = 0.05
+    for c in ([0.0, 0.0, 2.0], [0.6, -0.4, 1.7], [-0.9, 0.5, 1.2]):
+        c = np.array(c)
+        uv = np.array([[K.fx * c[0] / c[2] + K.cx, K.fy * c[1] / c[2] + K.cy]])
+        z_surface = c[2] * (np.linalg.norm(c) - r) / np.linalg.norm(c)
+        z = surface_to_centre_depth(uv, np.array([z_surface]), np.array([r]), K)
+        assert z[0] == pytest.approx(c[2], abs=1e-12)
+    # Near the image centre the correction is just + offset; NaN stays NaN.
+    centre = np.array([[K.cx, K.cy], [K.cx, K.cy]])
+    z = surface_to_centre_depth(centre, np.array([1.5, np.nan]), np.array([0.05, 0.05]), K)
+    assert z[0] == pytest.approx(1.55, abs=1e-12) and np.isnan(z[1])
+
+
+def test_extract_applies_the_offsets_before_deprojection():
+    uv = np.tile([K.cx, K.cy], (NUM_LANDMARKS, 1)) + np.linspace(-20, 20, NUM_LANDMARKS)[:, None]
+    det = FixedDetector(uv, np.ones(NUM_LANDMARKS))
+    off = np.linspace(0.0, 0.11, NUM_LANDMARKS)
+    plain, _, _ = extract_landmarks(_frame(_depth(1.5)), det, surface_offset_m=0)
+    corr, _, _ = extract_landmarks(_frame(_depth(1.5)), det, surface_offset_m=off)
+    # Each point moves along its own pixel ray, by exactly its offset.
+    moved = np.linalg.norm(corr - plain, axis=1)
+    np.testing.assert_allclose(moved, off, atol=1e-6)
+    np.testing.assert_allclose(np.cross(plain, corr), 0.0, atol=1e-9)
+    assert np.all(corr[:, 2] >= plain[:, 2])
+    default, _, _ = extract_landmarks(_frame(_depth(1.5)), det)
+    expected_default, _, _ = extract_landmarks(_frame(_depth(1.5)), det, surface_offset_m=surface_offsets())
+    np.testing.assert_array_equal(default, expected_default)
+
+
+def test_system_uses_its_configured_offsets():
+    uv = _uv()
+    det = FixedDetector(uv, np.ones(12))
+    for spec in (None, 0, {"shoulder": 0.07}):
+        system = LandmarkExtractor(K, det, surface_offset_m=spec)
+        np.testing.assert_array_equal(system.surface_offset_m, surface_offsets(spec))
+        context = system.CreateDefaultContext()
+        _fix_images(system, context, _depth(1.7))
+        _step(system, context, timing.stage_offset("extractor"))
+        expected, _, _ = extract_landmarks(_frame(_depth(1.7)), det, surface_offset_m=spec)
+        np.testing.assert_array_equal(system.GetOutputPort("landmarks_C").Eval(context), expected.ravel())

@@ -215,3 +215,38 @@ def test_landmark_order_matches_skeleton():
     # Left landmarks at +y, right ones at -y, in the skeleton's order.
     for k, name in enumerate(LANDMARKS):
         assert np.sign(lm[k, 1]) == (1 if name.startswith("left") else -1)
+
+
+def test_wrist_posture_tilts_the_hand_toward_its_back_on_both_sides():
+    straight = OperatorParams(wrist_extension_deg=0.0)
+    bent = OperatorParams(wrist_extension_deg=30.0)
+    for side in ("left", "right"):
+        s = 1.0 if side == "left" else -1.0
+        # Straight wrist: the knuckles lie along the forearm axis (+-y), palm normal +x.
+        np.testing.assert_allclose(straight.index_H(side), [0.0, s * 0.09, 0.03], atol=1e-15)
+        # Extension turns the hand about the thumb axis (z) toward the back of the hand (-x), by 30 deg.
+        p0, p1 = straight.index_H(side), bent.index_H(side)
+        assert p1[0] == pytest.approx(-0.09 * math.sin(math.radians(30.0)), abs=1e-12)
+        assert p1[2] == p0[2] and np.linalg.norm(p1) == pytest.approx(np.linalg.norm(p0), abs=1e-12)
+        R = bent.R_H_hand(side)
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-15)
+    # Mirror symmetry: the right hand is the left one reflected through the sagittal plane.
+    m = np.array([1.0, -1.0, 1.0])
+    np.testing.assert_allclose(bent.index_H("right"), bent.index_H("left") * m, atol=1e-15)
+    np.testing.assert_allclose(bent.pinky_H("right"), bent.pinky_H("left") * m, atol=1e-15)
+    # The wrist and the arm above it do not move; only the knuckles do.
+    q = np.array([0.3, 0.2, -0.4, 0.9, 1.2])
+    a, b = arm_forward_kinematics("left", q, straight), arm_forward_kinematics("left", q, bent)
+    np.testing.assert_allclose(a[:3], b[:3], atol=1e-15)
+    assert np.linalg.norm(a[3] - b[3]) > 0.04
+    with pytest.raises(ValueError, match="wrist_extension_deg.*95"):
+        OperatorParams(wrist_extension_deg=95.0)
+
+
+def test_sdf_hand_geometry_follows_the_wrist_posture():
+    sdf = operator_sdf(OperatorParams(wrist_extension_deg=25.0))
+    yaw = f"{math.radians(25.0):.6g}"
+    # Palm, fingers and thumb of both hands turned by the posture (about z, mirrored on the right).
+    assert sdf.count(f" 0 0 {yaw}</pose>") == 2 and sdf.count(f" 0 0 -{yaw}</pose>") == 2
+    assert sdf.count(f" 0 {yaw}</pose>") == 3 and sdf.count(f" 0 -{yaw}</pose>") == 3  # + thumbs (own roll)
+    assert f" 0 {yaw}</pose>" not in operator_sdf(OperatorParams(wrist_extension_deg=0.0))

@@ -10,13 +10,22 @@ Each arm has :data:`NUM_ARM_DOF` = 5 revolute joints, in this order::
     q[1] shoulder elevation             (+: arm raised toward the head)
     q[2] humeral rotation               (roll of the upper arm about its own axis)
     q[3] elbow flexion                  (0: straight, +: forearm folds toward the palm side)
-    q[4] forearm roll (pronation/supination, about the forearm axis; the hand is rigid on the forearm)
+    q[4] forearm roll (pronation/supination, about the forearm axis)
 
 At q = 0 the arm points straight out to the side (T-pose), the elbow would flex forward and the palm faces
 forward with the thumb up. The left arm's rotation is ``Rz(-q0) Rx(q1) Ry(q2) . Rz(-q3) . Ry(q4)``
 (each factor about an axis fixed in the previous body, all frames aligned with O at q = 0). The right arm
 is the mirror image of the left one through the sagittal plane (y -> -y), so equal q give mirrored poses:
 its joint axes are the left axes mirrored and negated.
+
+The hand has no joint of its own: it sits on the forearm in a fixed, natural wrist posture,
+:attr:`OperatorParams.wrist_extension_deg` of extension (the fingers bent toward the back of the hand about
+the wrist's radio-ulnar axis, the thumb axis of the hand frame). A person holding the arm out does not keep
+the hand as a rigid, straight extension of the forearm; the relaxed "functional" wrist is extended by about
+20-30 deg (our estimate; the position of function used in hand splinting). It matters for the camera:
+with a straight hand, a forearm pointing at the camera puts the fingers exactly in front of the wrist, and
+the wrist's depth reads the fingertips (10-18 cm short); with the wrist extended, the wrist's pixel sees the
+wrist and the base of the palm. ``wrist_extension_deg = 0`` gives the straight hand.
 
 The five joint angles are exactly what the 12 landmarks can tell: the upper-arm direction (2), the
 forearm direction (elbow flexion + humeral rotation) and the palm orientation (forearm roll), which
@@ -109,6 +118,8 @@ class OperatorParams:
         hand_thickness: palm thickness.
         knuckle_distance: wrist to the index MCP along the hand.
         knuckle_offset: half the distance between the index and pinky MCP, across the palm.
+        wrist_extension_deg: the fixed wrist posture: extension (+, fingers toward the back of the hand)
+            or flexion (-) of the hand relative to the forearm, degrees, in [-60, 70].
         chest_depth, chest_width: front-back and left-right size of the chest.
         pelvis_depth, pelvis_width: same for the pelvis.
         neck_radius, head_radius: neck cylinder and head sphere radii.
@@ -127,6 +138,7 @@ class OperatorParams:
     hand_thickness: float = 0.03
     knuckle_distance: float = 0.09
     knuckle_offset: float = 0.03
+    wrist_extension_deg: float = 20.0
     chest_depth: float = 0.21
     chest_width: float = 0.30
     pelvis_depth: float = 0.19
@@ -144,6 +156,13 @@ class OperatorParams:
             raise ValueError(f"OperatorParams.dims must be a BodyDimensions, got {type(self.dims).__name__}")
         for f in fields(self):
             if f.name == "dims":
+                continue
+            if f.name == "wrist_extension_deg":
+                v = self.wrist_extension_deg
+                if not isinstance(v, (int, float)) or not math.isfinite(v) or not -60.0 <= v <= 70.0:
+                    raise ValueError(
+                        f"OperatorParams.wrist_extension_deg must be in [-60, 70] degrees, got {v!r}"
+                    )
                 continue
             v = getattr(self, f.name)
             if f.name.endswith("_rgba"):
@@ -174,15 +193,27 @@ class OperatorParams:
         s = _side_sign(side)
         return np.array([0.0, s * self.hip_width / 2.0, 0.0])
 
+    def R_H_hand(self, side: str) -> np.ndarray:
+        """Rotation of ``side``'s hand (palm, fingers, knuckles) in its hand frame: the wrist posture.
+
+        The hand frame (origin at the wrist) is aligned with O at q = 0; the hand itself is turned about
+        the frame's z axis (the thumb axis, across the wrist) by ``wrist_extension_deg``, so that the fingers
+        bend toward the back of the hand (-x of the hand frame, the palm facing +x) on both sides.
+        """
+        a = math.radians(self.wrist_extension_deg) * _side_sign(side)
+        c, sn = math.cos(a), math.sin(a)
+        return np.array([[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]])
+
     def index_H(self, side: str) -> np.ndarray:
         """Index MCP in ``side``'s hand frame (origin at the wrist, aligned with O at q = 0)."""
         s = _side_sign(side)
-        return np.array([0.0, s * self.knuckle_distance, self.knuckle_offset])
+        return self.R_H_hand(side) @ np.array([0.0, s * self.knuckle_distance, self.knuckle_offset])
 
     def pinky_H(self, side: str) -> np.ndarray:
         """Pinky MCP in ``side``'s hand frame (a little closer to the wrist than the index MCP)."""
         s = _side_sign(side)
-        return np.array([0.0, s * (self.knuckle_distance - 0.008), -self.knuckle_offset])
+        p = np.array([0.0, s * (self.knuckle_distance - 0.008), -self.knuckle_offset])
+        return self.R_H_hand(side) @ p
 
 
 def _side_sign(side: str) -> float:
@@ -575,9 +606,10 @@ def _revolute(name: str, parent: str, child: str, axis) -> str:
 
 
 def _frame(name: str, attached_to: str, xyz) -> str:
-    return (
-        f'    <frame name="{name}" attached_to="{attached_to}"><pose>{_fmt(*xyz, 0, 0, 0)}</pose></frame>\n'
-    )
+    # Landmark frames carry the numpy kinematics' exact numbers (15 digits), not the visuals' 6.
+    pose = " ".join(f"{v:.15g}" for v in (*np.asarray(xyz, dtype=float), 0.0, 0.0, 0.0))
+    return f'    <frame name="{name}" attached_to="{attached_to}"><pose>{pose}</pose></frame>\n'
+
 
 
 def operator_sdf(params: OperatorParams | None = None, mesh_dir=None) -> str:
@@ -667,25 +699,35 @@ def operator_sdf(params: OperatorParams | None = None, mesh_dir=None) -> str:
         g.sphere(f"{side}_elbow", (0, 0, 0), p.upper_arm_radius, skin)
         g.cylinder(f"{side}_forearm", (0, s * lf / 2, 0), p.forearm_radius, lf, skin, rpy=(half_pi, 0, 0))
         out.append(_link(f"{side}_forearm", el, _inertial(1.2, 0.008, 0.001, 0.008), g))
-        # Hand: palm normal +x and thumb toward +z at q = 0.
+        # Hand: palm normal +x and thumb toward +z at q = 0 for a straight wrist; the wrist posture turns
+        # the palm, fingers and thumb about the hand frame's z axis (OperatorParams.R_H_hand).
         g = _Geometry(prefix)
         palm_len = p.knuckle_distance + 0.01
         fing_len = p.hand_length - palm_len
+        R_hand = p.R_H_hand(side)
+        yaw = math.radians(p.wrist_extension_deg) * s  # R_hand = Rz(yaw); SDF rpy composes Rz Ry Rx
         g.sphere(f"{side}_wrist", (0, 0, 0), p.forearm_radius * 0.9, skin)
-        g.box(f"{side}_palm", (0, s * palm_len / 2, 0), (p.hand_thickness, palm_len, p.hand_width), skin)
+        g.box(
+            f"{side}_palm",
+            R_hand @ [0, s * palm_len / 2, 0],
+            (p.hand_thickness, palm_len, p.hand_width),
+            skin,
+            rpy=(0, 0, yaw),
+        )
         g.box(
             f"{side}_fingers",
-            (0, s * (palm_len + fing_len / 2), -0.004),
+            R_hand @ [0, s * (palm_len + fing_len / 2), -0.004],
             (p.hand_thickness * 0.7, fing_len, p.hand_width * 0.9),
             skin,
+            rpy=(0, 0, yaw),
         )
         g.cylinder(
             f"{side}_thumb",
-            (0.012, s * 0.045, p.hand_width / 2 + 0.006),
+            R_hand @ [0.012, s * 0.045, p.hand_width / 2 + 0.006],
             0.011,
             0.05,
             skin,
-            rpy=(half_pi + s * 0.5, 0, 0),
+            rpy=(half_pi + s * 0.5, 0, yaw),
         )
         out.append(_link(f"{side}_hand", wr, _inertial(0.4, 0.001, 0.0005, 0.001), g))
         chain = ("torso", f"{side}_shoulder_link1", f"{side}_shoulder_link2", f"{side}_upper_arm")

@@ -494,12 +494,13 @@ def render_session(
     render_color: bool | None = None,
     background_wall_m: float | None = 1.5,
     window: int = 5,
+    surface_offset_m=None,
 ) -> Session:
     """Render ``motion`` frame by frame and extract raw landmarks, without a simulator.
 
     One :class:`DepthCameraSource` and one context are reused; each frame (``t_k = k / rate``) is rendered
     once, corrupted with the same noise the diagram would apply, passed to ``detector`` and through the
-    extractor's depth lookup and deprojection
+    extractor's depth lookup, surface-to-centre correction and deprojection
     (:func:`~akc_drake.systems.landmark_extractor.extract_landmarks`).
     The values equal what the mocap diagram's LandmarkExtractor computes for the same frames.
 
@@ -518,14 +519,18 @@ def render_session(
             (a detector declares ``needs_color = False`` to skip it; the frame then carries a black image).
         background_wall_m: see :class:`DepthCameraSource`.
         window: depth-lookup window (pixels).
+        surface_offset_m: the extractor's surface-to-centre depth offsets
+            (:func:`~akc_drake.systems.landmark_extractor.surface_offsets`; None: the same defaults as
+            :class:`~akc_drake.systems.landmark_extractor.LandmarkExtractor`, 0: off).
 
     Returns:
         A :class:`Session`.
     """
     from akc_drake.core.sim_detector import SimulatedDetector
-    from akc_drake.systems.landmark_extractor import extract_landmarks
+    from akc_drake.systems.landmark_extractor import extract_landmarks, surface_offsets
 
     K = intrinsics or CameraIntrinsics()
+    offsets = surface_offsets(surface_offset_m)
     detector = detector if detector is not None else SimulatedDetector(seed=seed)
     if not isinstance(detector, Detector):
         raise ValueError(f"detector must implement the Detector protocol (name, detect), got {detector!r}")
@@ -573,7 +578,7 @@ def render_session(
         frame = CameraFrame(
             color=color, depth_m=depth, t=float(t), intrinsics=K, truth_C=truth[k], label=label
         )
-        raw[k], vis[k], pix[k] = extract_landmarks(frame, detector, window=window)
+        raw[k], vis[k], pix[k] = extract_landmarks(frame, detector, window=window, surface_offset_m=offsets)
         t2 = time.perf_counter()
         render_s[k], extract_s[k] = t1 - t0, t2 - t1
         if frame_callback is not None:
