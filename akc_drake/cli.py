@@ -27,6 +27,7 @@ _PENDING_ISSUE = {
     "run": 4,
     "calibrate": 7,
     "bench": 8,
+    "soak": 9,
 }
 
 
@@ -111,6 +112,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pose", default="tpose", choices=("tpose", "lpose"))
     p.add_argument("--frames", type=int, default=100, metavar="N")
     p.add_argument("--out", required=True, metavar="FILE.json")
+
+    p = sub.add_parser("soak", help="a long simulated teleop session with random tracking loss (robustness)")
+    p.add_argument("--minutes", type=float, default=30.0, metavar="M", help="simulated minutes (default: 30)")
+    p.add_argument("--dropout", type=float, default=0.3, metavar="F", help="share of frames lost in bursts")
+    p.add_argument("--garbage", type=float, default=0.0, metavar="F", help="share of frames with garbage")
+    p.add_argument("--motion", default="I", choices=("I", "II"))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sample-s", type=float, default=10.0, metavar="S", help=argparse.SUPPRESS)
+    p.add_argument("--json", metavar="FILE")
 
     p = sub.add_parser("bench", help="measure the speed of every stage (see README, Performance)")
     p.add_argument("--quick", action="store_true")

@@ -16,6 +16,7 @@ Example ``mocap.yaml``::
 # No "from __future__ import annotations": pydrake.common.yaml reads the real annotation types.
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,6 +25,14 @@ from akc_drake.errors import UserError
 FILTERS = ("none", "KF", "EKF")
 CORRECTORS = ("none", "AKC", "COIK")
 WEIGHT_NAMES = ("Wa", "Wb", "Wc")
+#: The teleop diagram's default innovation gate (standard deviations). On the clean rendered Motions I and II
+#: it rejects no measurement of an arm joint (tests/test_faults_garbage.py checks the accuracy is unchanged);
+#: a detector jump, a swapped side or a 0 / 65 m depth is tens of standard deviations away.
+TELEOP_GATE_SIGMA = 5.0
+#: The teleop diagram's default longest extrapolation of an unmeasured landmark (seconds): it bridges a few
+#: missed frames, but an arm moving at 1 m/s when the person leaves drags the robot target by at most 30 cm
+#: before the robot holds (1 s, the mocap default, would be a metre).
+TELEOP_MAX_PREDICT_S = 0.3
 
 
 @dataclass
@@ -42,6 +51,8 @@ class CameraConfig:
     #: Stereo model: baseline (m) and sub-pixel disparity noise (px); sigma_z = z^2 sigma_d / (f b).
     baseline_m: float = 0.05
     disparity_noise_px: float = 0.08
+    #: Render the colour image even when the detector does not need it (the simulated detector uses depth).
+    render_color: bool = False
 
     def intrinsics(self):
         """The :class:`~akc_drake.core.camera.CameraIntrinsics` of this camera (pinhole, centred)."""
@@ -72,6 +83,14 @@ class PipelineConfig:
         coik_solver: ``snopt`` | ``ipopt`` | ``nlopt``.
         visibility_threshold, proximity: the occlusion filter (paper §II-C).
         stage_offset_s: the per-stage processing delay (see ``akc_drake.systems.timing``).
+        gate_sigma: the filter's innovation gate in standard deviations (a measured axis further than this
+            from the prediction is treated as missing for that frame; see ``akc_drake.core.kalman``).
+            0 turns it off; a negative value (the default) means the diagram's own default: off in the mocap
+            diagram (the paper's filter), :data:`TELEOP_GATE_SIGMA` in the teleop diagram.
+        max_predict_s: how long the filter extrapolates a landmark that is no longer measured before it
+            holds it and reports it LOST (then it reads NaN and the robot holds). A negative value (the
+            default) means the diagram's own default: 1 s in the mocap diagram (``KFConfig``'s),
+            :data:`TELEOP_MAX_PREDICT_S` in the teleop diagram, where an extrapolated wrist drives the robot.
     """
 
     source: str = "sim"
@@ -88,6 +107,22 @@ class PipelineConfig:
     visibility_threshold: float = 0.7
     proximity: float = 0.05
     stage_offset_s: float = 1e-3
+    gate_sigma: float = -1.0
+    max_predict_s: float = -1.0
+
+    def resolved_gate_sigma(self, teleop: bool) -> float | None:
+        """The gate the filter gets (None = off): ``gate_sigma`` resolved for the mocap or teleop diagram."""
+        g = float(self.gate_sigma)
+        if g < 0.0:
+            return TELEOP_GATE_SIGMA if teleop else None
+        return g if g > 0.0 else None
+
+    def resolved_max_predict_s(self, teleop: bool) -> float | None:
+        """The filter's ``max_predict_s`` (None = the filter's default) for the mocap or teleop diagram."""
+        m = float(self.max_predict_s)
+        if m < 0.0:
+            return TELEOP_MAX_PREDICT_S if teleop else None
+        return m
 
     def validate(self) -> "PipelineConfig":
         """Check the choices; raises ``UserError`` naming the field."""
@@ -103,6 +138,12 @@ class PipelineConfig:
             raise UserError(f"config.visibility_threshold must be in [0, 1], got {self.visibility_threshold}")
         if not 0.0 <= self.proximity < 1.0:
             raise UserError(f"config.proximity must be in [0, 1), got {self.proximity}")
+        if not math.isfinite(self.gate_sigma):
+            raise UserError(f"config.gate_sigma must be a number (0 off, < 0 default), got {self.gate_sigma}")
+        if not (math.isfinite(self.max_predict_s) and self.max_predict_s != 0.0):
+            raise UserError(
+                f"config.max_predict_s must be seconds > 0 (< 0 default), got {self.max_predict_s}"
+            )
         if self.camera.rate_hz <= 0 or self.camera.width <= 0 or self.camera.height <= 0:
             raise UserError("config.camera: width, height and rate_hz must be positive")
         if self.dims:
@@ -129,15 +170,70 @@ def load_config(path: str | Path, schema=PipelineConfig):
     try:
         cfg = yaml_load_typed(schema=schema, filename=str(p))
     except (RuntimeError, ValueError, TypeError) as e:
-        raise UserError(f"{p}: {e}") from None
+        where = _locate_yaml_error(p, schema)
+        raise UserError(f"{p}: {where or _one_line(e)}") from None
     except Exception as e:  # yaml.YAMLError and friends
-        raise UserError(f"{p}: not a valid YAML config ({type(e).__name__}: {e})") from None
+        raise UserError(f"{p}: not a valid YAML config ({_yaml_problem(e)})") from None
     if hasattr(cfg, "validate"):
         try:
             cfg.validate()
         except UserError as e:
             raise UserError(f"{p}: {e}") from None
     return cfg
+
+
+def _one_line(e) -> str:
+    return " ".join(str(e).split())
+
+
+def _yaml_problem(e) -> str:
+    """A YAML parser error as one line: ``line L, column C: problem``."""
+    mark = getattr(e, "problem_mark", None)
+    problem = getattr(e, "problem", None)
+    if mark is not None and problem:
+        return f"line {mark.line + 1}, column {mark.column + 1}: {_one_line(problem)}"
+    return f"{type(e).__name__}: {_one_line(e)}"
+
+
+def _locate_yaml_error(path: Path, schema) -> str | None:
+    """Which key of the YAML file ``schema`` rejects: ``line N: field a.b: reason`` (None if not found).
+
+    Drake's typed loader names neither the line nor (for a bad value) the field; this re-checks the file one
+    key at a time, descending into nested dataclass fields.
+    """
+    import typing
+
+    import yaml
+    from pydrake.common.yaml import yaml_load_typed
+
+    try:
+        root = yaml.compose(path.read_text(encoding="utf-8"))
+    except Exception:
+        return None
+
+    def check(node, cls, prefix: str) -> str | None:
+        if not isinstance(node, yaml.MappingNode) or not dataclasses.is_dataclass(cls):
+            return None
+        hints = typing.get_type_hints(cls)
+        names = [f.name for f in dataclasses.fields(cls)]
+        for key_node, value_node in node.value:
+            key = str(key_node.value)
+            line = key_node.start_mark.line + 1
+            if key not in names:
+                return f"line {line}: unknown key '{prefix}{key}' (known: {', '.join(names)})"
+            one = yaml.serialize(yaml.MappingNode("tag:yaml.org,2002:map", [(key_node, value_node)]))
+            try:
+                yaml_load_typed(schema=cls, data=one)
+            except Exception as e:
+                inner = check(value_node, hints.get(key), f"{prefix}{key}.")
+                if inner is not None:
+                    return inner
+                scalar = isinstance(value_node, yaml.ScalarNode)
+                shown = value_node.value if scalar else "(not a single value)"
+                return f"line {line}: field {prefix}{key} = {shown!r}: {_one_line(e)}"
+        return None
+
+    return check(root, schema, "")
 
 
 def dump_config(cfg) -> str:

@@ -162,16 +162,28 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
             motion = motion_from_spec(cfg.motion, cycles=cfg.cycles, seed=cfg.seed, skeleton=cfg.skeleton or None,
                                       rate_hz=cfg.camera.rate_hz)
         intrinsics, placement, noise = sim_camera(cfg)
+        # Render only the images the detector looks at (the simulated detector needs depth only).
+        if detector is None:
+            from akc_drake.core.sim_detector import SimulatedDetector
+
+            needs_color, needs_label = SimulatedDetector.needs_color, SimulatedDetector.needs_label
+        else:
+            needs_color = getattr(detector, "needs_color", True)
+            needs_label = getattr(detector, "needs_label", True)
         src = builder.AddSystem(
-            DepthCameraSource(motion, intrinsics=intrinsics, camera_pose=placement, noise=noise, seed=cfg.seed)
+            DepthCameraSource(motion, intrinsics=intrinsics, camera_pose=placement, noise=noise, seed=cfg.seed,
+                              render_color=needs_color or cfg.camera.render_color, render_label=needs_label)
         )
         src.set_name("DepthCameraSource")
         num_frames = int(np.floor(motion.duration * cfg.camera.rate_hz + 1e-9)) + 1
         # detector None -> the extractor's simulated detector (uses the render's labels and the truth)
     systems["source"] = src
+    # A source whose depth is not a measured surface (a video with a constant --depth) gets no
+    # surface-to-centre offset.
+    offsets = 0.0 if getattr(frame_source, "depth_is_surface", True) is False else None
     ext = builder.AddSystem(
         LandmarkExtractor(intrinsics, detector=detector, period_s=period, stage_offset_s=cfg.stage_offset_s,
-                          seed=cfg.seed)
+                          seed=cfg.seed, surface_offset_m=offsets)
     )
     if src.HasOutputPort("camera_info") and ext.HasInputPort("camera_info"):
         builder.Connect(src.GetOutputPort("camera_info"), ext.GetInputPort("camera_info"))
@@ -197,11 +209,14 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
 
 
 def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDimensions, source: dict,
-                     *, image_width: int | None = None) -> MocapPorts:
+                     *, image_width: int | None = None, teleop: bool = False) -> MocapPorts:
     """Add stages S3 and S4 after ``source`` (from :func:`AddMeasurementSource`).
 
     The occlusion filter always runs; the filter is ``cfg.filter`` (none | KF | EKF) and the corrector
-    ``cfg.corrector`` (none | AKC | COIK). A stage set to none passes its input through.
+    ``cfg.corrector`` (none | AKC | COIK). A stage set to none passes its input through. The filter's
+    innovation gate is ``cfg.resolved_gate_sigma(teleop)`` (by default on for teleoperation only) and its
+    longest extrapolation ``cfg.resolved_max_predict_s(teleop)``; with ``teleop`` the filter also undoes a
+    detector's left/right swap and AKC holds an arm whose chosen configuration is anatomically impossible.
     """
     from akc_drake.core.akc import WEIGHT_PRESETS
     from akc_drake.systems.occlusion_filter import OcclusionFilter
@@ -221,10 +236,19 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
 
     estimated = accepted
     if cfg.filter != "none":
+        from akc_drake.core.kalman import EKFConfig, KFConfig
         from akc_drake.systems.landmark_kalman_filter import LandmarkKalmanFilter
 
+        gate = cfg.resolved_gate_sigma(teleop)
+        # A gated diagram rejects a landmark's whole measurement when one axis is an outlier.
+        opts = {"gate_sigma": gate, "gate_whole_landmark": gate is not None}
+        max_predict_s = cfg.resolved_max_predict_s(teleop)
+        if max_predict_s is not None:
+            opts["max_predict_s"] = max_predict_s
+        kf_config = EKFConfig(**opts) if cfg.filter == "EKF" else KFConfig(**opts)
         kf = builder.AddSystem(
-            LandmarkKalmanFilter(mode=cfg.filter, dims=dims, period_s=period, stage_offset_s=cfg.stage_offset_s)
+            LandmarkKalmanFilter(mode=cfg.filter, dims=dims, config=kf_config, period_s=period,
+                                 stage_offset_s=cfg.stage_offset_s, fix_left_right_swaps=teleop)
         )
         kf.set_name("LandmarkKalmanFilter")
         builder.Connect(accepted, kf.GetInputPort("landmarks_C"))
@@ -237,7 +261,7 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
 
         akc = builder.AddSystem(
             ArmKinematicCorrection(dims, WEIGHT_PRESETS[cfg.weights], rate_hz=cfg.camera.rate_hz,
-                                   stage_offset_s=cfg.stage_offset_s)
+                                   stage_offset_s=cfg.stage_offset_s, anatomical_check=teleop)
         )
         akc.set_name("ArmKinematicCorrection")
         builder.Connect(estimated, akc.GetInputPort("landmarks_C"))
@@ -309,7 +333,8 @@ class MocapLog:
         np.savez_compressed(path, **arrays)
 
 
-def read_logs(loggers: dict[str, VectorLogSink], root_context, period_s: float, num_frames: int | None = None) -> MocapLog:
+def read_logs(loggers: dict[str, VectorLogSink], root_context, period_s: float,
+              num_frames: int | None = None) -> MocapLog:
     """Read the stage loggers into a :class:`MocapLog` (dropping the t = 0 sample and shifting by one frame)."""
     out = {}
     t = None
@@ -458,18 +483,22 @@ class TeleopDiagram(MocapDiagram):
 
 def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measurements | None = None,
                          frame_source=None, detector=None, dims: BodyDimensions | None = None, motion=None,
-                         meshcat=None, time_step: float = 0.002, ik_time_step: float = 0.01,
-                         keep_history: bool = True, mapping=None, log_stages: bool = True) -> TeleopDiagram:
+                         meshcat=None, time_step: float = 0.005, ik_time_step: float = 0.01,
+                         keep_history: bool = True, mapping=None, log_stages: bool = True,
+                         torso_tau_s: float = 0.5) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
         cfg, replay, frame_source, detector, dims, motion: as :func:`build_mocap_diagram`.
         meshcat: a Meshcat to draw the robot, the raw (red) and corrected (blue) skeletons and the camera.
-        time_step: the robot plant's discrete step, seconds.
+        time_step: the robot plant's discrete step, seconds (5 ms: the PD actuators are implicit in the discrete
+            solver, so this is stable, and it keeps the whole teleop loop at over 2x realtime on two cores).
         ik_time_step: the differential IK period, seconds.
         keep_history: keep the monitor's full history (for plots); off for long runs.
         mapping: the operator-to-robot :class:`~akc_drake.core.frames.RobotMapping` (default: from the shoulders).
         log_stages: add the per-stage VectorLogSinks (off for long runs: their logs grow with time).
+        torso_tau_s: time constant of the FrameMapper's torso-frame low-pass (0 turns it off): AKC's choice of
+            mirror candidate for a shoulder would otherwise yaw the torso frame, and every target, in one frame.
     """
     from akc_drake.core.frames import RobotMapping
     from akc_drake.robot.diff_ik import AddArmDifferentialIK, make_arm_ik_plant
@@ -484,13 +513,13 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     builder = DiagramBuilder()
     source = AddMeasurementSource(builder, cfg, replay=replay, frame_source=frame_source, detector=detector,
                                   motion=motion)
-    ports = AddMocapPipeline(builder, cfg, dims, source)
+    ports = AddMocapPipeline(builder, cfg, dims, source, teleop=True)
     loggers = AddStageLoggers(builder, ports, period) if log_stages else {}
 
     mapper = builder.AddSystem(
         FrameMapper(mapping if mapping is not None else RobotMapping.default(),
                     X_TE_home_left=nominal_ee_pose("left"), X_TE_home_right=nominal_ee_pose("right"),
-                    period_s=period, stage_offset_s=cfg.stage_offset_s)
+                    period_s=period, stage_offset_s=cfg.stage_offset_s, torso_tau_s=torso_tau_s)
     )
     mapper.set_name("FrameMapper")
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))

@@ -214,10 +214,15 @@ def test_missing_coordinates_use_the_previous_solution_and_nan_only_frames_hold(
     poses = noisy_sequence(4, seed=2, occlude=False)
     first = poses[0].copy()
     first[INDEX["left_elbow"], 2] = np.nan
-    r0 = s.solve(first)  # no previous solution: nothing to fill from -> held, arms NaN
+    r0 = s.solve(first)  # no previous solution: the missing depth is borrowed from the same arm, then solved
+    assert r0.status == "success" and np.all(np.isfinite(r0.pose[[INDEX[n] for n in ARM]]))
+    np.testing.assert_array_equal(r0.pose[INDEX["left_hip"]], first[INDEX["left_hip"]])
+    s.reset()
+    no_xy = poses[0].copy()
+    no_xy[INDEX["left_elbow"]] = np.nan  # x, y missing too: nothing to fill from -> held, arms NaN
+    r0 = s.solve(no_xy)
     assert r0.status == "held" and r0.status_code == 4 and r0.solve_time_s == 0.0
     assert np.all(np.isnan(r0.pose[[INDEX[n] for n in ARM]]))
-    np.testing.assert_array_equal(r0.pose[INDEX["left_hip"]], first[INDEX["left_hip"]])
 
     r1 = s.solve(poses[1])
     assert r1.status == "success"
@@ -359,3 +364,25 @@ def test_property_success_implies_constraints(t, noise, seed, lam):
     if r.status == "success":
         assert segment_errors(r.pose).max() < 1e-6
         assert np.all(elbow_angles_deg(r.pose) >= 40.0 - 1e-3)
+
+
+def test_first_frame_with_a_hidden_shoulder_depth_is_solved_not_held():
+    """A shoulder whose depth is missing from the very first frame (Motion II) still gets a solution."""
+    from akc_drake.core.coik import COIKSolver
+    from akc_drake.core.skeleton import INDEX, BodyDimensions
+
+    dims = BodyDimensions.paper_participant()
+    pose = np.full((12, 3), np.nan)
+    for side in ("left", "right"):
+        x = 0.166 if side == "left" else -0.166
+        pose[INDEX[f"{side}_shoulder"]] = [x, -0.3, np.nan]
+        pose[INDEX[f"{side}_elbow"]] = [x, -0.3, 2.0 - dims.upper(side)]
+        lf = dims.lower(side)  # forearm raised 37 deg: a bent elbow, well inside the angle bound
+        pose[INDEX[f"{side}_wrist"]] = [x, -0.3 - 0.6 * lf, 2.0 - dims.upper(side) - 0.8 * lf]
+    res = COIKSolver(dims).solve(pose)
+    assert res.status == "success"
+    sol = res.pose
+    for side in ("left", "right"):
+        s, e = sol[INDEX[f"{side}_shoulder"]], sol[INDEX[f"{side}_elbow"]]
+        assert np.isfinite(s).all()
+        assert abs(np.linalg.norm(s - e) - dims.upper(side)) < 1e-6

@@ -113,3 +113,26 @@ def test_bad_parameters():
         FrameMapper(X_TE_home_left=np.diag([2.0, 1.0, 1.0, 1.0]))
     with pytest.raises(ValueError, match="period_s"):
         FrameMapper(period_s=-1.0)
+
+
+def test_torso_low_pass_spreads_a_sudden_torso_yaw_over_time():
+    """A shoulder whose depth jumps (AKC switching mirror candidates) yaws the torso frame in one frame; with
+    ``torso_tau_s`` the targets follow it gradually, without it at once."""
+    still = camera_pose()
+    jumped = still.copy()
+    jumped[INDEX["left_shoulder"], 2] += 0.15  # the left shoulder's depth jumps 15 cm away from the camera
+    moved = {}
+    for tau in (0.0, 0.5):
+        fm = FrameMapper(torso_tau_s=tau)
+        sim, ctx = _sim(fm)
+        port = fm.get_input_port(0)
+        port.FixValue(ctx, still.ravel())
+        sim.AdvanceTo(OFFSET + 1e-4)
+        X0 = _X(fm.GetOutputPort("X_TE_desired_right"), ctx)
+        port.FixValue(ctx, jumped.ravel())
+        sim.AdvanceTo(PERIOD + OFFSET + 1e-4)
+        X1 = _X(fm.GetOutputPort("X_TE_desired_right"), ctx)
+        moved[tau] = float(np.linalg.norm(X1[:3, 3] - X0[:3, 3]))
+    assert moved[0.0] > 0.05  # the right-hand target swings with the torso at once
+    # After one 0.1 s frame the low-pass has followed 1 - exp(-0.2) = 18 % of the swing.
+    assert moved[0.5] == pytest.approx((1 - np.exp(-0.2)) * moved[0.0], rel=0.15)

@@ -64,6 +64,7 @@ class _ListSource:
     def __init__(self, n, fail_at=None):
         self.intrinsics, self.rate_hz = K, K.rate_hz
         self.n, self.fail_at = n, fail_at
+        self.depth_is_surface = False  # a constant depth, like `video:FILE --depth 2.0`
 
     def __iter__(self):
         rng = np.random.default_rng(3)

@@ -133,6 +133,11 @@ def main(args) -> int:
 
     config = build_config(args)
     _check_outputs(args)
+    if config.motion_file:
+        # Read the motion file now: a bad file is reported in one line before the calibration renders.
+        from akc_drake.operator.retarget import load_motion_file
+
+        load_motion_file(config.motion_file, config.skeleton)
     ev = run(config)
     for table in ev.tables:
         print(format_table(table))

@@ -3,7 +3,9 @@
 ``--source sim`` (default) renders the simulated operator performing ``--motion`` (I, II, tpose, lpose or a
 BVH/AMC file) with the simulated RGB-D camera and writes colour, depth (after the stereo noise model),
 timestamps and the ground-truth landmarks. ``--source realsense`` / ``bag:FILE`` copy a live camera or a
-bag into the same format (for ``--seconds``, or the whole bag).
+bag into the same format (for ``--seconds``, or the whole bag). A camera that fails mid-way (unplugged, a
+timeout, a corrupt bag) ends the recording: the frames written so far stay a valid recording, a warning on
+stderr says why, and the exit code is 0 (2 when not a single frame was recorded).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from akc_drake.errors import UserError
+from akc_drake.errors import SourceError, UserError
 
 
 def _check_args(args) -> None:
@@ -72,12 +74,21 @@ def _record_device(args, out: Path) -> int:
         raise UserError(f"--source {args.source!r}: nothing to record")
     count = 0
     t_first = None
+    error = None
     try:
         with (
             RecordingWriter(out, source.intrinsics) as writer,
             tqdm(desc=f"record {args.source}", unit="frame", file=sys.stderr, disable=None) as bar,
         ):
-            for frame in source:
+            frames = iter(source)
+            while True:
+                try:
+                    frame = next(frames)
+                except StopIteration:
+                    break
+                except Exception as e:  # the camera failed mid-run: keep what was recorded (see below)
+                    error = e
+                    break
                 if t_first is None:
                     t_first = frame.t
                 t = frame.t - t_first
@@ -86,8 +97,14 @@ def _record_device(args, out: Path) -> int:
                 writer.write(t, frame.color, frame.depth_m, None)
                 count += 1
                 bar.update(1)
+        # Leaving the block closed the writer: timestamps.csv lists exactly the frames written.
     finally:
         source.close()
+    if error is not None:
+        reason = " ".join(str(error).split()) or type(error).__name__
+        if count == 0:
+            raise SourceError(f"--source {args.source}: no frame recorded ({reason})")
+        print(f"warning: the source stopped after {count} frames ({reason})", file=sys.stderr)
     print(f"akc-drake record: wrote {count} frames from {args.source} to {out}")
     return 0
 

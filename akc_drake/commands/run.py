@@ -534,9 +534,11 @@ def main(args) -> int:
         if args.meshcat:
             if not args.teleop:
                 raise UserError("--meshcat draws the robot: use it with --teleop")
-            from pydrake.geometry import Meshcat
+            from pydrake.geometry import Meshcat, MeshcatParams
 
-            kwargs["meshcat"] = Meshcat()
+            params = MeshcatParams()
+            params.host = "localhost"  # Drake's default ("*") would listen on every network interface
+            kwargs["meshcat"] = Meshcat(params)
             print(f"Meshcat: {kwargs['meshcat'].web_url()}", file=sys.stderr)
         built = builder(
             cfg,

@@ -127,7 +127,6 @@ WEIGHT_PRESETS: MappingProxyType = MappingProxyType(
 )
 
 
-@dataclass
 class AKCResult:
     """The outcome of one :meth:`ArmKinematicCorrector.correct` call.
 
@@ -137,13 +136,54 @@ class AKCResult:
         fallback: ``(2,)`` bool, the validity projection (eq. 9) was used for the arm.
         held: ``(2,)`` bool, the arm could not be corrected and holds its last output (NaN if none).
         cost: ``(2,)`` the chosen candidate's cost (eq. 10) per arm; NaN when held.
+
+    The four diagnostics are kept as given (e.g. Python lists) and converted to numpy arrays on first
+    access: building four small arrays costs about as much as a sixth of an AKC frame, and a caller that
+    only wants the pose should not pay for them.
     """
 
-    pose: np.ndarray
-    chosen: np.ndarray
-    fallback: np.ndarray
-    held: np.ndarray
-    cost: np.ndarray
+    __slots__ = ("pose", "_chosen", "_fallback", "_held", "_cost")
+
+    def __init__(self, pose: np.ndarray, chosen, fallback, held, cost):
+        self.pose = pose
+        self._chosen = chosen
+        self._fallback = fallback
+        self._held = held
+        self._cost = cost
+
+    @property
+    def chosen(self) -> np.ndarray:
+        a = self._chosen
+        if type(a) is not np.ndarray:
+            a = self._chosen = np.asarray(a, dtype=np.int64)
+        return a
+
+    @property
+    def fallback(self) -> np.ndarray:
+        a = self._fallback
+        if type(a) is not np.ndarray:
+            a = self._fallback = np.asarray(a, dtype=bool)
+        return a
+
+    @property
+    def held(self) -> np.ndarray:
+        a = self._held
+        if type(a) is not np.ndarray:
+            a = self._held = np.asarray(a, dtype=bool)
+        return a
+
+    @property
+    def cost(self) -> np.ndarray:
+        a = self._cost
+        if type(a) is not np.ndarray:
+            a = self._cost = np.asarray(a, dtype=np.float64)
+        return a
+
+    def __repr__(self) -> str:
+        return (
+            f"AKCResult(chosen={self.chosen.tolist()}, fallback={self.fallback.tolist()}, "
+            f"held={self.held.tolist()}, cost={self.cost.tolist()}, pose=<{self.pose.shape}>)"
+        )
 
 
 class ArmCandidates(NamedTuple):
@@ -274,19 +314,27 @@ class ArmKinematicCorrector:
     Args:
         dims: the calibrated body dimensions (arm lengths and shoulder width).
         weights: cost weights and shrink factor; the paper's ``Wb`` by default.
+        anatomical_check: hold an arm whose chosen configuration is anatomically impossible (see below).
 
     Per arm and frame (see the module docstring for the candidates):
 
     * missing wrist (any coordinate NaN/inf) -> the arm holds its last output (``held``), NaN if none yet;
     * missing elbow/shoulder x or y -> x, y (and a missing z) from the previous output; held if none yet;
-    * missing elbow z -> the wrist's z, missing shoulder z -> the elbow's (only eq. 9 and m1/m2 use them).
+    * missing elbow z -> the wrist's z, missing shoulder z -> the elbow's (only eq. 9 and m1/m2 use them);
+    * with ``anatomical_check`` (off by default, the paper's AKC; the teleop diagram turns it on): when the
+      chosen candidate has its elbow angle outside ``[elbow_min_deg, elbow_max_deg]`` (with m5 on, that
+      means every candidate is anatomically impossible, e.g. a garbage wrist next to the shoulder), the arm
+      holds its last output for that frame (``held``) rather than output an impossible arm.
 
     The output always has exactly the calibrated arm lengths for a corrected arm.
     """
 
-    def __init__(self, dims: BodyDimensions, weights: AKCWeights | None = None):
+    def __init__(
+        self, dims: BodyDimensions, weights: AKCWeights | None = None, *, anatomical_check: bool = False
+    ):
         if not isinstance(dims, BodyDimensions):
             raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
+        self._anatomical_check = bool(anatomical_check)
         if weights is None:
             weights = AKCWeights()
         if not isinstance(weights, AKCWeights):
@@ -497,16 +545,29 @@ class ArmKinematicCorrector:
                 bi = bj = 0
                 bm = 0.0
                 w4x2 = 2.0 * w4
+                # The inner loop over the right arm's 4 candidates is unrolled (a third faster in CPython).
+                (r0x, r0y, r0z), (r1x, r1y, r1z), (r2x, r2y, r2z), (r3x, r3y, r3z) = Sr
+                cr0, cr1, cr2, cr3 = cr
                 for i in range(4):
                     qx, qy, qz = Sl[i]
                     base = cl[i]
-                    for j in range(4):
-                        rx, ry, rz = Sr[j]
-                        # eq. (14): m4 = | l_s - ||p_s,l - p_s,r|| |
-                        m4 = abs(ls - _hypot(qx - rx, qy - ry, qz - rz))
-                        t = base + cr[j] + w4x2 * m4
-                        if t < best:
-                            best, bi, bj, bm = t, i, j, m4
+                    # eq. (14): m4 = | l_s - ||p_s,l - p_s,r|| |, for the right candidates j = 0..3
+                    m4 = abs(ls - _hypot(qx - r0x, qy - r0y, qz - r0z))
+                    t = base + cr0 + w4x2 * m4
+                    if t < best:
+                        best, bi, bj, bm = t, i, 0, m4
+                    m4 = abs(ls - _hypot(qx - r1x, qy - r1y, qz - r1z))
+                    t = base + cr1 + w4x2 * m4
+                    if t < best:
+                        best, bi, bj, bm = t, i, 1, m4
+                    m4 = abs(ls - _hypot(qx - r2x, qy - r2y, qz - r2z))
+                    t = base + cr2 + w4x2 * m4
+                    if t < best:
+                        best, bi, bj, bm = t, i, 2, m4
+                    m4 = abs(ls - _hypot(qx - r3x, qy - r3y, qz - r3z))
+                    t = base + cr3 + w4x2 * m4
+                    if t < best:
+                        best, bi, bj, bm = t, i, 3, m4
                 chosen = [bi, bj]
                 cost = [cl[bi] + w4 * bm, cr[bj] + w4 * bm]
             else:
@@ -539,11 +600,11 @@ class ArmKinematicCorrector:
             if prep is not None:
                 i = chosen[side]
                 out = self._place(side, prep[0], prep[1][i >> 1], prep[2][i])
-                if _isfinite(sum(out)):
+                if _isfinite(sum(out)) and (not self._anatomical_check or self._plausible(side, out)):
                     self._prev[side] = out
                     held[side] = False
                     fallback[side] = prep[4]
-                else:  # overflow from absurd (but finite) input: hold instead of emitting NaN/inf
+                else:  # overflow from absurd input, or an impossible elbow: hold instead of emitting it
                     chosen[side] = -1
                     cost[side] = _NAN
             if held[side]:
@@ -553,13 +614,17 @@ class ArmKinematicCorrector:
             v[o_s : o_s + 3] = out[0:3]
             v[o_e : o_e + 3] = out[3:6]
             v[o_w : o_w + 3] = out[6:9]
-        return AKCResult(
-            pose=np.array(v).reshape(NUM_LANDMARKS, 3),
-            chosen=np.array(chosen),  # Python ints -> int64, bools -> bool, floats -> float64
-            fallback=np.array(fallback),
-            held=np.array(held),
-            cost=np.array(cost),
+        # The diagnostics stay Python lists until read (see AKCResult).
+        return AKCResult(np.array(v).reshape(NUM_LANDMARKS, 3), chosen, fallback, held, cost)
+
+    def _plausible(self, side, out) -> bool:
+        """The placed arm ``out`` (9 floats) has its elbow angle within ``[elbow_min_deg, elbow_max_deg]``."""
+        sx, sy, sz, ex, ey, ez, wx, wy, wz = out
+        # cos(theta) at the elbow; the placed segments have exactly the calibrated lengths l_u and l_f.
+        cos_t = ((sx - ex) * (wx - ex) + (sy - ey) * (wy - ey) + (sz - ez) * (wz - ez)) / (
+            self._lu[side] * self._lf[side]
         )
+        return self._cos_max <= cos_t <= self._cos_min
 
     def _other_shoulder(self, v, side):
         """The other side's shoulder for m4: filtered if finite, else its last output, else None."""

@@ -186,6 +186,35 @@ def _angle_hessian() -> np.ndarray:
     return np.block([[zero, -eye, eye], [-eye, 2.0 * eye, -eye], [eye, -eye, zero]])
 
 
+#: For each arm joint row of ``p`` (shoulder, elbow, wrist), the rows whose depth stands in for a missing one.
+_DEPTH_DONORS = {0: (1, 2), 1: (2, 0), 2: (1, 0)}
+
+
+def _fill_missing_depths(p_hat: np.ndarray, dims: BodyDimensions) -> np.ndarray:
+    """``p_hat`` (18,) with each missing z (x, y known) rebuilt from the nearest joint of the same arm.
+
+    A depth goes missing because the joint is hidden behind a more distal part of its arm, so it lies farther
+    from the camera than the joint that hides it: ``z = z_donor + sqrt(l^2 - dxy^2)`` with ``l`` the length
+    between the two joints (0 when the image distance already exceeds it). Only a reference for the first
+    frame: the length constraints then place the joint.
+    """
+    P = p_hat.reshape(6, 3).copy()
+    for arm, side in ((0, "left"), (3, "right")):
+        lu, lf = dims.upper(side), dims.lower(side)
+        length = {(0, 1): lu, (1, 0): lu, (1, 2): lf, (2, 1): lf, (0, 2): lu + lf, (2, 0): lu + lf}
+        for j, donors in _DEPTH_DONORS.items():
+            row = P[arm + j]
+            if np.isfinite(row[:2]).all() and not np.isfinite(row[2]):
+                for d in donors:
+                    donor = P[arm + d]
+                    if np.isfinite(donor).all():
+                        dxy2 = float((row[0] - donor[0]) ** 2 + (row[1] - donor[1]) ** 2)
+                        sign = 1.0 if j < d else -1.0  # a proximal joint hides behind a distal one
+                        row[2] = donor[2] + sign * math.sqrt(max(length[(j, d)] ** 2 - dxy2, 0.0))
+                        break
+    return P.reshape(-1)
+
+
 class COIKSolver:
     """Solves eq. (16) frame by frame, warm-started from the previous solution.
 
@@ -327,6 +356,11 @@ class COIKSolver:
         missing = ~np.isfinite(p_hat)
         solver_name = self.config.solver
 
+        if missing.any() and not self._has_prev and not missing.all():
+            # First frame with a depth missing (e.g. a shoulder hidden from the start): borrow the depth of the
+            # nearest joint on the same arm as the reference; the length constraints then place the joint.
+            p_hat = _fill_missing_depths(p_hat, self.dims)
+            missing = ~np.isfinite(p_hat)
         if missing.all() or (missing.any() and not self._has_prev):
             held = self._prev if self._has_prev else np.full(NUM_P, np.nan)
             out[P_INDICES] = held.reshape(-1, 3)

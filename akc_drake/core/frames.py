@@ -170,7 +170,58 @@ def _landmark(pose: np.ndarray, name: str) -> np.ndarray:
     return pose[INDEX[name]]
 
 
-def wrist_in_torso(pose) -> tuple[np.ndarray | None, np.ndarray | None]:
+def smooth_torso(previous, current, dt: float, tau_s: float):
+    """First-order low-pass of the torso frame: ``previous`` moved toward ``current`` by ``1 - exp(-dt/tau)``.
+
+    Why: the torso frame (eq. 17) is built from the shoulders, whose depths AKC reconstructs; when AKC picks a
+    different mirror candidate for one shoulder the frame yaws by several degrees in one frame, and with a
+    0.5 m lever arm every wrist target jumps. A standing operator's torso turns slowly, so a low-pass with a
+    time constant of a fraction of a second removes those jumps and keeps real turns (after ``3 tau`` the
+    frame has followed 95 % of a turn). Rotation is interpolated on SO(3) (axis-angle of the relative
+    rotation), the origin linearly.
+
+    Args:
+        previous: ``(R, origin)`` or None (then ``current`` is returned).
+        current: ``(R, origin)`` or None (then ``previous`` is returned).
+        dt: time since ``previous``, seconds; tau_s: time constant, seconds (<= 0: no smoothing).
+    """
+    if previous is None or tau_s <= 0.0:
+        return current
+    if current is None:
+        return previous
+    a = 1.0 - math.exp(-max(dt, 0.0) / tau_s)
+    R0, o0 = previous
+    R1, o1 = current
+    R_rel = R0.T @ R1
+    angle = math.acos(max(-1.0, min(1.0, 0.5 * (np.trace(R_rel) - 1.0))))
+    if angle < 1e-12:
+        R = R1 if a >= 1.0 else R0
+    else:
+        axis = np.array([R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0], R_rel[1, 0] - R_rel[0, 1]])
+        n = np.linalg.norm(axis)
+        if n < 1e-12:  # a half turn: no unique interpolation; take the new frame
+            return current
+        R = R0 @ _axis_angle(axis / n, a * angle)
+    return R, o0 + a * (np.asarray(o1) - np.asarray(o0))
+
+
+def _axis_angle(u: np.ndarray, theta: float) -> np.ndarray:
+    K = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+    return np.eye(3) + math.sin(theta) * K + (1.0 - math.cos(theta)) * (K @ K)
+
+
+def torso_of(pose) -> tuple[np.ndarray, np.ndarray] | None:
+    """The torso frame ``(R, origin)`` of a landmark pose ``(12, 3)`` (eq. 17), None when degenerate."""
+    pose = check_pose(pose)
+    return torso_frame(
+        _landmark(pose, "left_shoulder"),
+        _landmark(pose, "right_shoulder"),
+        _landmark(pose, "left_hip"),
+        _landmark(pose, "right_hip"),
+    )
+
+
+def wrist_in_torso(pose, torso=None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Both wrist frames {1}, {2} relative to the torso frame {0}.
 
     Args:
@@ -181,12 +232,8 @@ def wrist_in_torso(pose) -> tuple[np.ndarray | None, np.ndarray | None]:
         position of the wrist in {0}), each None when that wrist frame (or the torso frame) is degenerate.
     """
     pose = check_pose(pose)
-    torso = torso_frame(
-        _landmark(pose, "left_shoulder"),
-        _landmark(pose, "right_shoulder"),
-        _landmark(pose, "left_hip"),
-        _landmark(pose, "right_hip"),
-    )
+    if torso is None:
+        torso = torso_of(pose)
     if torso is None:
         return None, None
     R_0, origin = torso
@@ -356,15 +403,45 @@ def map_to_robot(X_TorsoWrist, side: str, mapping: RobotMapping | None = None) -
     return transform(R, p)
 
 
-def robot_targets(pose, mapping: RobotMapping | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
+def robot_targets(pose, mapping: RobotMapping | None = None, torso=None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """``(X_TE_left, X_TE_right)`` for a landmark pose ``(12, 3)``; None for a side whose frame is
-    degenerate."""
+    degenerate. ``torso``: a torso frame ``(R, origin)`` to use instead of the pose's own (e.g. smoothed)."""
     m = mapping if mapping is not None else RobotMapping.default()
-    X_l, X_r = wrist_in_torso(pose)
+    X_l, X_r = wrist_in_torso(pose, torso)
     return (
         None if X_l is None else map_to_robot(X_l, "left", m),
         None if X_r is None else map_to_robot(X_r, "right", m),
     )
+
+
+#: Fastest plausible speed (m/s) of the landmarks a robot target is built from (wrist, hand, hips). In the
+#: rendered Motions I and II, after the filter and AKC, wrists and hands move at up to 1.2 m/s and hips at
+#: 0.2 m/s; a landmark that would have to move faster than this is a detector or depth fault, not a motion.
+#: (Shoulders and elbows are not gated: AKC's choice between mirror candidates moves them by up to 3 m/s.)
+DEFAULT_MAX_LANDMARK_SPEED = 4.0
+
+#: Per side, the landmarks :func:`plausible_step` checks before a target is accepted.
+SPEED_GATED_LANDMARKS: dict[str, tuple[str, ...]] = {
+    side: (f"{side}_wrist", f"{side}_index", f"{side}_pinky", "left_hip", "right_hip") for side in SIDES
+}
+
+
+def plausible_step(p_prev, p_new, dt: float, max_speed: float) -> bool:
+    """Whether points ``(3,)`` or ``(N, 3)`` can go from ``p_prev`` to ``p_new`` in ``dt`` s at ``max_speed``.
+
+    The speed gate of the robot targets: a frame whose landmarks would need a faster motion is treated as a
+    fault. Since ``dt`` is the time since the last accepted frame, points that really moved are accepted as
+    soon as enough time has passed (the gate cannot lock a track out).
+
+    Returns:
+        False when a point is not finite or moved further than ``max_speed * dt`` (plus 1 um).
+    """
+    a = np.asarray(p_prev, dtype=float)
+    b = np.asarray(p_new, dtype=float)
+    if a.shape != b.shape or not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return False
+    d = np.linalg.norm(np.atleast_2d(b - a), axis=1)
+    return bool(np.all(d <= max_speed * max(float(dt), 0.0) + 1e-6))
 
 
 def rest_operator_pose(

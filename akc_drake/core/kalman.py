@@ -36,14 +36,19 @@ full update; ``z`` missing -> the partial update of the paper with ``x`` and ``y
 **Losing a track.** An axis extrapolates for at most ``max_predict_s`` after its last
 measurement; a prediction step that would take it beyond that is replaced by holding: the
 velocity is zeroed (in the EKF also its covariance, every step) and the position no longer moves
-by the motion model (the EKF's bone constraints may still correct it). The next measurement of a held axis
+by the motion model (the EKF's bone constraints may still correct it). A held axis's variance
+keeps growing, up to :data:`MAX_HELD_POSITION_VAR` in the KF (in the EKF it grows only by the
+process noise, about 1e-4 m^2 per 0.1 s step). The next measurement of a held axis
 re-initialises it rather than being fused with the stale estimate. A landmark none of whose
 axes has been measured for longer than ``max_predict_s`` has status :data:`LOST`.
 
 **Innovation gate** (off by default). With ``gate_sigma`` set, a measured axis whose normalised
 innovation ``|y| / sqrt(S)`` exceeds it is treated as missing; after ``gate_max_rejects``
 consecutive rejections of the same axis the measurement is accepted and the axis re-initialised,
-so the filter can never lock itself out of a track that really moved.
+so the filter can never lock itself out of a track that really moved. With ``gate_whole_landmark``
+one failing axis rejects the landmark's whole measurement (all three axes are one observation: a
+detector jump or a bad depth moves them together), including an axis that would have been
+re-initialised after being held.
 
 All filter state lives in one flat float vector (:meth:`get_state_vector` /
 :meth:`set_state_vector`) so a Drake context can carry it and a simulation can be replayed.
@@ -66,6 +71,11 @@ PREDICTING = 2
 LOST = 3
 STATUS_NAMES: tuple[str, ...] = ("UNINITIALISED", "TRACKING", "PREDICTING", "LOST")
 _STATUS_OF_BIN = np.array([TRACKING, PREDICTING, LOST, UNINITIALISED], dtype=np.int64)
+
+#: Caps of a held (no longer extrapolated) axis's position variance (m^2: sigma 10 m, anywhere in the camera's
+#: view) and velocity variance ((m/s)^2) in :class:`ConstantVelocityKF`.
+MAX_HELD_POSITION_VAR = 100.0
+MAX_HELD_VELOCITY_VAR = 100.0
 
 # Slack on time comparisons: ages are sums of float periods (10 x 0.1 = 0.9999999999999999).
 _T_EPS = 1e-9
@@ -112,6 +122,7 @@ class KFConfig:
         gate_sigma: innovation gate in standard deviations, or None (default) for no gate.
         gate_max_rejects: consecutive gate rejections after which a measurement is accepted and
             the axis re-initialised.
+        gate_whole_landmark: an axis failing the gate rejects all axes of its landmark.
     """
 
     sigma_x: float = 0.01
@@ -122,6 +133,7 @@ class KFConfig:
     max_predict_s: float = 1.0
     gate_sigma: float | None = None
     gate_max_rejects: int = 5
+    gate_whole_landmark: bool = False
 
     def __post_init__(self):
         cls = type(self).__name__
@@ -224,6 +236,10 @@ def _gate(cfg: KFConfig, use, y, S, rejects, reinit):
     g = cfg.gate_sigma
     with np.errstate(invalid="ignore"):
         bad = use & (y * y > (g * g) * S)
+    if cfg.gate_whole_landmark and bad.any():
+        # One observation per landmark: reject all of its measured axes, those to re-initialise too.
+        bad = np.repeat(bad.reshape(-1, 3).any(axis=1), 3) & (use | reinit)
+        reinit &= ~bad
     rejects[use & ~bad] = 0.0
     rejects[bad] += 1.0
     force = bad & (rejects >= cfg.gate_max_rejects)
@@ -381,9 +397,10 @@ class ConstantVelocityKF:
         slow = not self._all_init or self._oldest + dt > limit
         if slow:
             # Unmeasured axes whose extrapolation would go beyond max_predict_s stop (v = 0); this
-            # also covers axes already LOST. Their velocity covariance keeps growing, unused: their
-            # next measurement re-initialises them.
-            np.copyto(self._v, 0.0, where=(age > limit - dt) & ~m)
+            # also covers axes already LOST. Their covariance keeps growing, unused (their next
+            # measurement re-initialises them), up to the caps below.
+            held = (age > limit - dt) & ~m
+            np.copyto(self._v, 0.0, where=held)
             reinit = m & (age > limit)
             if not self._all_init:
                 reinit |= m & (self._init == 0.0)
@@ -395,6 +412,13 @@ class ConstantVelocityKF:
         # of the rows: p += dt v; P_pp += 2 dt P_pv + dt^2 P_vv; P_pv += dt P_vv; + Q; age += dt.
         np.dot(self._L, self._first6, out=self._T6)
         np.add(self._T6, self._Q, out=self._first6)
+        if slow and held.any():
+            # A held axis's uncertainty grows (P_pp like t^3) but is capped, so that a landmark that never
+            # comes back (hips out of the frame for a whole session) keeps a bounded covariance.
+            np.minimum(self._Ppp, MAX_HELD_POSITION_VAR, out=self._Ppp, where=held)
+            np.minimum(self._Pvv, MAX_HELD_VELOCITY_VAR, out=self._Pvv, where=held)
+            bound = np.sqrt(self._Ppp * self._Pvv)
+            np.clip(self._Ppv, -bound, bound, out=self._Ppv, where=held)
 
         # eq. (3), measurement update of the measured axes only (``where=use``): the partial
         # update when only x, y are present.
@@ -439,6 +463,45 @@ class ConstantVelocityKF:
         if self._all_init:
             return p.reshape(self._shape).copy()
         return np.where(self._init == 0.0, np.nan, p).reshape(self._shape)
+
+
+#: Row permutation of a ``(12, 3)`` pose that exchanges every left landmark with its right counterpart.
+LEFT_RIGHT_SWAP: np.ndarray = np.array(
+    [INDEX[n.replace("left_", "right_") if n.startswith("left_") else n.replace("right_", "left_")]
+     for n in INDEX],
+    dtype=np.intp,
+)
+
+
+def left_right_swapped(z, predicted, *, ratio: float = 0.25, min_pairs: int = 2) -> bool:
+    """Whether the detector swapped the person's left and right in measurement ``z``.
+
+    A 2D pose detector sometimes labels a whole body mirror-wise for a frame. Compared with the filter's
+    prediction, the swapped labelling then fits far better: the sum of squared distances of the landmarks
+    measured in ``z`` to ``predicted`` drops below ``ratio`` times the sum as labelled when ``z``'s left and
+    right are exchanged. Shoulders and hips, which never cross, decide it when the hands are close together.
+
+    Args:
+        z: ``(12, 3)`` measured landmarks (NaN where missing).
+        predicted: ``(12, 3)`` the filter's prediction for the same instant (NaN where unknown).
+        ratio: how much better the swapped labelling must fit.
+        min_pairs: left/right pairs that must be measured and predicted on both sides.
+
+    Returns:
+        True when ``z`` should be read with left and right exchanged (``z[LEFT_RIGHT_SWAP]``).
+    """
+    z = np.asarray(z, dtype=np.float64)
+    pred = np.asarray(predicted, dtype=np.float64)
+    zs = z[LEFT_RIGHT_SWAP]
+    d_given = z - pred
+    d_swap = zs - pred
+    both = np.isfinite(d_given) & np.isfinite(d_swap)
+    pairs = both.all(axis=1) & both.all(axis=1)[LEFT_RIGHT_SWAP]
+    if int(pairs.sum()) < 2 * min_pairs:
+        return False
+    e_given = float(np.square(d_given[pairs]).sum())
+    e_swap = float(np.square(d_swap[pairs]).sum())
+    return e_swap < ratio * e_given
 
 
 # Landmarks of the constrained (coupled) block of the EKF. With the order of ``skeleton.LANDMARKS``

@@ -186,7 +186,8 @@ class BodyDimensions:
             ValueError: naming ``where`` and the missing or unknown key.
         """
         if not isinstance(d, dict):
-            raise ValueError(f"{where}: expected a mapping with keys {', '.join(SEGMENT_NAMES)}, got {type(d).__name__}")
+            keys = ", ".join(SEGMENT_NAMES)
+            raise ValueError(f"{where}: expected a mapping with keys {keys}, got {type(d).__name__}")
         missing = [k for k in SEGMENT_NAMES if k not in d]
         unknown = [k for k in d if k not in SEGMENT_NAMES]
         if missing:

@@ -273,7 +273,8 @@ class RecordingReader:
         UserError: no folder, a missing or invalid ``intrinsics.json`` (naming the field) or
             ``timestamps.csv`` (naming the line), timestamps not strictly increasing, a listed frame
             whose PNG is missing, or an invalid ``ground_truth.npz``. Frame images are checked (size,
-            type) when they are read.
+            type) when they are read; the first frame's at once, so that a recording whose
+            ``intrinsics.json`` does not match its images fails when it is opened.
     """
 
     def __init__(self, path):
@@ -296,6 +297,8 @@ class RecordingReader:
             for j, n in enumerate(names):
                 if n in LANDMARKS:
                     self._truth_ordered[:, LANDMARKS.index(n)] = lm[:, j]
+        if len(self._t):
+            self[0]  # images against intrinsics.json: a mismatch is reported now, not mid-run
 
     # -- loading -----------------------------------------------------------------------------------
 

@@ -296,6 +296,9 @@ class VideoSource(_SourceBase):
         self.depth_m = None if depth_m is None else float(depth_m)
         self.depth_video = None if depth_video is None else Path(depth_video)
         self.depth_video_scale = float(depth_video_scale)
+        #: A constant ``depth_m`` is the person's (joint) depth, not a measured surface: the extractor then
+        #: adds no surface-to-centre offset.
+        self.depth_is_surface = self.depth_video is not None
         cap = self._open(self.path)
         W = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
         H = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
@@ -379,7 +382,8 @@ class VideoSource(_SourceBase):
                     depth_m=depth,
                     t=n / self.rate_hz,
                     intrinsics=K,
-                    extras={"index": n, "source": "video"},
+                    # A constant --depth is the person's (joint) depth, not a measured surface.
+                    extras={"index": n, "source": "video", "depth_is_surface": self.depth_is_surface},
                 )
                 n += 1
         finally:

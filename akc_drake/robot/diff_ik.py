@@ -240,9 +240,10 @@ class JointCommandGuard(LeafSystem):
         # [held count, initialised flag]
         self._info = self.DeclareDiscreteState(2)
         self._period = float(period)
-        # The outputs depend on the inputs and the discrete state only (not on time), so they stay cached
-        # between IK steps.
-        deps = {self.xd_ticket(), self._q_in.ticket(), self._q_init.ticket()}
+        # The outputs depend on the IK's output and the discrete state only (not on time, and not on
+        # ``q_initial``, which is read once by the initialisation event and is typically the measured
+        # robot state that changes every plant step), so they stay cached between IK steps.
+        deps = {self.xd_ticket(), self._q_in.ticket()}
         self.DeclareVectorOutputPort("q_commanded", n, self._calc_command, deps)
         self.DeclareVectorOutputPort("v_commanded", n, self._calc_velocity, deps)
         self.DeclarePeriodicDiscreteUpdateEvent(float(period), 0.0, self._update)

@@ -53,6 +53,8 @@ class ArmKinematicCorrection(LeafSystem):
         weights: cost weights and shrink factor (default: the paper's ``Wb``).
         rate_hz: the camera rate.
         stage_offset_s: the per-stage offset of :func:`akc_drake.systems.timing.stage_offset`.
+        anatomical_check: hold an arm whose chosen configuration has an impossible elbow angle (see
+            :class:`~akc_drake.core.akc.ArmKinematicCorrector`); on in the teleop diagram.
     """
 
     def __init__(
@@ -62,12 +64,13 @@ class ArmKinematicCorrection(LeafSystem):
         *,
         rate_hz: float = timing.DEFAULT_CAMERA_RATE_HZ,
         stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
+        anatomical_check: bool = False,
     ):
         super().__init__()
         if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
         # The core object is created once; each update loads the context's state into it and back out.
-        self._akc = ArmKinematicCorrector(dims, weights)
+        self._akc = ArmKinematicCorrector(dims, weights, anatomical_check=anatomical_check)
         self._period = 1.0 / float(rate_hz)
 
         self._u = self.DeclareVectorInputPort("landmarks_C", _POSE_SIZE)

@@ -245,6 +245,7 @@ class DepthCameraSource(Diagram):
         params: OperatorParams | None = None,
         render_label: bool = True,
         background_wall_m: float | None = 1.5,
+        render_color: bool = True,
     ):
         """Args:
         motion: the operator's joint trajectory.
@@ -254,6 +255,8 @@ class DepthCameraSource(Diagram):
         seed: depth-noise seed.
         params: the operator's dimensions (default: the paper's participant).
         render_label: render the label image (costs a third render per frame).
+        render_color: render the colour image; False exports a constant black image instead, which halves the
+            cost of a frame when the detector does not look at colour (the simulated detector).
         background_wall_m: a wall this far behind the operator (None: no wall, empty background).
         """
         super().__init__()
@@ -340,11 +343,17 @@ class DepthCameraSource(Diagram):
             builder.Connect(port, zoh.get_input_port())
             builder.ExportOutput(zoh.get_output_port(), name)
 
-        hold(
-            "color_image",
-            AbstractValue.Make(ImageRgba8U(K.width, K.height)),
-            sensor.color_image_output_port(),
-        )
+        self.render_color = bool(render_color)
+        if self.render_color:
+            hold(
+                "color_image",
+                AbstractValue.Make(ImageRgba8U(K.width, K.height)),
+                sensor.color_image_output_port(),
+            )
+        else:
+            black = builder.AddSystem(ConstantValueSource(AbstractValue.Make(ImageRgba8U(K.width, K.height))))
+            black.set_name("no_color")
+            builder.ExportOutput(black.get_output_port(), "color_image")
         hold("depth_image", AbstractValue.Make(ImageDepth32F(K.width, K.height)), noise_sys.get_output_port())
         if self.render_label:
             hold(

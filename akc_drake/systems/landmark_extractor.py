@@ -160,6 +160,8 @@ def extract_landmarks(
     uv = np.asarray(det.uv, dtype=float).reshape(NUM_LANDMARKS, 2)
     vis = np.asarray(det.visibility, dtype=float).reshape(NUM_LANDMARKS)
     offsets = surface_offsets(surface_offset_m)
+    if frame.extras.get("depth_is_surface", True) is False:
+        offsets = np.zeros_like(offsets)  # e.g. a constant --depth for a video: already a joint depth
     z = depth_lookup(frame.depth_m, uv, window=window, min_depth=min_depth, max_depth=max_depth)
     if np.any(offsets):
         z = surface_to_centre_depth(uv, z, offsets, frame.intrinsics)
@@ -273,13 +275,26 @@ class LandmarkExtractor(LeafSystem):
         """The ``(12,)`` surface-to-centre offsets this extractor applies (a copy)."""
         return self._offsets.copy()
 
+    def _black(self, K: CameraIntrinsics) -> np.ndarray:
+        img = getattr(self, "_black_image", None)
+        if img is None or img.shape[:2] != (K.height, K.width):
+            img = np.zeros((K.height, K.width, 3), dtype=np.uint8)
+            img.flags.writeable = False
+            self._black_image = img
+        return img
+
     def frame_from_inputs(self, context) -> CameraFrame:
         """The :class:`CameraFrame` the inputs describe (frame time = context time - the stage offset)."""
         K = self._info.Eval(context) if self._info.HasValue(context) else self._K_default
         if not isinstance(K, CameraIntrinsics):
             raise ValueError(f"camera_info must hold a CameraIntrinsics, got {type(K).__name__}")
         # Copies: the frame owns its arrays (a detector may keep frames; the inputs change next frame).
-        color = np.ascontiguousarray(self._color.Eval(context).data[:, :, :3])
+        if getattr(self._detector, "needs_color", True) or not self._color.HasValue(context):
+            color = (np.ascontiguousarray(self._color.Eval(context).data[:, :, :3]) if self._color.HasValue(context)
+                     else self._black(K))
+        else:
+            # A detector that does not look at colour (the simulated one) gets a shared black image: no copy.
+            color = self._black(K)
         depth = self._depth.Eval(context).data[:, :, 0].copy()
         if depth.shape != (K.height, K.width) or color.shape[:2] != (K.height, K.width):
             raise ValueError(

@@ -68,6 +68,7 @@ class TeleopMonitor(LeafSystem):
         self.tracking_lost_samples = 0
         self._prev_q = {s: None for s in SIDES}
         self._errors = {s: [] for s in SIDES}  # decimated to the camera rate, so tiny even for long runs
+        self._error_t = {s: [] for s in SIDES}  # the sample time of each entry of _errors
         self.history = {k: [] for k in ("t", "target_left", "target_right", "ee_left", "ee_right",
                                         "q_left", "q_right", "lost")}
 
@@ -100,6 +101,7 @@ class TeleopMonitor(LeafSystem):
             err = float(np.linalg.norm(X_target.translation() - X_ee.translation()))
             if self.samples % max(int(round(0.1 / self._period)), 1) == 0 and np.isfinite(err):
                 self._errors[s].append(err)
+                self._error_t[s].append(t)
             if self._keep:
                 row[f"target_{s}"] = X_target.GetAsMatrix4()
                 row[f"ee_{s}"] = X_ee.GetAsMatrix4()
@@ -111,6 +113,10 @@ class TeleopMonitor(LeafSystem):
     def ee_errors(self, side: str) -> np.ndarray:
         """Target-to-achieved end-effector distances (m), sampled at ~10 Hz."""
         return np.asarray(self._errors[side])
+
+    def ee_error_times(self, side: str) -> np.ndarray:
+        """The simulation time (s) of each entry of :meth:`ee_errors`."""
+        return np.asarray(self._error_t[side])
 
     def history_arrays(self) -> dict[str, np.ndarray]:
         """The recorded history as arrays (empty when ``keep_history`` is off)."""
