@@ -29,12 +29,10 @@ The result is a JSON-able dict (:func:`run_bench`) whose top-level keys include 
 from __future__ import annotations
 
 import gc
-import json
 import logging
 import math
 import os
 import platform
-import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass
@@ -44,6 +42,7 @@ import numpy as np
 
 from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PROXIMAL_DISTAL_PAIRS, BodyDimensions
+from akc_drake.fileio import write_json
 
 #: Speed targets on the reference machine (2 cores, no GPU): figure key -> (comparison, bound).
 TARGETS: dict[str, tuple[str, float]] = {
@@ -622,36 +621,7 @@ def bench_mocap(inp: BenchInput, s: BenchSettings, progress: Callable[[str], Non
 # ================================================================================================ JSON
 def write_json_atomic(path, data: dict) -> Path:
     """Write ``data`` as JSON to ``path`` atomically (temporary file in the same folder, then rename)."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(_jsonable(data), f, indent=2, allow_nan=True)
-            f.write("\n")
-        os.replace(tmp, p)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return p
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
+    return write_json(path, data)
 
 
 def _settings_dict(s: BenchSettings) -> dict:

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess
-import tempfile
 from pathlib import Path
+
+from akc_drake.fileio import atomic_write_bytes
 
 # Drake names graph nodes after global system ids (s12, cluster12diagram, _12), which change with the
 # number of systems created earlier in the process. Renumbering them in order of first appearance makes
@@ -47,15 +47,7 @@ def diagram_dot(diagram, max_depth: int = 2) -> str:
 
 
 def _write_atomic(path: Path, data: str | bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data.encode() if isinstance(data, str) else data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write_bytes(path, data.encode() if isinstance(data, str) else data)
 
 
 def render_svg(dot_text: str) -> bytes | None:

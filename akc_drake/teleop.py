@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from akc_drake.errors import UserError
+from akc_drake.fileio import atomic_write
 
 #: The correctors compared: display name -> (filter, corrector) of the PipelineConfig.
 CORRECTORS: dict[str, tuple[str, str]] = {
@@ -581,17 +582,7 @@ def default_permissions(path: str | Path) -> Path:
 
 def _save_figure(fig, path: Path) -> Path:
     """Save a matplotlib figure atomically (temp file, then rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110)
-        default_permissions(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format=path.suffix.lstrip(".") or "png"))
 
 
 _COLORS = {"Raw": "tab:red", "KF": "tab:orange", "AKC(KF)": "tab:blue", "COIK(KF)": "tab:green"}

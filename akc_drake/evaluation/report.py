@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from akc_drake.fileio import atomic_write_text
+
 
 @dataclass
 class Table:
@@ -195,22 +197,6 @@ def table_csv(table: Table) -> str:
             std = np.nan if table.ours_std is None else table.ours_std[i, j]
             w.writerow([r, groups[j], c, f(table.ours[i, j]), f(std), f(table.paper[i, j])])
     return buf.getvalue()
-
-
-def atomic_write_text(path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temp file and a rename (a crash never leaves half a file)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
 
 
 def write_json(path, data: dict) -> Path:

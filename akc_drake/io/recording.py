@@ -22,8 +22,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -33,6 +31,7 @@ import numpy as np
 from akc_drake.core.camera import CameraFrame, CameraIntrinsics
 from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS
 from akc_drake.errors import UserError
+from akc_drake.fileio import atomic_write, atomic_write_bytes
 
 INTRINSICS_FILE = "intrinsics.json"
 TIMESTAMPS_FILE = "timestamps.csv"
@@ -51,32 +50,12 @@ def frame_name(index: int) -> str:
 
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    atomic_write_bytes(path, data)
 
 
 def _atomic_write_with(path: Path, writer) -> None:
     """Call ``writer(file_object)`` on a temporary file in ``path``'s folder, then rename it to ``path``."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            writer(f)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    atomic_write(path, writer)
 
 
 def depth_to_units(depth_m: np.ndarray, depth_scale: float) -> np.ndarray:

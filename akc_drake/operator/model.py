@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS, SIDES, BodyDimensions
+from akc_drake.fileio import atomic_write_text
 
 #: Revolute joints per arm (3 shoulder, elbow flexion, forearm roll).
 NUM_ARM_DOF = 5
@@ -529,20 +530,8 @@ def write_meshes(folder) -> Path:
         path = folder / name
         text = gen()
         if not path.exists() or path.read_text(encoding="utf-8") != text:
-            _atomic_write(path, text)
+            atomic_write_text(path, text)
     return folder
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _fmt(*values: float) -> str:
@@ -754,7 +743,7 @@ def write_operator_sdf(path, params: OperatorParams | None = None) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_meshes(path.parent / MESH_FOLDER)
-    _atomic_write(path, operator_sdf(params))
+    atomic_write_text(path, operator_sdf(params))
     return path
 
 

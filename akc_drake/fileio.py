@@ -1,0 +1,75 @@
+"""Writing files safely: every output goes to a temporary file in the same folder and is then renamed, so a crash
+or an interrupted run never leaves half a file and never destroys an earlier result."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+
+def atomic_write(path: str | Path, writer: Callable, *, binary: bool = True) -> Path:
+    """Call ``writer(file)`` on a temporary file next to ``path``, then rename it to ``path``.
+
+    Args:
+        path: the destination (its folder is created).
+        writer: writes the content to the open file object.
+        binary: open the temporary file in binary (default) or UTF-8 text mode.
+    """
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8"})) as f:
+            writer(f)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files: give the usual permissions
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return p
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    return atomic_write(path, lambda f: f.write(data))
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    return atomic_write(path, lambda f: f.write(text), binary=False)
+
+
+def jsonable(x):
+    """``x`` with numpy scalars/arrays turned into Python numbers/lists and non-finite floats into None."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def write_json(path: str | Path, data) -> Path:
+    """Write ``data`` as indented JSON atomically; numpy values are converted, NaN and inf become null."""
+    text = json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n"
+    return atomic_write_text(path, text)
