@@ -154,7 +154,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
 
             detector = MediaPipeDetector()
     else:
-        from akc_drake.systems.depth_camera_source import DepthCameraSource
+        from akc_drake.systems.depth_camera_source import DepthCameraSource, images_needed
 
         if motion is None:
             from akc_drake.commands._common import motion_from_spec
@@ -163,13 +163,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
                                       rate_hz=cfg.camera.rate_hz)
         intrinsics, placement, noise = sim_camera(cfg)
         # Render only the images the detector looks at (the simulated detector needs depth only).
-        if detector is None:
-            from akc_drake.core.sim_detector import SimulatedDetector
-
-            needs_color, needs_label = SimulatedDetector.needs_color, SimulatedDetector.needs_label
-        else:
-            needs_color = getattr(detector, "needs_color", True)
-            needs_label = getattr(detector, "needs_label", True)
+        needs_color, needs_label = images_needed(detector)
         src = builder.AddSystem(
             DepthCameraSource(motion, intrinsics=intrinsics, camera_pose=placement, noise=noise, seed=cfg.seed,
                               render_color=needs_color or cfg.camera.render_color, render_label=needs_label)
@@ -328,9 +322,10 @@ class MocapLog:
     tracking_status: np.ndarray | None = None
 
     def save_npz(self, path) -> None:
-        """Save as a compressed .npz (no pickled objects)."""
-        arrays = {k: v for k, v in self.__dict__.items() if v is not None}
-        np.savez_compressed(path, **arrays)
+        """Save as a compressed .npz (no pickled objects), atomically."""
+        from akc_drake.fileio import atomic_save_npz
+
+        atomic_save_npz(path, **{k: v for k, v in self.__dict__.items() if v is not None})
 
 
 def read_logs(loggers: dict[str, VectorLogSink], root_context, period_s: float,

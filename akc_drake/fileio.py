@@ -13,13 +13,14 @@ from pathlib import Path
 import numpy as np
 
 
-def atomic_write(path: str | Path, writer: Callable, *, binary: bool = True) -> Path:
+def atomic_write(path: str | Path, writer: Callable, *, binary: bool = True, fsync: bool = False) -> Path:
     """Call ``writer(file)`` on a temporary file next to ``path``, then rename it to ``path``.
 
     Args:
         path: the destination (its folder is created).
         writer: writes the content to the open file object.
         binary: open the temporary file in binary (default) or UTF-8 text mode.
+        fsync: flush the content to the disk before the rename (for small files that must survive a power cut).
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
@@ -27,6 +28,9 @@ def atomic_write(path: str | Path, writer: Callable, *, binary: bool = True) -> 
     try:
         with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8"})) as f:
             writer(f)
+            if fsync:
+                f.flush()
+                os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files: give the usual permissions
         os.replace(tmp, p)
     except BaseException:
@@ -46,9 +50,18 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return atomic_write(path, lambda f: f.write(data))
 
 
-def atomic_write_text(path: str | Path, text: str) -> Path:
+def atomic_write_text(path: str | Path, text: str, *, fsync: bool = False) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
-    return atomic_write(path, lambda f: f.write(text), binary=False)
+    return atomic_write(path, lambda f: f.write(text), binary=False, fsync=fsync)
+
+
+def atomic_save_npz(path: str | Path, **arrays) -> Path:
+    """``np.savez_compressed`` to ``path`` atomically; refuses arrays of Python objects (they would need pickle)."""
+    data = {k: np.asarray(v) for k, v in arrays.items()}
+    pickled = [k for k, a in data.items() if a.dtype.hasobject]
+    if pickled:
+        raise ValueError(f"{path}: array(s) {', '.join(pickled)} hold Python objects (that needs pickle)")
+    return atomic_write(path, lambda f: np.savez_compressed(f, **data))
 
 
 def jsonable(x):

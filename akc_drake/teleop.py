@@ -43,7 +43,6 @@ import logging
 import math
 import os
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -52,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from akc_drake.errors import UserError
-from akc_drake.fileio import atomic_write
+from akc_drake.fileio import atomic_write, atomic_write_text
 
 #: The correctors compared: display name -> (filter, corrector) of the PipelineConfig.
 CORRECTORS: dict[str, tuple[str, str]] = {
@@ -572,14 +571,6 @@ def _sum_dicts(dicts) -> dict:
 # Plots
 
 
-def default_permissions(path: str | Path) -> Path:
-    """Give a file written through ``tempfile.mkstemp`` (mode 0600) the usual mode (0666 minus the umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(path, 0o666 & ~mask)
-    return Path(path)
-
-
 def _save_figure(fig, path: Path) -> Path:
     """Save a matplotlib figure atomically (temp file, then rename)."""
     return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format=path.suffix.lstrip(".") or "png"))
@@ -908,7 +899,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
         meshcat.PublishRecording()
         html = Path(opts.html) if opts.html else out / "teleop.html"
         try:
-            _write_text_atomic(html, meshcat.StaticHtml())
+            atomic_write_text(html, meshcat.StaticHtml())
             outputs["html"] = str(html)
         except OSError as e:
             raise UserError(f"--html {html}: cannot write: {e.strerror or e}") from None
@@ -922,9 +913,6 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                 dataclasses.replace(cfg, filter="KF", corrector="AKC")
             ).diagram
         paths = write_graph(graph_diagram, out, "teleop")
-        for p in paths.values():
-            if p is not None:
-                default_permissions(p)
         outputs["graph_dot"] = str(paths["dot"])
         outputs["graph_svg"] = str(paths["svg"]) if paths["svg"] is not None else None
         if paths["svg"] is None:
@@ -943,21 +931,8 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
     summary["wall_s"] = time.perf_counter() - t_start
     json_path = out / "demo.json"
     outputs["json"] = str(json_path)
-    default_permissions(write_json(json_path, summary))
+    write_json(json_path, summary)
     return summary
-
-
-def _write_text_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        default_permissions(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _summary(

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from akc_drake.errors import UserError
+from akc_drake.fileio import atomic_save_npz
 from akc_drake.fileio import write_json as _write_json
 
 MOTION_FILE_SUFFIXES = (".bvh", ".amc")
@@ -49,18 +47,4 @@ def write_json(path: str | Path, data: dict) -> Path:
 
 def save_npz_atomic(path: str | Path, **arrays) -> Path:
     """``np.savez_compressed`` to a temp file, then rename (no pickled objects)."""
-    data = {k: np.asarray(v) for k, v in arrays.items()}
-    pickled = [k for k, a in data.items() if a.dtype.hasobject]
-    if pickled:
-        raise ValueError(f"{path}: array(s) {', '.join(pickled)} hold Python objects (that needs pickle)")
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.stem}.", suffix=".npz")
-    os.close(fd)
-    try:
-        np.savez_compressed(tmp, **data)
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return p
+    return atomic_save_npz(path, **arrays)

@@ -78,7 +78,7 @@ def main(args) -> int:
     if args.json:
         from akc_drake.commands._common import write_json
 
-        teleop.default_permissions(write_json(args.json, summary))
+        write_json(args.json, summary)
         outputs["json_copy"] = str(args.json)
     print()
     print(teleop.format_table(summary))

@@ -29,6 +29,7 @@ import time
 
 import numpy as np
 
+from akc_drake.bench import rss_bytes
 from akc_drake.errors import UserError
 
 #: Growth of the resident memory (MB) from the end of the warm-up to the end that a soak accepts.
@@ -36,23 +37,6 @@ MAX_RSS_GROWTH_MB = 25.0
 #: The largest filter position variance (m^2) a soak accepts: a held landmark's uncertainty grows, but
 #: stays bounded (see :class:`~akc_drake.core.kalman.ConstantVelocityKF`).
 MAX_POSITION_VARIANCE_M2 = 1.0e4
-
-
-def _rss_bytes() -> int:
-    try:
-        import psutil
-
-        return int(psutil.Process().memory_info().rss)
-    except ImportError:
-        pass
-    try:
-        with open("/proc/self/status", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("VmRSS:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 0
 
 
 def _check_share(name: str, value) -> float:
@@ -153,7 +137,7 @@ def run_soak(minutes: float = 30.0, *, motion: str = "I", dropout: float = 0.3, 
     n = max(int(math.ceil(t_end / sample_s)), 1)
     warmup_s = min(60.0, 0.25 * t_end)
     gc.collect()
-    samples = {"t_s": [0.0], "rss_mb": [_rss_bytes() / 2**20], "max_position_variance_m2": [0.0]}
+    samples = {"t_s": [0.0], "rss_mb": [rss_bytes() / 2**20], "max_position_variance_m2": [0.0]}
     drake_log = logging.getLogger("drake")
     level = drake_log.level
     drake_log.setLevel(logging.ERROR)  # the IK's "stuck at a joint limit" notices are part of teleoperation
@@ -165,7 +149,7 @@ def run_soak(minutes: float = 30.0, *, motion: str = "I", dropout: float = 0.3, 
                 t = min(k * sample_s, t_end)
                 sim.AdvanceTo(t)
                 samples["t_s"].append(t)
-                samples["rss_mb"].append(_rss_bytes() / 2**20)
+                samples["rss_mb"].append(rss_bytes() / 2**20)
                 samples["max_position_variance_m2"].append(_max_position_variance(kf, root))
                 bar.update(1)
     finally:

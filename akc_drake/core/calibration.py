@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,6 +26,7 @@ from akc_drake.core.skeleton import (
     side_indices,
 )
 from akc_drake.errors import UserError
+from akc_drake.fileio import atomic_write_text
 
 #: Calibration postures: ``tpose`` arms straight out to the sides, ``lpose`` elbows bent ~90 degrees.
 POSES: tuple[str, ...] = ("tpose", "lpose")
@@ -232,23 +231,10 @@ def save_dims(path, dims: BodyDimensions, report: CalibrationReport | None = Non
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise UserError(f"{path}: folder {folder} does not exist")
-    tmp_name = None
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp_name, path)
-        tmp_name = None
+        atomic_write_text(path, text, fsync=True)
     except OSError as e:
         raise UserError(f"{path}: cannot write body dimensions: {e.strerror or e}") from None
-    finally:
-        if tmp_name is not None:
-            try:
-                os.unlink(tmp_name)
-            except OSError:
-                pass
     return path
 
 

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,6 +29,7 @@ import numpy as np
 from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS
 from akc_drake.errors import UserError
+from akc_drake.fileio import atomic_save_npz
 
 #: Format version written into every ``.npz`` so a future change can be detected on load.
 SESSION_FORMAT = 1
@@ -179,16 +178,7 @@ class Session:
         arrays["motion"] = np.array(self.motion, dtype=f"<U{max(len(self.motion), 1)}")
         meta = json.dumps({"format": SESSION_FORMAT, "intrinsics": self.intrinsics.as_dict()})
         arrays["meta"] = np.array(meta, dtype=f"<U{len(meta)}")
-        fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp.npz", dir=path.parent)
-        os.close(fd)
-        try:
-            np.savez_compressed(tmp, **arrays)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
-        return path
+        return atomic_save_npz(path, **arrays)
 
     @classmethod
     def load_npz(cls, path) -> Session:

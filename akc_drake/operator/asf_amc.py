@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from akc_drake.errors import UserError
-from akc_drake.operator.bvh import UNIT_TO_METRES, axis_rotation, unit_scale
+from akc_drake.operator.bvh import UNIT_TO_METRES, axis_rotation, read_text_file, unit_scale
 
 ROTATION_DOFS = ("rx", "ry", "rz")
 TRANSLATION_DOFS = ("tx", "ty", "tz")
@@ -395,18 +395,6 @@ class AMCMotion:
 # ---------------------------------------------------------------------------------------------- reading
 
 
-def _read_text(path: str, kind: str) -> str:
-    try:
-        with open(path, encoding="utf-8-sig", errors="strict") as fh:
-            return fh.read()
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such {kind} file") from None
-    except UnicodeDecodeError as e:
-        raise UserError(f"{path}: not a text file ({e.reason} at byte {e.start})") from None
-    except OSError as e:
-        raise UserError(f"{path}: cannot read ({e.strerror})") from None
-
-
 def _tokens(line: str) -> list[str]:
     """Tokens of an ASF line: comments removed, commas and parentheses are whitespace."""
     text = line.split("#", 1)[0]
@@ -745,7 +733,7 @@ def read_asf(path: str | os.PathLike, *, length_unit: str = "in") -> ASFSkeleton
         UserError: the file cannot be read, or ``file:line: message`` for a problem in it.
     """
     path = os.fspath(path)
-    return parse_asf(_read_text(path, "ASF"), length_unit=length_unit, source=path)
+    return parse_asf(read_text_file(path, "ASF"), length_unit=length_unit, source=path)
 
 
 def parse_amc(
@@ -883,7 +871,7 @@ def read_amc(
         skeleton = read_asf(skeleton, length_unit=length_unit)
     path = os.fspath(path)
     stem = os.path.splitext(os.path.basename(path))[0]
-    return parse_amc(_read_text(path, "AMC"), skeleton, frame_rate=frame_rate, source=path, name=stem)
+    return parse_amc(read_text_file(path, "AMC"), skeleton, frame_rate=frame_rate, source=path, name=stem)
 
 
 # ---------------------------------------------------------------------------------------------- writing

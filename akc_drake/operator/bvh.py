@@ -550,17 +550,27 @@ def read_bvh(path: str | os.PathLike, *, units: str = "cm") -> BVHMotion:
         UserError: the file cannot be read, or ``file:line: message`` for a problem in it.
     """
     path = os.fspath(path)
+    text = read_text_file(path, "BVH")
+    stem = os.path.splitext(os.path.basename(path))[0]
+    return parse_bvh(text, units=units, source=path, name=stem)
+
+
+def read_text_file(path: str, kind: str) -> str:
+    """The text of a motion-capture file (UTF-8, BOM allowed); a UserError naming ``path`` if it cannot be read.
+
+    Args:
+        path: the file.
+        kind: what the file should be (e.g. "BVH", "ASF skeleton"), for the message.
+    """
     try:
         with open(path, encoding="utf-8-sig", errors="strict") as fh:
-            text = fh.read()
+            return fh.read()
     except FileNotFoundError:
-        raise UserError(f"{path}: no such BVH file") from None
+        raise UserError(f"{path}: no such {kind} file") from None
     except UnicodeDecodeError as e:
         raise UserError(f"{path}: not a text file ({e.reason} at byte {e.start})") from None
     except OSError as e:
         raise UserError(f"{path}: cannot read ({e.strerror})") from None
-    stem = os.path.splitext(os.path.basename(path))[0]
-    return parse_bvh(text, units=units, source=path, name=stem)
 
 
 # ---------------------------------------------------------------------------------------------- writing

@@ -489,6 +489,19 @@ class Session:
         return len(self.t)
 
 
+def images_needed(detector: Detector | None) -> tuple[bool, bool]:
+    """``(colour, label)``: which images ``detector`` looks at, so a source renders only those.
+
+    A detector declares ``needs_color`` / ``needs_label`` (both assumed True when absent); None stands for the
+    default :class:`~akc_drake.core.sim_detector.SimulatedDetector`, which reads depth only.
+    """
+    if detector is None:
+        from akc_drake.core.sim_detector import SimulatedDetector
+
+        detector = SimulatedDetector
+    return bool(getattr(detector, "needs_color", True)), bool(getattr(detector, "needs_label", True))
+
+
 def render_session(
     motion: OperatorMotion,
     intrinsics: CameraIntrinsics | None = None,
@@ -543,9 +556,9 @@ def render_session(
     detector = detector if detector is not None else SimulatedDetector(seed=seed)
     if not isinstance(detector, Detector):
         raise ValueError(f"detector must implement the Detector protocol (name, detect), got {detector!r}")
+    needs_color, need_label = images_needed(detector)
     if render_color is None:
-        render_color = frame_callback is not None or getattr(detector, "needs_color", True)
-    need_label = bool(getattr(detector, "needs_label", True))
+        render_color = frame_callback is not None or needs_color
     source = DepthCameraSource(
         motion,
         intrinsics=K,
