@@ -104,7 +104,7 @@ class SkeletonVisualizer(LeafSystem):
 
     def _publish(self, context):
         t = context.get_time()
-        recording = True  # time_in_recording is ignored by Meshcat unless a recording was started
+        # Every call passes time_in_recording = t: Meshcat ignores it unless a recording was started.
         for k, name in enumerate(self._names):
             port = self.get_input_port(k)
             if not port.HasValue(context):
@@ -115,7 +115,7 @@ class SkeletonVisualizer(LeafSystem):
                 path = f"{base}/bone{b}"
                 pose = _bone_pose(P[i], P[j])
                 if pose is None:
-                    self._meshcat.SetProperty(path, "visible", False, t if recording else None)
+                    self._meshcat.SetProperty(path, "visible", False, t)
                     continue
                 X, L = pose
                 self._meshcat.SetProperty(path, "visible", True, t)
