@@ -157,7 +157,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
         from akc_drake.systems.depth_camera_source import DepthCameraSource, images_needed
 
         if motion is None:
-            from akc_drake.commands._common import motion_from_spec
+            from akc_drake.operator.retarget import motion_from_spec
 
             motion = motion_from_spec(cfg.motion, cycles=cfg.cycles, seed=cfg.seed, skeleton=cfg.skeleton or None,
                                       rate_hz=cfg.camera.rate_hz)

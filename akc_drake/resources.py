@@ -7,15 +7,15 @@ from functools import cache
 from importlib import resources
 from pathlib import Path
 
-#: The repository's models/ folder (the package is installed editable from the checkout).
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+#: The package's models/ folder (installed with the package as package data).
+MODELS_DIR = Path(__file__).resolve().parent / "models"
 
 
 def model_path(name: str) -> Path:
     """Path of ``models/<name>``; ``FileNotFoundError`` naming it when absent."""
     p = MODELS_DIR / name
     if not p.exists():
-        raise FileNotFoundError(f"model file {p} not found (is the package installed from a full checkout?)")
+        raise FileNotFoundError(f"model file {p} not found (the package installation is incomplete: reinstall akc-drake)")
     return p
 
 

@@ -776,7 +776,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
     """
     import dataclasses
 
-    from akc_drake.commands._common import write_json
+    from akc_drake.fileio import write_json
     from akc_drake.config import PipelineConfig
     from akc_drake.core.skeleton import BodyDimensions
     from akc_drake.diagrams import Measurements, camera_period

@@ -51,9 +51,9 @@ def _directions(side, q):
 def test_models_file_is_the_generator_output():
     sdf = MODELS_DIR / "operator.sdf"
     assert sdf.read_text(encoding="utf-8") == operator_sdf(OperatorParams()), (
-        "models/operator.sdf is stale: regenerate it with "
+        "akc_drake/models/operator.sdf is stale: regenerate it with "
         "python -c 'from akc_drake.operator.model import write_operator_sdf; "
-        'write_operator_sdf("models/operator.sdf")\''
+        'write_operator_sdf("akc_drake/models/operator.sdf")\''
     )
     for name, gen in MESHES.items():
         assert (MODELS_DIR / MESH_FOLDER / name).read_text(encoding="utf-8") == gen()

@@ -76,7 +76,7 @@ def main(args) -> int:
     summary = teleop.run_demo(opts, log=lambda line: print(line, flush=True))
     outputs = summary["outputs"]
     if args.json:
-        from akc_drake.commands._common import write_json
+        from akc_drake.fileio import write_json
 
         write_json(args.json, summary)
         outputs["json_copy"] = str(args.json)

@@ -30,7 +30,7 @@ def _check_args(args) -> None:
 def _record_sim(args, out: Path) -> int:
     from tqdm import tqdm
 
-    from akc_drake.commands._common import motion_from_spec
+    from akc_drake.operator.retarget import motion_from_spec
     from akc_drake.core.camera import CameraIntrinsics
     from akc_drake.io.recording import RecordingWriter
     from akc_drake.systems.depth_camera_source import render_session

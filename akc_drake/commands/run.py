@@ -34,7 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from akc_drake.commands._common import load_dims_option, motion_from_spec, save_npz_atomic, write_json
+from akc_drake.commands._common import load_dims_option
+from akc_drake.fileio import atomic_save_npz as save_npz_atomic
+from akc_drake.fileio import write_json
+from akc_drake.operator.retarget import motion_from_spec
 from akc_drake.core.skeleton import ARM_JOINTS, LANDMARKS, SEGMENT_NAMES
 from akc_drake.errors import UserError
 

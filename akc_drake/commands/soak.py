@@ -197,7 +197,7 @@ def run_soak(minutes: float = 30.0, *, motion: str = "I", dropout: float = 0.3, 
 
 def main(args) -> int:
     """Run ``akc-drake soak`` with parsed ``args`` (see ``akc_drake.cli``); returns the exit code."""
-    from akc_drake.commands._common import write_json
+    from akc_drake.fileio import write_json
 
     summary = run_soak(args.minutes, motion=args.motion, dropout=args.dropout, garbage=args.garbage,
                        seed=args.seed, sample_s=args.sample_s, progress=sys.stderr.isatty())

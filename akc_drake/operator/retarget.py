@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from pathlib import Path
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,7 @@ from akc_drake.errors import UserError
 from akc_drake.operator.asf_amc import AMCMotion, ASFSkeleton, read_amc, read_asf
 from akc_drake.operator.bvh import BVHMotion, read_bvh
 from akc_drake.operator.model import arm_angles_from_directions
-from akc_drake.operator.motions import OperatorMotion
+from akc_drake.operator.motions import OperatorMotion, make_motion
 
 #: Default camera rate the retargeted motion is sampled at.
 DEFAULT_RATE_HZ = 10.0
@@ -459,3 +460,21 @@ def retarget_motion(
         name=motion.name,
         source=source or motion.name,
     )
+
+
+MOTION_FILE_SUFFIXES = (".bvh", ".amc")
+
+
+def motion_from_spec(spec: str, *, cycles: int = 1, seed: int = 0, skeleton: str | None = None, rate_hz=10.0):
+    """An :class:`~akc_drake.operator.motions.OperatorMotion` from a name (I, II, tpose, lpose) or a BVH/AMC file."""
+    if str(spec).lower().endswith(MOTION_FILE_SUFFIXES) or os.sep in str(spec):
+        path = Path(spec)
+        if not path.is_file():
+            raise UserError(f"{path}: motion file not found")
+        if skeleton is not None and not Path(skeleton).is_file():
+            raise UserError(f"{skeleton}: skeleton file not found")
+        return load_motion_file(path, skeleton, rate_hz=rate_hz)
+    try:
+        return make_motion(spec, cycles, seed)
+    except ValueError as e:
+        raise UserError(str(e)) from None

@@ -422,7 +422,7 @@ def add_sim_camera_source(builder: DiagramBuilder, cfg, motion: OperatorMotion |
         if name.strip().lower() in ("i", "ii", "1", "2", "motion_i", "motion_ii"):
             motion = make_motion(name, int(cfg.cycles), int(cfg.seed), target_O=tuple(placement.position_O()))
         else:
-            from akc_drake.commands._common import motion_from_spec
+            from akc_drake.operator.retarget import motion_from_spec
 
             motion = motion_from_spec(
                 name,
