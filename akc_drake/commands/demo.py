@@ -3,8 +3,8 @@
 Calibrates from a rendered T-pose, then teleoperates the dual-arm robot through Motion I and Motion II with
 each corrector (Raw, KF, AKC(KF), COIK(KF)) and prints a table comparing them. Writes ``demo.json``, the
 plots, the Meshcat recording (``teleop.html``) and the teleop diagram's graph to ``--out`` (default
-``out/demo``). The work is done by :func:`akc_drake.teleop.run_demo`; this module only turns the options into
-a :class:`~akc_drake.teleop.DemoOptions`.
+``out/demo``). The work is done by :func:`akc_drake.teleop.demo.run_demo`; this module only turns the options into
+a :class:`~akc_drake.teleop.demo.DemoOptions`.
 
 ``--quick`` runs one cycle of each motion (3 by default). ``AKC_DEMO_MAX_FRAMES=N`` in the environment cuts
 every motion to N camera frames (for the test suite; not a user option).
@@ -37,7 +37,7 @@ def _max_frames_from_env() -> int | None:
 
 
 def options_from_args(args):
-    """The :class:`~akc_drake.teleop.DemoOptions` for parsed ``akc-drake demo`` arguments."""
+    """The :class:`~akc_drake.teleop.demo.DemoOptions` for parsed ``akc-drake demo`` arguments."""
     from akc_drake.teleop import DemoOptions
 
     return DemoOptions(

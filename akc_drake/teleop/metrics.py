@@ -1,0 +1,119 @@
+"""The demo's figures: tracking errors, the error to the operator, control-frame jitter, IK counts."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from akc_drake.teleop.scenario import SETTLING_S, SIDES, TeleopRun
+
+# ------------------------------------------------------------------------------------------------------------
+# Metrics
+
+
+def _median_cm(values) -> float | None:
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.median(v) * 100.0) if v.size else None
+
+
+def _p95_cm(values) -> float | None:
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.percentile(v, 95) * 100.0) if v.size else None
+
+
+def pooled_jitter(sequences: list[np.ndarray], period_s: float) -> tuple[float, float]:
+    """:func:`~akc_drake.core.frames.frame_jitter` over several ``(T, 4, 4)`` sequences, no pair spanning two.
+
+    Returns:
+        ``(rms angular speed rad/s, rms linear speed m/s)``; NaN when there is no consecutive pair.
+    """
+    from akc_drake.core.frames import frame_jitter
+
+    parts = []
+    for X in sequences:
+        parts += [np.asarray(X, dtype=float).reshape(-1, 4, 4), np.full((1, 4, 4), np.nan)]
+    if not parts:
+        return math.nan, math.nan
+    return frame_jitter(np.concatenate(parts), period_s)
+
+
+def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
+    """The figures of one run, or pooled over several (samples concatenated; jitter over consecutive frames of
+    the same run only).
+
+    Returns:
+        A dict: ``frames``; per side (``{"left", "right"}``): ``ee_tracking_error_cm`` (median after
+        ``settling_s``), ``ee_tracking_error_cm_with_settling``, ``ee_tracking_error_p95_cm``,
+        ``ee_reachable_error_cm`` (to the target after the IK's reach guard), ``ee_operator_error_cm`` (to the
+        operator's true mapped wrist), ``target_unreachable_share``, ``jitter`` and ``operator_jitter`` (the
+        true mapped wrist's, for reference; each ``angular_rad_s``, ``linear_m_s``); totals:
+        ``position_limit_hits``, ``velocity_limit_hits``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
+        ``tracking_lost_share``, ``dropout_frames``, ``sim_s``, ``wall_s``, ``realtime_factor``.
+    """
+    if not runs:
+        raise ValueError("run_metrics: no runs")
+    period = runs[0].period_s
+    after = [r.frame_t >= settling_s for r in runs]
+
+    def per_frame(fn, side: str) -> np.ndarray:
+        return np.concatenate([fn(r, side)[a] for r, a in zip(runs, after, strict=True)])
+
+    keys = ("err", "err_all", "p95", "reach", "op", "unreach", "jang", "jlin", "oang", "olin")
+    v: dict[str, dict] = {k: {} for k in keys}
+    for side in SIDES:
+        e_after = np.concatenate([r.errors[side][r.error_t[side] >= settling_s] for r in runs])
+        v["err"][side] = _median_cm(e_after)
+        v["p95"][side] = _p95_cm(e_after)
+        v["err_all"][side] = _median_cm(np.concatenate([r.errors[side] for r in runs]))
+        v["reach"][side] = _median_cm(
+            per_frame(lambda r, s: np.linalg.norm(r.reachable_target[s] - r.ee[s], axis=1), side)
+        )
+        v["op"][side] = _median_cm(
+            per_frame(lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.ee[s], axis=1), side)
+        )
+        gap = per_frame(lambda r, s: np.linalg.norm(r.reachable_target[s] - r.target[s][:, :3, 3], axis=1), side)
+        gap = gap[np.isfinite(gap)]
+        v["unreach"][side] = float(np.mean(gap > 1e-6)) if gap.size else None
+        v["jang"][side], v["jlin"][side] = pooled_jitter(
+            [r.target[side][a] for r, a in zip(runs, after, strict=True)], period
+        )
+        v["oang"][side], v["olin"][side] = pooled_jitter(
+            [r.operator[side][a] for r, a in zip(runs, after, strict=True)], period
+        )
+    sim_s = sum(r.sim_s for r in runs)
+    wall = sum(r.wall_s for r in runs)
+    lost = [(r.tracking_lost_share, r.sim_s) for r in runs if math.isfinite(r.tracking_lost_share)]
+    return {
+        "frames": int(sum(r.frames for r in runs)),
+        "ee_tracking_error_cm": v["err"],
+        "ee_tracking_error_cm_with_settling": v["err_all"],
+        "ee_tracking_error_p95_cm": v["p95"],
+        "ee_reachable_error_cm": v["reach"],
+        "ee_operator_error_cm": v["op"],
+        "target_unreachable_share": v["unreach"],
+        "jitter": {"angular_rad_s": v["jang"], "linear_m_s": v["jlin"]},
+        "operator_jitter": {"angular_rad_s": v["oang"], "linear_m_s": v["olin"]},
+        "position_limit_hits": int(sum(r.position_limit_hits for r in runs)),
+        "velocity_limit_hits": int(sum(r.velocity_limit_hits for r in runs)),
+        "max_joint_speed_ratio": float(max(r.max_speed_ratio for r in runs)),
+        "ik_steps": int(sum(sum(r.ik_steps.values()) for r in runs)),
+        "ik_failures": int(sum(sum(r.ik_failures.values()) for r in runs)),
+        "ik_failure_kinds": _sum_dicts(r.ik_failure_kinds for r in runs),
+        "nan_commands": int(sum(r.nan_commands for r in runs)),
+        "tracking_lost_share": (sum(x * w for x, w in lost) / sum(w for _, w in lost)) if lost else None,
+        "dropout_frames": int(sum(int(np.count_nonzero(r.dropout)) for r in runs)),
+        "sim_s": sim_s,
+        "wall_s": wall,
+        "realtime_factor": sim_s / wall if wall > 0 else None,
+    }
+
+
+def _sum_dicts(dicts) -> dict:
+    out: dict = {}
+    for d in dicts:
+        for k, v in d.items():
+            out[k] = out.get(k, 0) + int(v)
+    return out

@@ -1,0 +1,411 @@
+"""One teleoperation run: the scenario's constants, calibration from a rendered T-pose, rendering, the run.
+
+See :mod:`akc_drake.teleop` for what the demo does and measures.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: The correctors compared: display name -> (filter, corrector) of the PipelineConfig.
+CORRECTORS: dict[str, tuple[str, str]] = {
+    "Raw": ("none", "none"),
+    "KF": ("KF", "none"),
+    "AKC(KF)": ("KF", "AKC"),
+    "COIK(KF)": ("KF", "COIK"),
+}
+#: The configuration whose figures are the headline (and that is also run with rendering and recorded).
+MAIN_CORRECTOR = "AKC(KF)"
+#: The motions teleoperated, in order.
+MOTIONS: tuple[str, ...] = ("I", "II")
+#: Cycles per motion: ``--quick`` and the default.
+QUICK_CYCLES = 1
+FULL_CYCLES = 3
+#: Seconds at the start of a run left out of the headline figures (the jump from the home pose).
+SETTLING_S = 1.0
+#: T-pose frames averaged by the calibration (paper §III-F).
+CALIBRATION_FRAMES = 100
+#: Length range of one burst of lost frames (seconds) for ``--dropout``.
+DROPOUT_BURST_S: tuple[float, float] = (0.5, 3.0)
+#: Seconds left between the two recorded runs in the Meshcat animation.
+RECORDING_GAP_S = 1.0
+SIDES = ("left", "right")
+
+
+# ------------------------------------------------------------------------------------------------------------
+# Motions and rendering
+
+
+def truncate_motion(motion, max_frames: int, rate_hz: float):
+    """``motion`` cut to its first ``max_frames`` camera frames (for quick checks); unchanged when shorter."""
+    from akc_drake.operator.motions import OperatorMotion
+
+    if max_frames is None:
+        return motion
+    if isinstance(max_frames, bool) or not isinstance(max_frames, (int, np.integer)) or max_frames < 2:
+        raise ValueError(f"max_frames must be an integer >= 2, got {max_frames!r}")
+    t_last = motion.start + (max_frames - 1) / rate_hz
+    if t_last >= motion.end:
+        return motion
+    keep = motion.times <= t_last + 1e-9
+    m = int(np.count_nonzero(keep))
+    if m < 2:
+        raise ValueError(f"motion {motion.name!r} has too few samples for {max_frames} frames")
+    cycles = None if motion.cycle_starts is None else motion.cycle_starts[motion.cycle_starts <= t_last]
+    return OperatorMotion(motion.times[:m], motion.q_left[:m], motion.q_right[:m], motion.name, cycles)
+
+
+def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False):
+    """Render ``motion`` with the camera of ``cfg`` (:func:`~akc_drake.diagrams.sim_camera`), with a tqdm bar.
+
+    Returns:
+        The :class:`~akc_drake.systems.depth_camera_source.Session`.
+    """
+    from tqdm import tqdm
+
+    from akc_drake.diagrams import sim_camera
+    from akc_drake.systems.depth_camera_source import render_session
+
+    intrinsics, placement, noise = sim_camera(cfg)
+    n = len(motion.frame_times(intrinsics.rate_hz))
+    with tqdm(
+        total=n,
+        desc=f"render {motion.name}",
+        unit="frame",
+        file=sys.stderr,
+        disable=not progress,
+        leave=False,
+    ) as bar:
+        return render_session(motion, intrinsics, placement, noise, seed=seed, progress=lambda k, total: bar.update(1))
+
+
+@dataclass
+class Calibration:
+    """The demo's T-pose calibration.
+
+    Attributes:
+        dims: the calibrated body dimensions.
+        report: the :class:`~akc_drake.core.calibration.CalibrationReport`.
+        frames: frames averaged.
+        wall_s: seconds spent (render + filter + calibration).
+    """
+
+    dims: object
+    report: object
+    frames: int
+    wall_s: float
+
+
+def calibrate_from_tpose(
+    cfg,
+    *,
+    seed: int = 0,
+    frames: int = CALIBRATION_FRAMES,
+    progress: bool = False,
+    max_frames: int | None = None,
+) -> Calibration:
+    """Render a held T-pose, run it through the occlusion filter and the KF, calibrate on ``frames`` frames.
+
+    Args:
+        cfg: the pipeline configuration (its camera; the filter is forced to KF, no corrector).
+        seed: motion sway, depth noise and detector seed.
+        frames: frames to average (the paper: 100).
+        progress: show a progress bar.
+        max_frames: render at most this many frames (quick checks); ``frames`` is capped to it.
+    """
+    import dataclasses
+
+    from akc_drake.core.calibration import calibrate_report
+    from akc_drake.diagrams import Measurements, build_mocap_diagram
+    from akc_drake.operator.motions import make_motion
+
+    t0 = time.perf_counter()
+    rate = float(cfg.camera.rate_hz)
+    motion = make_motion("tpose", 1, seed)
+    if max_frames is not None:
+        motion = truncate_motion(motion, max_frames, rate)
+        frames = min(frames, max_frames)
+    session = render_motion(motion, cfg, seed=seed, progress=progress)
+    kf_cfg = dataclasses.replace(cfg, filter="KF", corrector="none").validate()
+    built = build_mocap_diagram(kf_cfg, replay=Measurements.from_session(session))
+    n = min(frames, built.num_frames)
+    log, _ = built.simulate(n)
+    dims, report = calibrate_report(log.estimated[:n], "tpose")
+    return Calibration(dims, report, n, time.perf_counter() - t0)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# One teleoperation run
+
+
+class IKStatusCounter:
+    """A simulator monitor counting the differential-IK steps per arm and those without a solution.
+
+    :meth:`~akc_drake.robot.diff_ik.ArmDifferentialIK.status` is only the latest step's status, so it is
+    read after every IK update: the simulator calls the monitor at the end of each step, and at a call at time
+    ``t`` the latest IK update is the one at ``ceil(t / h) - 1`` periods (updates at ``t`` itself are applied
+    at the start of the next step). Each update is counted once; the diagram's plant steps (2 ms) are
+    shorter than the IK period (10 ms), so no update is missed.
+
+    Args:
+        ik: ``{"left": ArmDifferentialIK, "right": ArmDifferentialIK}``.
+        time_step: the IK period, seconds.
+        start_time: the run's start time; IK updates before it are not counted.
+
+    Attributes:
+        steps: per side, IK updates seen.
+        failures: per side, updates whose status was not "solution found".
+        kinds: per status name ("no solution", "stuck"), updates with it (both arms).
+    """
+
+    _NAMES = {1: "no solution", 2: "stuck"}
+
+    def __init__(self, ik: dict, time_step: float, start_time: float = 0.0):
+        from pydrake.multibody.inverse_kinematics import DifferentialInverseKinematicsStatus
+
+        self._ik = ik
+        self._h = float(time_step)
+        if not (math.isfinite(self._h) and self._h > 0):
+            raise ValueError(f"time_step must be a positive number of seconds, got {time_step!r}")
+        self._first = math.ceil(float(start_time) / self._h - 1e-6)
+        self._ok = DifferentialInverseKinematicsStatus.kSolutionFound
+        self._last = {s: None for s in ik}
+        self.steps = dict.fromkeys(ik, 0)
+        self.failures = dict.fromkeys(ik, 0)
+        self.kinds: dict[str, int] = {}
+
+    def __call__(self, root_context):
+        from pydrake.systems.framework import EventStatus
+
+        t = root_context.get_time()
+        j = math.ceil(t / self._h - 1e-6) - 1
+        if j < self._first:
+            return EventStatus.Succeeded()
+        for side, arm in self._ik.items():
+            last = self._last[side]
+            if last is not None and j <= last:
+                continue
+            self._last[side] = j
+            self.steps[side] += 1
+            status = arm.status(root_context)
+            if status != self._ok:
+                self.failures[side] += 1
+                name = self._NAMES.get(int(status), str(status))
+                self.kinds[name] = self.kinds.get(name, 0) + 1
+        return EventStatus.Succeeded()
+
+    @property
+    def total_failures(self) -> int:
+        return int(sum(self.failures.values()))
+
+
+@dataclass
+class TeleopRun:
+    """One teleoperation run and what the robot side of the loop measured.
+
+    Times are relative to the run's start. Per-frame arrays hold one sample per camera frame ``k``, taken at
+    ``t_k + period - ik_period`` (the end of the frame's period, when frame ``k``'s target is still the one
+    commanded).
+
+    Attributes:
+        motion, corrector: what was run (corrector as in :data:`CORRECTORS`).
+        rendered: True when the camera frames were rendered inside the diagram (else replayed).
+        frames: camera frames run.
+        period_s: camera period.
+        sim_s, wall_s: simulated and wall-clock seconds of the simulation.
+        nan_commands, position_limit_hits, velocity_limit_hits, max_speed_ratio: from the monitor.
+        tracking_lost_share: share of IK-period samples with either side's tracking lost.
+        ik_steps, ik_failures: per side (:class:`IKStatusCounter`); ik_failure_kinds: per status.
+        error_t, errors: per side, the monitor's target-to-achieved distances (m) and their times.
+        frame_t: ``(frames,)`` per-frame sample times.
+        target: per side ``(frames, 4, 4)`` X_TE_desired (NaN where no sample).
+        reachable_target: per side ``(frames, 3)`` the target position after the IK's reach guard.
+        ee: per side ``(frames, 3)`` achieved end-effector position in T.
+        operator: per side ``(frames, 4, 4)`` the operator's true wrist frame mapped to the robot (NaN when
+            unknown): what a perfect pipeline would command.
+        dropout: ``(frames,)`` bool, frames blanked by ``--dropout``.
+    """
+
+    motion: str
+    corrector: str
+    rendered: bool
+    frames: int
+    period_s: float
+    sim_s: float
+    wall_s: float
+    nan_commands: int
+    position_limit_hits: int
+    velocity_limit_hits: int
+    max_speed_ratio: float
+    tracking_lost_share: float
+    ik_steps: dict
+    ik_failures: dict
+    ik_failure_kinds: dict
+    error_t: dict
+    errors: dict
+    frame_t: np.ndarray
+    target: dict
+    reachable_target: dict
+    ee: dict
+    operator: dict
+    dropout: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_s / self.wall_s if self.wall_s > 0 else math.nan
+
+
+def _frame_sample_indices(hist_t: np.ndarray, start: float, n: int, period: float, h: float) -> np.ndarray:
+    """Index in the monitor history of each frame's sample (at ``start + (k + 1) period - h``); -1: none."""
+    want = start + (np.arange(n) + 1) * period - h
+    if hist_t.size == 0:
+        return np.full(n, -1)
+    idx = np.clip(np.searchsorted(hist_t, want), 0, hist_t.size - 1)
+    prev = np.clip(idx - 1, 0, hist_t.size - 1)
+    best = np.where(np.abs(hist_t[prev] - want) < np.abs(hist_t[idx] - want), prev, idx)
+    return np.where(np.abs(hist_t[best] - want) < 0.5 * h, best, -1)
+
+
+def operator_targets(truth_C: np.ndarray | None, n: int, mapping) -> dict[str, np.ndarray]:
+    """Per side ``(n, 4, 4)``: the operator's true wrist frame mapped to the robot, ``X_TE`` (NaN where
+    degenerate or unknown)."""
+    from akc_drake.core.frames import robot_targets
+
+    out = {s: np.full((n, 4, 4), np.nan) for s in SIDES}
+    if truth_C is None:
+        return out
+    truth = np.asarray(truth_C, dtype=float)
+    for k in range(min(n, truth.shape[0])):
+        if not np.all(np.isfinite(truth[k])):
+            continue
+        X_l, X_r = robot_targets(truth[k], mapping)
+        for side, X in zip(SIDES, (X_l, X_r), strict=True):
+            if X is not None:
+                out[side][k] = X
+    return out
+
+
+@contextlib.contextmanager
+def quiet_drake_warnings():
+    """Silence Drake's per-step warnings (e.g. the IK's "stuck" notices) while the demo counts them itself."""
+    logger = logging.getLogger("drake")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def run_teleop(
+    cfg,
+    dims,
+    *,
+    corrector: str = MAIN_CORRECTOR,
+    replay=None,
+    motion=None,
+    num_frames: int | None = None,
+    meshcat=None,
+    start_time: float = 0.0,
+    dropout: np.ndarray | None = None,
+    truth_C: np.ndarray | None = None,
+    progress: bool = False,
+):
+    """Build the teleop diagram for ``corrector`` and run it once.
+
+    Args:
+        cfg: the pipeline configuration (its filter and corrector are set from ``corrector``).
+        dims: the calibrated body dimensions.
+        corrector: a key of :data:`CORRECTORS`.
+        replay: :class:`~akc_drake.diagrams.Measurements` to replay; None: render ``motion`` in the diagram.
+        motion: the operator motion (for the rendering source; its name labels the run).
+        num_frames: frames to run (default: all of the source's).
+        meshcat: a Meshcat to draw (and record) the run in.
+        start_time: the simulation's start time (the Meshcat recording puts runs one after the other).
+        dropout: ``(frames,)`` bool, the frames the replay had blanked (for the report only).
+        truth_C: ``(frames, 12, 3)`` the operator's true landmarks in C (default: the replay's), for the
+            error to the operator.
+        progress: show a progress bar.
+
+    Returns:
+        ``(TeleopRun, TeleopDiagram)``.
+    """
+    import dataclasses
+
+    from pydrake.math import RigidTransform
+    from pydrake.systems.analysis import Simulator
+
+    from akc_drake.diagrams import build_teleop_diagram, camera_period
+
+    if corrector not in CORRECTORS:
+        raise ValueError(f"corrector must be one of {', '.join(CORRECTORS)}, got {corrector!r}")
+    if replay is None and motion is None:
+        raise ValueError("run_teleop: give replay (measurements) or motion (to render)")
+    filt, corr = CORRECTORS[corrector]
+    cfg = dataclasses.replace(cfg, filter=filt, corrector=corr).validate()
+    td = build_teleop_diagram(cfg, replay=replay, motion=motion, dims=dims, meshcat=meshcat, keep_history=True)
+    n = int(num_frames if num_frames is not None else td.num_frames)
+    if n < 1:
+        raise ValueError(f"run_teleop: need at least one frame, got {n}")
+    period = camera_period(cfg)
+    h = float(td.ik_time_step)
+    sim = Simulator(td.diagram)
+    counter = IKStatusCounter(td.ik, h, start_time)
+    sim.set_monitor(counter)
+    sim.get_mutable_context().SetTime(float(start_time))
+    t_end = float(start_time) + td.duration(n)
+    with quiet_drake_warnings():
+        _, wall = td.simulate(duration=t_end, simulator=sim, progress=progress)
+
+    mon = td.monitor
+    hist = mon.history_arrays()
+    hist_t = np.asarray(hist["t"], dtype=float)
+    idx = _frame_sample_indices(hist_t, float(start_time), n, period, h)
+    found = idx >= 0
+    target, reach, ee = {}, {}, {}
+    for side in SIDES:
+        T = np.full((n, 4, 4), np.nan)
+        E = np.full((n, 3), np.nan)
+        if found.any():
+            T[found] = np.asarray(hist[f"target_{side}"])[idx[found]]
+            E[found] = np.asarray(hist[f"ee_{side}"])[idx[found]][:, :3, 3]
+        R = np.full((n, 3), np.nan)
+        guard = td.ik[side].pose_guard
+        for k in np.flatnonzero(found & np.all(np.isfinite(T), axis=(1, 2))):
+            R[k] = guard.project(RigidTransform(T[k])).translation()
+        target[side], reach[side], ee[side] = T, R, E
+    lost = np.asarray(hist["lost"], dtype=float).reshape(-1, 2) if len(hist["lost"]) else np.zeros((0, 2))
+    truth = truth_C if truth_C is not None else (replay.truth_C if replay is not None else None)
+    run = TeleopRun(
+        motion=getattr(motion, "name", None) or "replay",
+        corrector=corrector,
+        rendered=replay is None,
+        frames=n,
+        period_s=period,
+        sim_s=t_end - float(start_time),
+        wall_s=float(wall),
+        nan_commands=int(mon.nan_commands),
+        position_limit_hits=int(mon.position_limit_hits),
+        velocity_limit_hits=int(mon.velocity_limit_hits),
+        max_speed_ratio=float(mon.max_speed_ratio),
+        tracking_lost_share=float(np.mean(np.any(lost > 0.5, axis=1))) if lost.size else math.nan,
+        ik_steps=dict(counter.steps),
+        ik_failures=dict(counter.failures),
+        ik_failure_kinds=dict(counter.kinds),
+        error_t={s: mon.ee_error_times(s) - float(start_time) for s in SIDES},
+        errors={s: mon.ee_errors(s) for s in SIDES},
+        frame_t=(np.arange(n) + 1) * period - h,
+        target=target,
+        reachable_target=reach,
+        ee=ee,
+        operator=operator_targets(truth, n, td.mapper.mapping),
+        dropout=np.zeros(n, dtype=bool) if dropout is None else np.asarray(dropout, dtype=bool)[:n],
+    )
+    return run, td
