@@ -1,0 +1,84 @@
+"""Tests of the task executor (akc_drake.evaluation.executor): in-process, LocalCluster, faults.
+
+The functions the workers run are module-level here; Dask's spawned workers import this module (pytest's
+``sys.path`` travels with them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from akc_drake.errors import UserError
+from akc_drake.evaluation.executor import TaskFailure, check_scheduler, failures, run_tasks
+
+
+def square_root(x: float) -> dict:
+    """A task: fails (ValueError) on a negative input."""
+    return {"x": x, "root": math.sqrt(x), "array": np.full(3, math.sqrt(x))}
+
+
+class _NotPlain:
+    pass
+
+
+def returns_object(x):
+    """A task that breaks the contract: returns an object of ours."""
+    return _NotPlain()
+
+
+def test_check_scheduler():
+    assert check_scheduler("local") == "local"
+    assert check_scheduler("inprocess") == "inprocess"
+    assert check_scheduler("tcp://10.0.0.5:8786") == "tcp://10.0.0.5:8786"
+    for bad in ("", "tcp://nohost", "tcp://h:0", "http://h:8786", "cluster"):
+        with pytest.raises(UserError, match="--scheduler"):
+            check_scheduler(bad)
+
+
+def test_inprocess_results_in_order_and_a_bad_task_fails_alone():
+    seen = []
+    res = run_tasks(
+        square_root,
+        [4.0, -1.0, 9.0],
+        scheduler="inprocess",
+        labels=["a", "bad", "c"],
+        progress=False,
+        on_result=lambda i, r: seen.append(i),
+    )
+    assert res[0]["root"] == 2.0 and res[2]["root"] == 3.0
+    np.testing.assert_array_equal(res[2]["array"], [3.0, 3.0, 3.0])
+    assert isinstance(res[1], TaskFailure)
+    assert res[1].line() == "bad: ValueError: math domain error"
+    assert "math.sqrt" in res[1].traceback
+    assert failures(res) == [res[1]]
+    assert seen == [0, 1, 2]
+    assert run_tasks(square_root, [], scheduler="inprocess") == []
+
+
+def test_results_must_be_plain_data():
+    (res,) = run_tasks(returns_object, [1], scheduler="inprocess", progress=False)
+    assert isinstance(res, TaskFailure)
+    assert "_NotPlain, not plain data" in res.error
+
+
+def test_argument_checks():
+    with pytest.raises(ValueError, match="labels"):
+        run_tasks(square_root, [1.0], scheduler="inprocess", labels=["a", "b"])
+    with pytest.raises(ValueError, match="retries"):
+        run_tasks(square_root, [1.0], scheduler="inprocess", retries=-1)
+    with pytest.raises(ValueError, match="n_workers"):
+        run_tasks(square_root, [1.0], scheduler="local", n_workers=0)
+
+
+def test_local_cluster_same_results_and_failure_line():
+    items = [4.0, -1.0, 2.0, 9.0]
+    ref = run_tasks(square_root, items, scheduler="inprocess", progress=False)
+    got = run_tasks(square_root, items, scheduler="local", n_workers=2, progress=False, timeout_s=120)
+    for a, b in zip(ref, got, strict=True):
+        if isinstance(a, TaskFailure):
+            assert isinstance(b, TaskFailure) and b.line() == a.line() == "task 1: ValueError: math domain error"
+        else:
+            assert a["root"] == b["root"] and a["array"].tobytes() == b["array"].tobytes()
