@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 
 from akc_drake import cli, diagrams
-from akc_drake.commands.run import (
+from akc_drake.config import CameraConfig, PipelineConfig
+from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detection2D, project
+from akc_drake.core.skeleton import NUM_LANDMARKS
+from akc_drake.errors import SourceError, UserError
+from akc_drake.pipeline import (
     LATENCY_STAGES,
     TimedDetector,
     latency_summary,
@@ -16,10 +20,6 @@ from akc_drake.commands.run import (
     run_pipeline,
     summarize,
 )
-from akc_drake.config import CameraConfig, PipelineConfig
-from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detection2D, project
-from akc_drake.core.skeleton import NUM_LANDMARKS
-from akc_drake.errors import SourceError, UserError
 
 K = CameraIntrinsics(width=64, height=48, fx=60.0, fy=60.0, cx=31.5, cy=23.5, depth_scale=0.001, rate_hz=10.0)
 
@@ -162,9 +162,20 @@ def test_sliced_run_gives_the_same_poses_as_a_plain_simulation():
     lat = res.latency_s
     assert set(lat) == set(LATENCY_STAGES)
     for k in ("source", "occlusion_filter", "filter", "corrector", "end_to_end", "frame_wall"):
-        assert lat[k].shape == (12,) and np.all(lat[k] >= 0), k
+        assert lat[k].shape == (12,) and np.all(np.isfinite(lat[k]) & (lat[k] >= 0)), k
     assert np.isnan(lat["detector"]).all() and np.isnan(lat["mapper"]).all()  # no extractor, no robot
-    np.testing.assert_array_less(lat["corrector"], lat["end_to_end"])
+
+
+class _TickClock:
+    """A deterministic clock: each reading is ``tick`` seconds after the previous one."""
+
+    def __init__(self, tick=1e-3):
+        self.tick, self.now, self.reads = tick, 0.0, 0
+
+    def __call__(self):
+        self.reads += 1
+        self.now += self.tick
+        return self.now
 
 
 def test_runs_a_frame_source_to_its_end_and_splits_stage_s2():
@@ -178,11 +189,36 @@ def test_runs_a_frame_source_to_its_end_and_splits_stage_s2():
     np.testing.assert_allclose(res.log.raw[0, :, :2], POSE[:, :2] * 2.0 / POSE[:, 2:], atol=1e-9)
     lat = res.latency_s
     np.testing.assert_array_equal(lat["detector"], det.times_s)
-    for k in ("depth_deprojection", "extractor_overhead", "occlusion_filter", "filter", "corrector"):
-        assert np.all(np.isfinite(lat[k]) & (lat[k] >= 0)), k
-    inner = lat["detector"] + lat["depth_deprojection"] + lat["extractor_overhead"]
-    np.testing.assert_allclose(inner, lat["extractor"], rtol=1e-9, atol=1e-12)
-    assert np.all(lat["end_to_end"] >= lat["source"] + lat["extractor"])
+    # structure only (the machine's load decides the values): every S2 part and later stage, every frame
+    for k in ("source", "extractor", "depth_deprojection", "extractor_overhead", "occlusion_filter", "filter",
+              "corrector", "end_to_end", "frame_wall"):
+        assert lat[k].shape == (7,) and np.all(np.isfinite(lat[k]) & (lat[k] >= 0)), k
+    assert np.isnan(lat["mapper"]).all()
+
+
+def test_stage_split_arithmetic_on_an_injected_clock():
+    """With a clock ticking 1 ms per reading, each slice's latency is the readings taken inside it."""
+    clock = _TickClock(1e-3)
+    det = TimedDetector(_FixedDetector(), clock=clock)
+    built = diagrams.build_mocap_diagram(_real_cfg(), frame_source=_ListSource(5), detector=det)
+    res = run_pipeline(built, None, detector=det, clock=clock)
+    assert res.frames == 5 and res.stop_reason == "source ended"
+    lat = {k: np.round(v / 1e-3, 9) for k, v in res.latency_s.items()}  # in ticks
+    # the extractor's slice holds the detector's two readings: 3 ticks, of which the detector 1
+    np.testing.assert_array_equal(lat["detector"], 1.0)
+    np.testing.assert_array_equal(lat["extractor"], 3.0)
+    np.testing.assert_array_equal(lat["depth_deprojection"], 1.0)  # timed outside the slice
+    np.testing.assert_array_equal(lat["extractor_overhead"], 1.0)  # 3 - 1 - 1
+    np.testing.assert_array_equal(lat["occlusion_filter"], 1.0)
+    np.testing.assert_array_equal(lat["filter"], 0.0)  # the filter's 1-tick slice minus the occlusion filter
+    np.testing.assert_array_equal(lat["corrector"], 1.0)
+    # source = its slice (1) + reading the extractor's images (1); end_to_end = source + S2 + filter + corrector
+    np.testing.assert_array_equal(lat["source"], 2.0)
+    np.testing.assert_array_equal(lat["end_to_end"], 2.0 + 3.0 + 1.0 + 1.0)
+    # frame_wall adds the mapper's slice and the slice before the frame (none for the first)
+    np.testing.assert_array_equal(lat["frame_wall"], [8.0, 9.0, 9.0, 9.0, 9.0])
+    assert np.isnan(lat["mapper"]).all()
+    assert 0 < res.wall_s < clock.now  # from the first reading of the run to its last
 
 
 def test_a_source_failing_mid_run_keeps_the_frames_before():
@@ -232,8 +268,7 @@ def test_run_sim_motion_II_one_cycle(tmp_path, capsys):
     lat = s["latency_ms"]
     for k in ("source", "detector", "depth_deprojection", "extractor_overhead", "occlusion_filter", "filter",
               "corrector", "end_to_end", "frame_wall"):
-        assert lat[k]["frames"] == n and 0 < lat[k]["median"] <= lat[k]["max"], k
-    assert lat["end_to_end"]["median"] > lat["source"]["median"]
+        assert lat[k]["frames"] == n and 0 <= lat[k]["median"] <= lat[k]["max"], k
     assert "mapper" not in lat
     printed = capsys.readouterr().out
     assert f"{n} frames ({n} with a person)" in printed and "latency, median ms" in printed
