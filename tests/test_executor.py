@@ -82,3 +82,69 @@ def test_local_cluster_same_results_and_failure_line():
             assert isinstance(b, TaskFailure) and b.line() == a.line() == "task 1: ValueError: math domain error"
         else:
             assert a["root"] == b["root"] and a["array"].tobytes() == b["array"].tobytes()
+
+
+def slow_marked(item: dict) -> dict:
+    """A task that leaves a marker ``<x>-<pid>`` in ``item["dir"]`` when it starts, then works for a while."""
+    import os
+    import time
+    from pathlib import Path
+
+    Path(item["dir"], f"{item['x']}-{os.getpid()}").touch()
+    time.sleep(item["sleep"])
+    return {"x": item["x"], "pid": os.getpid(), "y": float(item["x"]) ** 2}
+
+
+def test_unreachable_scheduler_is_one_line(monkeypatch):
+    import socket
+
+    import akc_drake.evaluation.executor as ex
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    monkeypatch.setattr(ex, "CONNECT_TIMEOUT_S", 1.0)
+    with pytest.raises(UserError, match=rf"--scheduler tcp://127.0.0.1:{port}: cannot connect"):
+        run_tasks(square_root, [1.0], scheduler=f"tcp://127.0.0.1:{port}", progress=False)
+
+
+def test_scheduler_address_and_a_killed_worker(tmp_path):
+    """A real `dask scheduler` + 2 `dask worker` processes: same results as in-process; killing the worker
+    running a task mid-way reschedules it on the other worker and the run completes."""
+    import os
+    import signal
+    import threading
+    import time
+
+    from dask_cluster import dask_cluster
+
+    markers = tmp_path / "markers"
+    markers.mkdir()
+    items = [{"x": x, "dir": str(markers), "sleep": 0.6} for x in range(6)]
+    with dask_cluster(tmp_path / "cluster", 2) as cluster:
+        worker_pids = {p.pid for p in cluster.workers}
+        killed: list[tuple[int, int]] = []
+
+        def killer():
+            end = time.monotonic() + 60
+            while time.monotonic() < end and not killed:
+                for m in sorted(markers.iterdir()):
+                    x, pid = (int(v) for v in m.name.split("-"))
+                    if pid in worker_pids:
+                        os.kill(pid, signal.SIGKILL)
+                        killed.append((x, pid))
+                        return
+                time.sleep(0.02)
+
+        th = threading.Thread(target=killer, daemon=True)
+        th.start()
+        res = run_tasks(slow_marked, items, scheduler=cluster.address, progress=False, timeout_s=90)
+        th.join(timeout=5)
+        assert killed, "no task started on a worker"
+        x_killed, pid_killed = killed[0]
+        assert not failures(res), [f.line() for f in failures(res)]
+        assert [r["y"] for r in res] == [float(x * x) for x in range(6)]
+        # The task that was running on the killed worker finished on the other one.
+        assert res[x_killed]["pid"] != pid_killed and res[x_killed]["pid"] in worker_pids
+        assert (markers / f"{x_killed}-{pid_killed}").exists()
+        assert cluster.workers[0].poll() is not None or cluster.workers[1].poll() is not None

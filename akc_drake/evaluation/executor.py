@@ -208,9 +208,7 @@ def run_tasks(
         return []
     from tqdm import tqdm
 
-    bar = tqdm(
-        total=len(items), desc=desc, unit="task", file=sys.stderr, disable=not progress, dynamic_ncols=True
-    )
+    bar = tqdm(total=len(items), desc=desc, unit="task", file=sys.stderr, disable=not progress, dynamic_ncols=True)
     with bar:
         if scheduler == "inprocess":
             return _run_inprocess(fn, items, labels, bar, on_result)
@@ -312,11 +310,10 @@ def _run_dask(fn, items, labels, scheduler, n_workers, retries, bar, timeout_s, 
     done = [False] * len(items)
     n_failed = 0
     try:
+
         def submit(i):
             attempts[i] += 1
-            return client.submit(
-                _run_one, fn, items[i], key=f"{_slug(labels[i])}-{i}-{attempts[i]}-{tag}", pure=False
-            )
+            return client.submit(_run_one, fn, items[i], key=f"{_slug(labels[i])}-{i}-{attempts[i]}-{tag}", pure=False)
 
         index_of = {}
         futures = []
