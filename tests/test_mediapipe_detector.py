@@ -72,7 +72,7 @@ def test_video_mode_tolerates_repeated_and_backward_times(detector, astronaut):
     for d in (a, b, c):
         assert d.person_found
         np.testing.assert_allclose(d.uv[INDEX["left_shoulder"]], a.uv[INDEX["left_shoulder"]], atol=10)
-    assert detector.last_latency_ms > 0
+    assert np.isfinite(detector.last_latency_ms) and detector.last_latency_ms >= 0
 
 
 def test_mirrored_image_swaps_sides(detector, astronaut):
