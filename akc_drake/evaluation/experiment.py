@@ -488,40 +488,64 @@ def run_experiment(
         progress(sum(sessions[p].num_frames for p in ("tpose", "lpose") if p in sessions), "calibration")
 
     # ---- methods
-    runs: dict[str, MotionRun] = {}
-    for name in names:
-        s = sessions[name]
-        runner = MethodRunner(s, tpose_dims, config.weights, opts)
-        results = {}
-        for method in config.methods:
-            results[method] = runner.run(method)
-            if progress is not None:
-                progress(s.num_frames, f"{name} {method}")
-        run = MotionRun(s, results)
-        if config.weight_study:
-            filtered, _ = runner.filtered("KF")
-            for preset in ("Wa", "Wb", "Wc"):
-                if preset == config.weights and "AKC(KF)" in results:
-                    run.weight_runs[preset] = results["AKC(KF)"].estimates
-                else:
-                    run.weight_runs[preset] = run_akc(make_akc(tpose_dims, preset), filtered)[0]
-                if progress is not None:
-                    progress(s.num_frames, f"{name} AKC {preset}")
-        if config.calibration_study:
-            filtered, _ = runner.filtered("KF")
-            for cal, dims in calibrations.items():
-                if cal == "T-pose" and "AKC(KF)" in results:
-                    run.calibration_runs[cal] = results["AKC(KF)"].estimates
-                else:
-                    run.calibration_runs[cal] = run_akc(make_akc(dims, config.weights), filtered)[0]
-                if progress is not None:
-                    progress(s.num_frames, f"{name} AKC {cal}")
-        runs[name] = run
+    runs = {name: run_motion(config, sessions[name], tpose_dims, calibrations, progress) for name in names}
+    ev = assemble_evaluation(config, calibrations, tpose_dims, runs)
+    ev.elapsed_s = time.perf_counter() - t_start
+    return ev
 
+
+def run_motion(
+    config: ExperimentConfig,
+    s: Session,
+    tpose_dims: BodyDimensions,
+    calibrations: dict[str, BodyDimensions],
+    progress: Progress | None = None,
+) -> MotionRun:
+    """Every configured method on one motion's measurements (plus the weight and calibration studies).
+
+    This is the unit of work of a distributed evaluation (:mod:`akc_drake.evaluation.tasks`).
+    """
+    name = s.motion
+    opts = config.options
+    runner = MethodRunner(s, tpose_dims, config.weights, opts)
+    results = {}
+    for method in config.methods:
+        results[method] = runner.run(method)
+        if progress is not None:
+            progress(s.num_frames, f"{name} {method}")
+    run = MotionRun(s, results)
+    if config.weight_study:
+        filtered, _ = runner.filtered("KF")
+        for preset in ("Wa", "Wb", "Wc"):
+            if preset == config.weights and "AKC(KF)" in results:
+                run.weight_runs[preset] = results["AKC(KF)"].estimates
+            else:
+                run.weight_runs[preset] = run_akc(make_akc(tpose_dims, preset), filtered)[0]
+            if progress is not None:
+                progress(s.num_frames, f"{name} AKC {preset}")
+    if config.calibration_study:
+        filtered, _ = runner.filtered("KF")
+        for cal, dims in calibrations.items():
+            if cal == "T-pose" and "AKC(KF)" in results:
+                run.calibration_runs[cal] = results["AKC(KF)"].estimates
+            else:
+                run.calibration_runs[cal] = run_akc(make_akc(dims, config.weights), filtered)[0]
+            if progress is not None:
+                progress(s.num_frames, f"{name} AKC {cal}")
+    return run
+
+
+def assemble_evaluation(
+    config: ExperimentConfig,
+    calibrations: dict[str, BodyDimensions],
+    dims: BodyDimensions,
+    runs: dict[str, MotionRun],
+) -> Evaluation:
+    """The :class:`Evaluation` (rows and tables) of the motions' runs, however they were computed."""
     ev = Evaluation(
         config=config,
         calibrations=calibrations,
-        dims=tpose_dims,
+        dims=dims,
         runs=runs,
         results=[],
         arm_length_range_cm=[],
@@ -530,7 +554,6 @@ def run_experiment(
     )
     _fill_rows(ev)
     ev.tables = build_tables(ev)
-    ev.elapsed_s = time.perf_counter() - t_start
     return ev
 
 
