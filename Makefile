@@ -38,8 +38,9 @@ system-deps:
 demo: install
 	$(VENV)/bin/akc-drake demo
 
+# Both cores (pytest-xdist), in a random order (pytest-randomly prints its seed; repeat an order with --randomly-seed=N).
 test: install
-	$(PY) -m pytest -q -p no:cacheprovider
+	$(PY) -m pytest -q -p no:cacheprovider -n 2
 
 bench: install
 	$(VENV)/bin/akc-drake bench
@@ -48,8 +49,10 @@ graphs: install
 	$(VENV)/bin/akc-drake graph --diagram mocap --out diagrams
 	$(VENV)/bin/akc-drake graph --diagram teleop --out diagrams
 
+# ruff, then the layering contracts of pyproject.toml [tool.importlinter] (import-linter).
 lint: install
 	$(VENV)/bin/ruff check akc_drake tests
+	$(VENV)/bin/lint-imports --no-cache
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache
