@@ -1,10 +1,41 @@
-"""Arm Kinematic Correction (AKC), the paper's stage S4 (§II-D, eq. 7-15).
+"""Arm Kinematic Correction (AKC) exactly as the paper describes it: stage S4 (§II-D, eq. 7-15).
 
 For each arm, the filtered wrist is trusted and the elbow and shoulder depths are rebuilt from the
 calibrated segment lengths with the Pythagorean theorem (eq. 7-8): two elbow depths, and two shoulder
 depths for each, give four candidate configurations. A negative radicand falls back to the validity
 projection (eq. 9). The candidate with the smallest cost (eq. 10, metrics eq. 11-15) wins; the shoulder-width
 metric m4 couples the two arms, so when both arms are tracked their 4 x 4 candidate pairs are scored jointly.
+Our improved corrector, AKC+, is :mod:`akc_drake.core.akc_plus`.
+
+**What the paper says, and how it is implemented here.**
+
+* x, y of the elbow and shoulder: "Given reliable 2D coordinates (x, y) from pose detection, the depth (z)
+  of occluded joints can be reconstructed using geometric constraints" (eq. 7-8 change z only), and
+  "AKC improves depth estimation while preserving the accuracy of image-plane coordinates" (§IV); the
+  x/y changes it reports are "less than 0.65 cm at worst" (§III-C). So a candidate keeps the filtered
+  x, y of the elbow and shoulder; only eq. (9), "applied only as a fallback mechanism", moves them.
+* The shrink factor: "the preset arm length is reduced during candidate search using a shrink factor
+  (s), such that the adjusted length is l_j' = s l_j" (§II-D), to stop the depth jumping "between the ±
+  solutions" when "the arm is fully extended near the zero-depth plane". And of the output: "AKC maintains
+  constant arm length throughout the motion" (Table VI, 0.0 cm range, with s = 0.8 in the main tables).
+  The paper does not say at which length the chosen configuration is output. Our reading, the one that
+  satisfies all three statements: s is used *during the search*, i.e. to test the radicands (a radicand
+  ``(s l)^2 - d_xy^2 < 0`` selects eq. 9, so the ± pair collapses into one candidate exactly in the
+  near-extended case the paper describes), and every candidate is placed with the calibrated length l:
+  ``p_e,z = p_w,z ± sqrt(l_f^2 - d_xy^2)`` (x, y kept) or eq. (9) with l. The output therefore has exactly
+  the calibrated lengths, and x, y are kept except under eq. (9). (An earlier version of this module scaled
+  the shrunk candidate about the wrist by 1/s, which moved x, y by 25 % of their in-plane distance.)
+* The metrics are computed on these placed candidates, so m3 compares the candidate with the previous
+  output at the same (full) lengths, and m4 scores the shoulders that are output.
+* m5: "k if theta not in [40°, 180°]", which "penalizes joint configurations outside physiological
+  limits (e.g., theta < 40° and theta > 180°)". An unsigned angle between two segments never exceeds 180°,
+  so theta must be signed; the paper does not say how. Our convention
+  (:func:`~akc_drake.core.arm_geometry.signed_elbow_angle_deg`): theta is the interior angle when the
+  forearm bends the anatomical way and 360° - interior when it bends backwards (hyperextension), the
+  anterior side of the upper arm following the torso frame of eq. (17).
+* The paper is silent on: missing inputs (we hold the arm / reuse the last output, see the class), m3 on
+  the first frame (0), m4 when one arm is missing (against the other side's filtered shoulder), ties
+  (the lowest candidate index wins).
 
 The hot path (:meth:`ArmKinematicCorrector.correct`) works on plain Python floats: a numpy call costs
 microseconds, and AKC runs 16 joint candidates per frame. The input is converted to floats once and the
@@ -24,6 +55,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from akc_drake.core.arm_geometry import bends_backwards, elbow_angle_deg, signed_elbow_angle_deg, torso_axes
 from akc_drake.core.skeleton import NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
@@ -35,8 +67,6 @@ _NAN = float("nan")
 _MIN_SEGMENT_M = 1e-12
 #: Tolerance on the cosine of the elbow angle at the bounds of [elbow_min_deg, elbow_max_deg].
 _COS_TOL = 1e-12
-#: Direction used for a degenerate segment when there is no previous estimate: up (-y_C) towards the body.
-_DEFAULT_DIRECTION = (0.0, -1.0, 0.0)
 
 #: Length of the corrector's state vector: per side (shoulder, elbow, wrist) xyz = 18, then 2 validity flags.
 STATE_SIZE = 20
@@ -202,24 +232,29 @@ class ArmCandidates(NamedTuple):
     shoulder_fallback: np.ndarray
 
 
-def _shoulder_pair(ex, ey, ez, sx, sy, sz, lu):
-    """Two shoulder candidates from one elbow (eq. 8), or twice the eq. (9) projection. Plain floats."""
+def _shoulder_pair(ex, ey, ez, sx, sy, sz, lu_s, lu):
+    """Two shoulder candidates from one elbow (eq. 8), or twice the eq. (9) projection. Plain floats.
+
+    The radicand is tested with the search length ``lu_s = s l_u`` (the shrink factor); a candidate is
+    then placed with the calibrated length ``lu``, keeping the shoulder's x, y (see the module docstring).
+    """
     dx = sx - ex
     dy = sy - ey
-    r = lu * lu - dx * dx - dy * dy
-    if r >= 0.0:
-        q = _sqrt(r)
-        # eq. (8): p_s,z = p_e,z ± sqrt(l_u'^2 - (p_s,x - p_e,x)^2 - (p_s,y - p_e,y)^2)
+    d2 = dx * dx + dy * dy
+    if d2 <= lu_s * lu_s and d2 <= lu * lu:
+        q = _sqrt(lu * lu - d2)
+        # eq. (8): p_s,z = p_e,z ± sqrt(l_u^2 - (p_s,x - p_e,x)^2 - (p_s,y - p_e,y)^2)
         return (sx, sy, ez + q), (sx, sy, ez - q), False
-    # eq. (9): p_s = p_e + l_u' (p_s - p_e) / ||p_s - p_e||  (here ||.|| >= in-plane distance > l_u' > 0)
+    # eq. (9): p_s = p_e + l_u (p_s - p_e) / ||p_s - p_e||
     dz = sz - ez
-    f = lu / _hypot(dx, dy, dz)
+    n = _hypot(dx, dy, dz)
+    f = lu / n if n > _MIN_SEGMENT_M else 0.0
     p = (ex + dx * f, ey + dy * f, ez + dz * f)
     return p, p, True
 
 
-def _candidates(wx, wy, wz, ex, ey, ez, sx, sy, sz, lf, lu):
-    """The four candidates of one arm in plain floats.
+def _candidates(wx, wy, wz, ex, ey, ez, sx, sy, sz, lf_s, lu_s, lf, lu):
+    """The four candidates of one arm in plain floats (searched with ``lf_s, lu_s``, placed with ``lf, lu``).
 
     Returns:
         ``(E, S, elbow_fallback, shoulder_fallback)``: ``E`` two elbow tuples, ``S`` four shoulder tuples
@@ -227,24 +262,24 @@ def _candidates(wx, wy, wz, ex, ey, ez, sx, sy, sz, lf, lu):
     """
     dx = ex - wx
     dy = ey - wy
-    r = lf * lf - dx * dx - dy * dy
-    if r >= 0.0:
-        q = _sqrt(r)
-        # eq. (7): p_e,z = p_w,z ± sqrt(l_f'^2 - (p_e,x - p_w,x)^2 - (p_e,y - p_w,y)^2)
+    d2 = dx * dx + dy * dy
+    if d2 <= lf_s * lf_s and d2 <= lf * lf:
+        q = _sqrt(lf * lf - d2)
+        # eq. (7): p_e,z = p_w,z ± sqrt(l_f^2 - (p_e,x - p_w,x)^2 - (p_e,y - p_w,y)^2)
         e0 = (ex, ey, wz + q)
         e1 = (ex, ey, wz - q)
         efb = False
     else:
-        # eq. (9): p_e = p_w + l_f' (p_e - p_w) / ||p_e - p_w||  (||.|| >= in-plane distance > l_f' > 0)
+        # eq. (9): p_e = p_w + l_f (p_e - p_w) / ||p_e - p_w||  (||.|| >= in-plane distance > 0)
         dz = ez - wz
         f = lf / _hypot(dx, dy, dz)
         e0 = e1 = (wx + dx * f, wy + dy * f, wz + dz * f)
         efb = True
-    s0, s1, fb0 = _shoulder_pair(e0[0], e0[1], e0[2], sx, sy, sz, lu)
+    s0, s1, fb0 = _shoulder_pair(e0[0], e0[1], e0[2], sx, sy, sz, lu_s, lu)
     if efb:
         s2, s3, fb1 = s0, s1, fb0
     else:
-        s2, s3, fb1 = _shoulder_pair(e1[0], e1[1], e1[2], sx, sy, sz, lu)
+        s2, s3, fb1 = _shoulder_pair(e1[0], e1[1], e1[2], sx, sy, sz, lu_s, lu)
     return (e0, e1), (s0, s1, s2, s3), efb, (fb0, fb1)
 
 
@@ -255,7 +290,7 @@ def _vec3(x, name: str) -> np.ndarray:
     return a
 
 
-def akc_arm_candidates(p_w, p_e_hat, p_s_hat, l_f: float, l_u: float) -> ArmCandidates:
+def akc_arm_candidates(p_w, p_e_hat, p_s_hat, l_f: float, l_u: float, shrink: float = 1.0) -> ArmCandidates:
     """The four candidate configurations of one arm (eq. 7-9), as the corrector computes them.
 
     Args:
@@ -264,8 +299,10 @@ def akc_arm_candidates(p_w, p_e_hat, p_s_hat, l_f: float, l_u: float) -> ArmCand
             (it only matters for the eq. 9 projection).
         p_s_hat: ``(3,)`` the filtered shoulder; x, y must be finite; a NaN z is taken as ``p_e_hat``'s
             (or the wrist's).
-        l_f: forearm search length (``s * l_f`` in the corrector), metres.
-        l_u: upper-arm search length, metres.
+        l_f: calibrated forearm length, metres.
+        l_u: calibrated upper-arm length, metres.
+        shrink: the shrink factor s: a radicand is tested with ``s * l`` (negative -> eq. 9), candidates are
+            placed with ``l``.
 
     Returns:
         The :class:`ArmCandidates`.
@@ -292,20 +329,13 @@ def akc_arm_candidates(p_w, p_e_hat, p_s_hat, l_f: float, l_u: float) -> ArmCand
         ez = wz
     if not math.isfinite(sz):
         sz = ez
-    E, S, efb, sfb = _candidates(wx, wy, wz, ex, ey, ez, sx, sy, sz, float(l_f), float(l_u))
+    lf, lu = float(l_f), float(l_u)
+    E, S, efb, sfb = _candidates(wx, wy, wz, ex, ey, ez, sx, sy, sz, shrink * lf, shrink * lu, lf, lu)
     elbows = np.array([E[0], E[0], E[1], E[1]], dtype=float)
     return ArmCandidates(elbows, np.array(S, dtype=float), bool(efb), np.array(sfb, dtype=bool))
 
 
-def elbow_angle_deg(p_s, p_e, p_w) -> float:
-    """Angle at the elbow between (shoulder - elbow) and (wrist - elbow), degrees; NaN if undefined."""
-    a = np.asarray(p_s, float) - np.asarray(p_e, float)
-    b = np.asarray(p_w, float) - np.asarray(p_e, float)
-    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
-    if not (na > _MIN_SEGMENT_M and nb > _MIN_SEGMENT_M) or not (math.isfinite(na) and math.isfinite(nb)):
-        return _NAN
-    c = max(-1.0, min(1.0, float(a @ b) / (na * nb)))
-    return math.degrees(math.acos(c))
+
 
 
 class ArmKinematicCorrector:
@@ -326,7 +356,7 @@ class ArmKinematicCorrector:
       means every candidate is anatomically impossible, e.g. a garbage wrist next to the shoulder), the arm
       holds its last output for that frame (``held``) rather than output an impossible arm.
 
-    The output always has exactly the calibrated arm lengths for a corrected arm.
+    The output always has exactly the calibrated arm lengths for a corrected arm (to rounding).
     """
 
     def __init__(
@@ -410,7 +440,7 @@ class ArmKinematicCorrector:
 
     # ------------------------------------------------------------------ hot path (plain floats)
 
-    def _prepare(self, v, side):
+    def _prepare(self, v, side, axes):
         """Candidates and their per-arm costs (all metrics but m4) for one side, or None to hold."""
         o_s, o_e, o_w = self._offsets[side]
         wx, wy, wz = v[o_w], v[o_w + 1], v[o_w + 2]
@@ -432,9 +462,11 @@ class ArmKinematicCorrector:
         if not _isfinite(sz):
             sz = prev[2] if prev is not None else ez
 
-        lf = self._lf_s[side]
-        lu = self._lu_s[side]
-        E, S, efb, sfb = _candidates(wx, wy, wz, ex, ey, ez, sx, sy, sz, lf, lu)
+        lf = self._lf[side]
+        lu = self._lu[side]
+        E, S, efb, sfb = _candidates(
+            wx, wy, wz, ex, ey, ez, sx, sy, sz, self._lf_s[side], self._lu_s[side], lf, lu
+        )
         w1, w2, w3, kw5 = self._wv
         if prev is None:
             w3 = 0.0  # eq. (13) is 0 on the first frame
@@ -445,15 +477,13 @@ class ArmKinematicCorrector:
             c0 = w1 * _hypot(e0x - ex, e0y - ey, e0z - ez)
             c1 = w1 * _hypot(e1x - ex, e1y - ey, e1z - ez)
         if w3:
-            # eq. (13), elbow part: ||p_e - p_e^prev||
+            # eq. (13), elbow part: ||p_e - p_e^prev|| (both placed at the calibrated lengths)
             c0 += w3 * _hypot(e0x - prev[3], e0y - prev[4], e0z - prev[5])
             c1 += w3 * _hypot(e1x - prev[3], e1y - prev[4], e1z - prev[5])
         costs = [c0, c0, c1, c1]
         if w2 or w3 or kw5:
             if w3:
                 p0, p1, p2 = prev[0], prev[1], prev[2]
-            inv = 1.0 / (lf * lu)
-            cmin, cmax = self._cos_min, self._cos_max
             px, py, pz = e0x, e0y, e0z
             for i in range(4):
                 if i == 2:
@@ -466,51 +496,28 @@ class ArmKinematicCorrector:
                 if w3:
                     # eq. (13), shoulder part: ||p_s - p_s^prev||
                     c += w3 * _hypot(qx - p0, qy - p1, qz - p2)
-                if kw5:
-                    # eq. (15): m5 = k when the elbow angle theta is outside [theta_min, theta_max]; the
-                    # candidate segments have lengths l_u' and l_f', so cos(theta) needs no square root.
-                    cos_t = ((qx - px) * (wx - px) + (qy - py) * (wy - py) + (qz - pz) * (wz - pz)) * inv
-                    if cos_t > cmin or cos_t < cmax:
-                        c += kw5
+                if kw5 and not self._angle_ok(qx, qy, qz, px, py, pz, wx, wy, wz, lu, lf, axes):
+                    # eq. (15): m5 = k when the signed elbow angle theta is outside [theta_min, theta_max]
+                    c += kw5
                 costs[i] = c
         return (wx, wy, wz), E, S, costs, efb or sfb[0] or sfb[1]
 
-    def _place(self, side, w, e, s):
-        """Place the chosen configuration at the full calibrated lengths; returns the 9 output floats.
+    def _angle_ok(self, sx, sy, sz, ex, ey, ez, wx, wy, wz, lu, lf, axes) -> bool:
+        """m5's test: the signed elbow angle theta lies in ``[elbow_min_deg, elbow_max_deg]``.
 
-        The shrink factor s only shortens the lengths used in the candidate search (paper §II-D). Our
-        reading (DESIGN.md): the chosen configuration is then put at the full calibrated lengths along
-        its own segment directions, in the form of eq. (9):
-            p_e <- p_w + l_f (p_e - p_w) / ||p_e - p_w||,   p_s <- p_e + l_u (p_s - p_e) / ||p_s - p_e||
-        so the output always has exactly the calibrated arm lengths (and the candidate's elbow angle).
+        theta is the interior angle (shoulder-elbow-wrist) when the forearm bends the anatomical way, and
+        ``360 deg - interior`` when it bends backwards (hyperextension),
+        see :func:`~akc_drake.core.arm_geometry.signed_elbow_angle_deg`.
+        ``lu`` and ``lf`` are the segments' lengths (the placed candidates have exactly these).
         """
-        wx, wy, wz = w
-        lf = self._lf[side]
-        lu = self._lu[side]
-        dx, dy, dz = e[0] - wx, e[1] - wy, e[2] - wz
-        n = _hypot(dx, dy, dz)
-        if not n > _MIN_SEGMENT_M:
-            dx, dy, dz = self._fallback_direction(side, 6, 3)
-            n = 1.0
-        f = lf / n
-        ex, ey, ez = wx + dx * f, wy + dy * f, wz + dz * f
-        dx, dy, dz = s[0] - e[0], s[1] - e[1], s[2] - e[2]
-        n = _hypot(dx, dy, dz)
-        if not n > _MIN_SEGMENT_M:
-            dx, dy, dz = self._fallback_direction(side, 3, 0)
-            n = 1.0
-        f = lu / n
-        return (ex + dx * f, ey + dy * f, ez + dz * f, ex, ey, ez, wx, wy, wz)
-
-    def _fallback_direction(self, side, i_from, i_to):
-        """Unit direction from joint ``i_from`` to ``i_to`` of the previous output, else the default."""
-        p = self._prev[side]
-        if p is not None:
-            dx, dy, dz = p[i_to] - p[i_from], p[i_to + 1] - p[i_from + 1], p[i_to + 2] - p[i_from + 2]
-            n = _hypot(dx, dy, dz)
-            if n > _MIN_SEGMENT_M:
-                return dx / n, dy / n, dz / n
-        return _DEFAULT_DIRECTION
+        ux, uy, uz = sx - ex, sy - ey, sz - ez
+        fx, fy, fz = wx - ex, wy - ey, wz - ez
+        cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
+        if cos_t > self._cos_min:  # interior angle below elbow_min_deg (or its mirror above 360 - min)
+            return False
+        if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
+            return False  # theta = 360 deg - interior > 180 deg >= elbow_max_deg
+        return cos_t >= self._cos_max
 
     def correct(self, pose) -> AKCResult:
         """Correct one filtered pose.
@@ -528,8 +535,9 @@ class ArmKinematicCorrector:
         if a.shape != (NUM_LANDMARKS, 3):
             raise ValueError(f"pose must have shape ({NUM_LANDMARKS}, 3), got {a.shape}")
         v = a.ravel().tolist()
-        left = self._prepare(v, 0)
-        right = self._prepare(v, 1)
+        axes = torso_axes(v) if self._wv[3] or self._anatomical_check else None
+        left = self._prepare(v, 0, axes)
+        right = self._prepare(v, 1, axes)
         chosen = [-1, -1]
         cost = [_NAN, _NAN]
         w4 = self._weights.w4
@@ -599,8 +607,9 @@ class ArmKinematicCorrector:
             o_s, o_e, o_w = self._offsets[side]
             if prep is not None:
                 i = chosen[side]
-                out = self._place(side, prep[0], prep[1][i >> 1], prep[2][i])
-                if _isfinite(sum(out)) and (not self._anatomical_check or self._plausible(side, out)):
+                # The candidates are already placed at the calibrated lengths (eq. 7-9 with l, not s l).
+                out = (*prep[2][i], *prep[1][i >> 1], *prep[0])
+                if _isfinite(sum(out)) and (not self._anatomical_check or self._plausible(side, out, axes)):
                     self._prev[side] = out
                     held[side] = False
                     fallback[side] = prep[4]
@@ -617,14 +626,9 @@ class ArmKinematicCorrector:
         # The diagnostics stay Python lists until read (see AKCResult).
         return AKCResult(np.array(v).reshape(NUM_LANDMARKS, 3), chosen, fallback, held, cost)
 
-    def _plausible(self, side, out) -> bool:
-        """The placed arm ``out`` (9 floats) has its elbow angle within ``[elbow_min_deg, elbow_max_deg]``."""
-        sx, sy, sz, ex, ey, ez, wx, wy, wz = out
-        # cos(theta) at the elbow; the placed segments have exactly the calibrated lengths l_u and l_f.
-        cos_t = ((sx - ex) * (wx - ex) + (sy - ey) * (wy - ey) + (sz - ez) * (wz - ez)) / (
-            self._lu[side] * self._lf[side]
-        )
-        return self._cos_max <= cos_t <= self._cos_min
+    def _plausible(self, side, out, axes) -> bool:
+        """The placed arm ``out`` (9 floats) has its signed elbow angle within [elbow_min_deg, elbow_max_deg]."""
+        return self._angle_ok(*out, self._lu[side], self._lf[side], axes)
 
     def _other_shoulder(self, v, side):
         """The other side's shoulder for m4: filtered if finite, else its last output, else None."""
@@ -636,3 +640,16 @@ class ArmKinematicCorrector:
         if p is not None:
             return p[0], p[1], p[2]
         return None
+
+
+__all__ = [
+    "AKCResult",
+    "AKCWeights",
+    "ArmCandidates",
+    "ArmKinematicCorrector",
+    "WEIGHT_PRESETS",
+    "akc_arm_candidates",
+    "elbow_angle_deg",
+    "signed_elbow_angle_deg",
+    "torso_axes",
+]

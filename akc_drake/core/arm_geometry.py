@@ -1,0 +1,108 @@
+"""Small geometry of one arm in the camera frame, shared by AKC (:mod:`akc_drake.core.akc`) and AKC+.
+
+Plain Python floats on the hot paths (a numpy call costs microseconds); numpy only in the public helpers
+that take arrays.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from akc_drake.core.skeleton import INDEX
+
+_hypot = math.hypot
+_isfinite = math.isfinite
+_NAN = float("nan")
+#: A segment shorter than this (m) has no direction.
+_MIN_SEGMENT_M = 1e-12
+
+def elbow_angle_deg(p_s, p_e, p_w) -> float:
+    """Angle at the elbow between (shoulder - elbow) and (wrist - elbow), degrees; NaN if undefined."""
+    a = np.asarray(p_s, float) - np.asarray(p_e, float)
+    b = np.asarray(p_w, float) - np.asarray(p_e, float)
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    if not (na > _MIN_SEGMENT_M and nb > _MIN_SEGMENT_M) or not (math.isfinite(na) and math.isfinite(nb)):
+        return _NAN
+    c = max(-1.0, min(1.0, float(a @ b) / (na * nb)))
+    return math.degrees(math.acos(c))
+
+#: Default torso axes in the camera frame C (x right, y down, z away from the camera) of an operator
+#: facing the camera: front (towards the camera), down, and the lateral axis (right shoulder -> left).
+DEFAULT_AXES = ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0))
+_LSH, _RSH = 3 * INDEX["left_shoulder"], 3 * INDEX["right_shoulder"]
+_LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
+#: The forearm counts as bent backwards when its component across the upper arm points behind the upper
+#: arm's anterior side by more than this fraction of the forearm length (sin 15 deg ~ 0.26: the normal
+#: range of elbow hyperextension is 0-15 deg, and a near-straight arm's direction of bend is noise).
+_BACKWARD_FRACTION = 0.25
+
+
+def torso_axes(v) -> tuple:
+    """(front, down, lateral) unit vectors of the torso from a flat ``(36,)`` pose (list of floats).
+
+    As the paper's torso frame (eq. 17): lateral = left shoulder - right shoulder, down = from the shoulders'
+    midpoint to the hips' midpoint made orthogonal to it, front = down x lateral (towards the camera for an
+    operator facing it). Missing shoulders or hips give the default of an operator facing the camera.
+    """
+    lx, ly, lz = v[_LSH] - v[_RSH], v[_LSH + 1] - v[_RSH + 1], v[_LSH + 2] - v[_RSH + 2]
+    dx = 0.5 * (v[_LHIP] + v[_RHIP] - v[_LSH] - v[_RSH])
+    dy = 0.5 * (v[_LHIP + 1] + v[_RHIP + 1] - v[_LSH + 1] - v[_RSH + 1])
+    dz = 0.5 * (v[_LHIP + 2] + v[_RHIP + 2] - v[_LSH + 2] - v[_RSH + 2])
+    nl = _hypot(lx, ly, lz)
+    if not (_isfinite(nl + dx + dy + dz) and nl > 1e-6):
+        return DEFAULT_AXES
+    lx, ly, lz = lx / nl, ly / nl, lz / nl
+    t = dx * lx + dy * ly + dz * lz
+    dx, dy, dz = dx - t * lx, dy - t * ly, dz - t * lz
+    nd = _hypot(dx, dy, dz)
+    if not nd > 1e-6:
+        return DEFAULT_AXES
+    dx, dy, dz = dx / nd, dy / nd, dz / nd
+    front = (dy * lz - dz * ly, dz * lx - dx * lz, dx * ly - dy * lx)
+    return front, (dx, dy, dz), (lx, ly, lz)
+
+
+def bends_backwards(ux, uy, uz, fx, fy, fz, lf, axes) -> bool:
+    """Whether the forearm ``f`` bends backwards (hyperextension) about the elbow, for m5's signed angle.
+
+    ``u`` is the unit vector elbow -> shoulder. The paper does not say how it signs theta; our convention:
+    the upper arm's anterior side is the torso's front carried along by the arm's elevation (arm down or
+    abducted: the torso's front; raised forwards to horizontal: up; overhead: backwards), and the elbow
+    is hyperextended when the forearm's component across the upper arm points away from that side by more
+    than :data:`_BACKWARD_FRACTION` of the forearm. Where the anterior side is ill-defined (arm raised
+    sideways overhead) the angle is taken unsigned.
+    """
+    (ax, ay, az), (bx, by, bz), (cx, cy, cz) = axes
+    hd = -(ux * bx + uy * by + uz * bz)  # humerus (shoulder -> elbow) . down
+    hf = -(ux * ax + uy * ay + uz * az)  # . front
+    hl = abs(ux * cx + uy * cy + uz * cz)  # |. lateral|
+    k = hd + hl
+    nx, ny, nz = ax * k - bx * hf, ay * k - by * hf, az * k - bz * hf
+    n = _hypot(nx, ny, nz)
+    if n < 0.3:
+        return False
+    t = fx * ux + fy * uy + fz * uz
+    px, py, pz = fx - t * ux, fy - t * uy, fz - t * uz
+    return (px * nx + py * ny + pz * nz) / n < -_BACKWARD_FRACTION * lf
+
+
+def signed_elbow_angle_deg(p_s, p_e, p_w, axes=DEFAULT_AXES) -> float:
+    """m5's signed elbow angle in [0, 360) degrees: the interior angle, or 360 - interior when bent backwards.
+
+    Args:
+        p_s, p_e, p_w: shoulder, elbow and wrist.
+        axes: (front, down, lateral) torso axes (see :func:`torso_axes`); default: facing the camera.
+    """
+    interior = elbow_angle_deg(p_s, p_e, p_w)
+    if not math.isfinite(interior):
+        return _NAN
+    u = np.asarray(p_s, float) - np.asarray(p_e, float)
+    f = np.asarray(p_w, float) - np.asarray(p_e, float)
+    u = u / np.linalg.norm(u)
+    lf = float(np.linalg.norm(f))
+    if bends_backwards(*u.tolist(), *f.tolist(), lf, axes):
+        return 360.0 - interior
+    return interior
+
