@@ -39,7 +39,7 @@ from akc_drake.evaluation.methods import (
     run_akc,
 )
 from akc_drake.evaluation.report import Table, nan_to_none
-from akc_drake.evaluation.session import Session, session_from_render
+from akc_drake.evaluation.session import Session
 
 #: Period of one cycle of Motion I and II (paper §III), seconds.
 CYCLE_S = 6.0
@@ -147,88 +147,26 @@ def scaled_intrinsics(width: int, height: int, rate_hz: float = 10.0) -> CameraI
 
 
 # ============================================================================================ rendering
-def _render_one(
-    motion,
-    name: str,
-    intrinsics: CameraIntrinsics,
-    seed: int,
-    cycle_s: float | None,
-    progress: Progress | None,
-) -> Session:
-    """Render one motion with the simulated camera and detector and adapt it to a :class:`Session`.
-
-    The time between consecutive progress callbacks of the renderer is recorded as the per-frame time
-    of stages S1 + S2 (render + detection + depth lookup) for Table III.
-    """
-    from akc_drake.systems.depth_camera_source import render_session
-
-    stamps: list[float] = []
-
-    def cb(*_args, **_kwargs):
-        stamps.append(time.perf_counter())
-        if progress is not None:
-            progress(1, name)
-
-    t_start = time.perf_counter()
-    rendered = render_session(motion, intrinsics, seed=seed, progress=cb)
-    T = len(np.asarray(rendered.t))
-    src = getattr(rendered, "source_time_s", None)
-    if src is None and len(stamps) == T:
-        src = np.diff(np.concatenate([[t_start], stamps]))
-    if src is not None:
-        src = np.array(src, dtype=float)
-        src[0] = np.nan  # the first frame includes the renderer's start-up (scene loading, first render)
-    return session_from_render(
-        rendered,
-        intrinsics=intrinsics,
-        motion=name,
-        cycle_s=cycle_s,
-        source_time_s=src,
-        use_render_cycles=cycle_s is not None,
-    )
-
-
-def render_sessions(config: ExperimentConfig, progress: Progress | None = None) -> dict[str, Session]:
+def render_sessions(
+    config: ExperimentConfig, progress: Progress | None = None, cache=None
+) -> dict[str, Session]:
     """Render every session the experiment needs, once: ``"tpose"``, ``"lpose"`` (calibration study)
-    and each motion (or the motion file).
+    and each motion (or the motion file), through the render cache (:mod:`akc_drake.evaluation.cache`).
 
     Args:
         config: the experiment.
-        progress: called ``progress(frames_done, session_name)`` as frames are rendered.
+        progress: called ``progress(frames_done, session_name)`` as frames are rendered (or read).
+        cache: the render cache: None (the default folder), False (off) or a folder.
 
     Returns:
         ``{name: Session}``.
     """
-    from akc_drake.operator.motions import make_motion
+    from akc_drake.evaluation.cache import cached_render
+    from akc_drake.evaluation.tasks import session_specs
 
-    intr = config.intrinsics()
-    rate = config.rate_hz
-    calib_s = config.calibration_frames / rate
-    sessions: dict[str, Session] = {}
-    poses = ["tpose"] + (["lpose"] if config.calibration_study else [])
-    for pose in poses:
-        motion = _hold_motion(pose, calib_s, config.seed)
-        sessions[pose] = _render_one(motion, pose, intr, config.seed, None, progress)
-        # Keep exactly the requested number of frames.
-        if sessions[pose].num_frames > config.calibration_frames:
-            sessions[pose] = sessions[pose].subset(slice(0, config.calibration_frames))
-    if config.motion_file:
-        from akc_drake.operator.retarget import load_motion_file
-
-        motion = load_motion_file(config.motion_file, config.skeleton)
-        name = config.motion_names[0]
-        sessions[name] = _render_one(motion, name, intr, config.seed, None, progress)
-    else:
-        for name in config.motions:
-            motion = make_motion(name, cycles=config.cycles, seed=config.seed)
-            sessions[name] = _render_one(motion, name, intr, config.seed, CYCLE_S, progress)
-    return sessions
-
-
-def _hold_motion(pose: str, seconds: float, seed: int):
-    from akc_drake.operator import motions
-
-    return getattr(motions, pose)(seconds, seed)
+    return {
+        name: cached_render(spec, progress, cache)[0] for name, spec in session_specs(config).items()
+    }
 
 
 def frames_to_render(config: ExperimentConfig) -> int:
@@ -393,6 +331,8 @@ class Evaluation:
     tables: list[Table]
     elapsed_s: float = 0.0
     render_s: float = 0.0
+    #: Clips whose task failed (:class:`~akc_drake.evaluation.executor.TaskFailure`), left out of the tables.
+    failures: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         """The ``--json`` document (DESIGN.md keys, plus ``tables``, ``paper``, ``calibration``)."""
@@ -439,6 +379,7 @@ class Evaluation:
                 "results": self.results,
                 "arm_length_range_cm": self.arm_length_range_cm,
                 "timing_ms": self.timing_ms,
+                "failures": [{"clip": f.label, "error": f.error, "attempts": f.attempts} for f in self.failures],
                 "tables": {t.key: t.to_dict() for t in self.tables},
                 "paper": paper_results(),
             }

@@ -1,0 +1,319 @@
+"""Rendered sessions, computed once: a content-addressed on-disk cache in front of the renderer.
+
+Rendering is the slow part of an evaluation (the camera, the detector, the depth lookup per frame), and every
+method, every sweep point and every later run needs the same measurements. A **render spec** names them
+completely, as plain JSON (:func:`render_spec`):
+
+* the motion: a built-in motion and its cycle count, a held pose and its length, or a motion file (by the
+  SHA-256 of its content and its skeleton's, not by its path);
+* the seed, the camera (intrinsics and placement), the body and the detector;
+* the trim (a calibration pose keeps exactly its number of frames) and the cycle period.
+
+Its key is the SHA-256 of the spec and of the renderer's **fingerprint**: the akc-drake and Drake versions and
+the content of every package module outside ``evaluation/`` and ``commands/`` (the code a render can depend on),
+plus the package's models. Change any of them and the session renders again; a stale session is never served.
+
+Where it lives: ``$AKC_DRAKE_CACHE`` when set, else ``$XDG_CACHE_HOME/akc-drake``, else ``~/.cache/akc-drake``;
+sessions are ``renders/<k[:2]>/<k>.npz`` (the evaluation's no-pickle :class:`Session` format) with the spec
+beside them as ``<k>.json``. Set ``AKC_DRAKE_CACHE=off`` to never read or write it. Clear it with
+``akc-drake cache --clear`` (or ``rm -rf`` the folder); ``akc-drake cache`` prints where it is and its size.
+On a cluster, point ``AKC_DRAKE_CACHE`` of every worker at a shared folder to share renders between machines
+(each entry is written atomically, so concurrent writers of the same key are safe).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from akc_drake.core.camera import CameraIntrinsics
+from akc_drake.evaluation.session import Session, session_from_render
+from akc_drake.fileio import atomic_write_text
+
+#: Bumped when the spec's meaning or the stored layout changes.
+SPEC_FORMAT = 1
+#: Values of ``$AKC_DRAKE_CACHE`` that turn the cache off.
+_OFF = ("off", "0", "none", "false", "no")
+
+Progress = Callable[[int, str], None]
+
+
+# ============================================================================================ location
+def cache_dir() -> Path | None:
+    """The cache folder (see the module docstring); None when ``AKC_DRAKE_CACHE=off``."""
+    env = os.environ.get("AKC_DRAKE_CACHE", "").strip()
+    if env.lower() in _OFF:
+        return None
+    if env:
+        return Path(env).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME", "").strip()
+    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
+    return base / "akc-drake"
+
+
+def _resolve(cache) -> Path | None:
+    """``cache``: None (the default folder), False (no cache) or a folder."""
+    if cache is False:
+        return None
+    if cache is None or cache is True:
+        return cache_dir()
+    return Path(cache).expanduser()
+
+
+def cache_usage(cache=None) -> dict:
+    """``{"path", "sessions", "bytes"}`` of the cache folder (zeros when it does not exist)."""
+    root = _resolve(cache)
+    if root is None:
+        return {"path": None, "sessions": 0, "bytes": 0}
+    files = [p for p in (root / "renders").rglob("*") if p.is_file()] if (root / "renders").is_dir() else []
+    return {
+        "path": str(root),
+        "sessions": sum(1 for p in files if p.suffix == ".npz"),
+        "bytes": int(sum(p.stat().st_size for p in files)),
+    }
+
+
+def clear_cache(cache=None) -> dict:
+    """Delete every cached session (the ``renders`` folder); returns what was there (:func:`cache_usage`)."""
+    import shutil
+
+    usage = cache_usage(cache)
+    root = _resolve(cache)
+    if root is not None and (root / "renders").is_dir():
+        shutil.rmtree(root / "renders")
+    return usage
+
+
+# ============================================================================================ specs
+def file_sha256(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def render_spec(
+    name: str,
+    motion: dict,
+    *,
+    intrinsics: CameraIntrinsics,
+    seed: int = 0,
+    cycle_s: float | None = None,
+    frames: int | None = None,
+    body: str = "primitive",
+    detector: str = "sim",
+    camera: str = "default",
+) -> dict:
+    """The plain-JSON description of one rendered session.
+
+    Args:
+        name: the session's name ("I", "tpose", a file stem...).
+        motion: ``{"kind": "builtin", "name": "I", "cycles": N}``, ``{"kind": "hold", "pose": "tpose",
+            "seconds": S}`` or ``{"kind": "file", "path": P, "skeleton": P | None}`` (the file's content
+            hash is added here).
+        intrinsics: the camera.
+        seed: the renderer's noise and the motion's variation.
+        cycle_s: the motion's cycle period (None: cycles from the motion, or none).
+        frames: keep only the first ``frames`` frames (calibration holds).
+        body, detector, camera: the operator's body, the detector and the camera placement by name.
+
+    Raises:
+        ValueError: an unknown motion kind; UserError (from reading) a missing motion file.
+    """
+    kind = motion.get("kind")
+    if kind not in ("builtin", "hold", "file"):
+        raise ValueError(f"render spec: unknown motion kind {kind!r} (builtin, hold or file)")
+    m = dict(motion)
+    if kind == "file":
+        from akc_drake.errors import UserError
+
+        for key in ("path", "skeleton"):
+            p = m.get(key)
+            if p is None:
+                m[f"{key}_sha256"] = None
+                continue
+            if not Path(p).is_file():
+                raise UserError(f"{p}: no such motion file")
+            m[key] = str(Path(p).resolve())
+            m[f"{key}_sha256"] = file_sha256(p)
+    return {
+        "format": SPEC_FORMAT,
+        "name": str(name),
+        "motion": m,
+        "seed": int(seed),
+        "intrinsics": intrinsics.as_dict(),
+        "cycle_s": None if cycle_s is None else float(cycle_s),
+        "frames": None if frames is None else int(frames),
+        "body": str(body),
+        "detector": str(detector),
+        "camera": str(camera),
+    }
+
+
+@functools.lru_cache(maxsize=1)
+def renderer_fingerprint() -> str:
+    """SHA-256 of the akc-drake and Drake versions and of the package's modules a render can depend on."""
+    import importlib.metadata
+
+    import akc_drake
+
+    root = Path(akc_drake.__file__).resolve().parent
+    h = hashlib.sha256()
+    try:
+        drake = importlib.metadata.version("drake")
+    except importlib.metadata.PackageNotFoundError:
+        drake = "?"
+    h.update(f"akc-drake {akc_drake.__version__} drake {drake}\n".encode())
+    skip = {"evaluation", "commands", "__pycache__"}
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root)
+        if not p.is_file() or skip & set(rel.parts[:-1]) or rel.parts[0] in skip:
+            continue
+        if p.suffix not in (".py", ".sdf", ".urdf", ".obj", ".json", ".yaml", ".mtl", ".png"):
+            continue
+        h.update(str(rel).encode() + b"\0")
+        h.update(hashlib.sha256(p.read_bytes()).digest())
+    return h.hexdigest()
+
+
+def spec_key(spec: dict) -> str:
+    """The cache key of a spec: SHA-256 of its JSON (file paths left out: files count by content) and
+    :func:`renderer_fingerprint`."""
+    s = json.loads(json.dumps(spec))
+    if s.get("motion", {}).get("kind") == "file":
+        s["motion"].pop("path", None)
+        s["motion"].pop("skeleton", None)
+    text = json.dumps(s, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256((text + "\n" + renderer_fingerprint()).encode()).hexdigest()
+
+
+# ============================================================================================ render
+def _motion_of(spec: dict):
+    m = spec["motion"]
+    if m["kind"] == "builtin":
+        from akc_drake.operator.motions import make_motion
+
+        return make_motion(m["name"], cycles=int(m["cycles"]), seed=spec["seed"])
+    if m["kind"] == "hold":
+        from akc_drake.operator import motions
+
+        return getattr(motions, m["pose"])(float(m["seconds"]), spec["seed"])
+    from akc_drake.operator.retarget import load_motion_file
+
+    return load_motion_file(m["path"], m.get("skeleton"))
+
+
+def _render_kwargs(spec: dict) -> dict:
+    """Keyword arguments of ``render_session`` for the spec's body, detector and camera (default: none)."""
+    kwargs = {}
+    for field in ("body", "detector", "camera"):
+        default = {"body": "primitive", "detector": "sim", "camera": "default"}[field]
+        if spec.get(field, default) != default:
+            kwargs[field] = spec[field]
+    if kwargs:
+        import inspect
+
+        from akc_drake.systems.depth_camera_source import render_session
+
+        params = inspect.signature(render_session).parameters
+        missing = [k for k in kwargs if k not in params]
+        if missing:
+            raise ValueError(
+                f"render spec: this renderer has no {', '.join(missing)} option "
+                f"({', '.join(f'{k}={kwargs[k]!r}' for k in missing)})"
+            )
+    return kwargs
+
+
+def render_uncached(spec: dict, progress: Progress | None = None) -> Session:
+    """Render the session a spec describes (no cache).
+
+    The time between consecutive progress callbacks of the renderer is recorded as the per-frame time of
+    stages S1 + S2 (render + detection + depth lookup) for Table III; the first frame's is NaN (it includes the
+    renderer's start-up).
+    """
+    from akc_drake.systems.depth_camera_source import render_session
+
+    name = spec["name"]
+    intrinsics = CameraIntrinsics.from_dict(spec["intrinsics"], where=f"render spec {name}: intrinsics")
+    motion = _motion_of(spec)
+    stamps: list[float] = []
+
+    def cb(*_args, **_kwargs):
+        stamps.append(time.perf_counter())
+        if progress is not None:
+            progress(1, name)
+
+    t_start = time.perf_counter()
+    rendered = render_session(motion, intrinsics, seed=spec["seed"], progress=cb, **_render_kwargs(spec))
+    T = len(np.asarray(rendered.t))
+    src = getattr(rendered, "source_time_s", None)
+    if src is None and len(stamps) == T:
+        src = np.diff(np.concatenate([[t_start], stamps]))
+    if src is not None:
+        src = np.array(src, dtype=float)
+        src[0] = np.nan
+    cycle_s = spec.get("cycle_s")
+    session = session_from_render(
+        rendered,
+        intrinsics=intrinsics,
+        motion=name,
+        cycle_s=cycle_s,
+        source_time_s=src,
+        use_render_cycles=cycle_s is not None,
+    )
+    frames = spec.get("frames")
+    if frames is not None and session.num_frames > frames:
+        session = session.subset(slice(0, frames))
+    return session
+
+
+def _paths(root: Path, key: str) -> tuple[Path, Path]:
+    folder = root / "renders" / key[:2]
+    return folder / f"{key}.npz", folder / f"{key}.json"
+
+
+def cached_render(
+    spec: dict,
+    progress: Progress | None = None,
+    cache=None,
+    render: Callable[[dict, Progress | None], Session] | None = None,
+) -> tuple[Session, bool]:
+    """The session of ``spec``: from the cache when it is there, else rendered and stored.
+
+    Args:
+        spec: from :func:`render_spec`.
+        progress: called ``progress(frames, name)`` as frames render (once with every frame on a hit).
+        cache: None (the default folder, :func:`cache_dir`), False (no cache) or a folder.
+        render: the renderer (default :func:`render_uncached`).
+
+    Returns:
+        ``(session, hit)``; an unreadable entry counts as a miss and is rendered again.
+    """
+    render = render or render_uncached
+    root = _resolve(cache)
+    if root is None:
+        return render(spec, progress), False
+    key = spec_key(spec)
+    npz, meta = _paths(root, key)
+    if npz.is_file():
+        try:
+            session = Session.load_npz(npz)
+        except Exception:  # noqa: BLE001 - a damaged entry is rendered again
+            session = None
+        if session is not None:
+            if progress is not None:
+                progress(session.num_frames, spec["name"])
+            return session, True
+    session = render(spec, progress)
+    session.save_npz(npz)
+    atomic_write_text(meta, json.dumps({"key": key, "spec": spec}, indent=1, sort_keys=True) + "\n")
+    return session, False

@@ -1,0 +1,126 @@
+"""The evaluation as tasks (akc_drake.evaluation.tasks): bit-identical results in-process, on a LocalCluster of
+1 and 2 workers and through a real `dask scheduler` address; a bad clip fails alone."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+import pytest
+
+from akc_drake.evaluation.experiment import ExperimentConfig, render_sessions
+from akc_drake.evaluation.report import nan_to_none
+from akc_drake.evaluation.tasks import (
+    config_from_plain,
+    config_to_plain,
+    evaluate_tasks,
+    session_from_plain,
+    session_to_plain,
+)
+
+pytest.importorskip("akc_drake.systems.depth_camera_source")
+
+#: Two short clips (Motion I and II, 2 cycles each) at a small image size: fast, and every method runs.
+CONFIG = dict(motions=("I", "II"), cycles=2, width=160, height=120, calibration_frames=20, seed=3)
+
+
+def digest(ev) -> dict:
+    """Every number of an evaluation except wall-clock measurements, as exact bytes / JSON text."""
+    h = hashlib.sha256()
+    for name, run in sorted(ev.runs.items()):
+        h.update(name.encode())
+        s = run.session
+        for k in ("t", "raw", "visibility", "pixels", "truth", "cycle_starts"):
+            h.update(np.ascontiguousarray(getattr(s, k)).tobytes())
+        for m, r in sorted(run.methods.items()):
+            h.update(m.encode() + r.estimates.tobytes())
+            if r.status is not None:
+                h.update("|".join(r.status.tolist()).encode())
+        for d in (run.weight_runs, run.calibration_runs):
+            for k, v in sorted(d.items()):
+                h.update(k.encode() + v.tobytes())
+    tables = {t.key: (t.rows, t.columns, t.ours.tolist()) for t in ev.tables if t.key != "table3"}
+    doc = {
+        "results": ev.results,
+        "ranges": ev.arm_length_range_cm,
+        "calibrations": {k: d.as_dict() for k, d in ev.calibrations.items()},
+        "tables": tables,
+    }
+    return {"arrays": h.hexdigest(), "json": json.dumps(nan_to_none(doc), sort_keys=True)}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The in-process task run (renders into a fresh cache) and the classic run_experiment on its sessions."""
+    cache = tmp_path_factory.mktemp("render-cache")
+    cfg = ExperimentConfig(**CONFIG)
+    ev = evaluate_tasks(cfg, scheduler="inprocess", cache=cache, progress=False)
+    return cfg, cache, ev
+
+
+def test_plain_round_trips(reference):
+    cfg, _, ev = reference
+    assert config_from_plain(json.loads(json.dumps(config_to_plain(cfg)))) == cfg
+    s = ev.runs["I"].session
+    back = session_from_plain(session_to_plain(s))
+    assert back.motion == "I" and back.intrinsics == s.intrinsics
+    np.testing.assert_array_equal(back.raw, s.raw)
+    np.testing.assert_array_equal(back.cycle_starts, s.cycle_starts)
+
+
+def test_tasks_equal_the_in_process_experiment(reference):
+    """The task path runs the same code: identical to run_experiment on the same (cached) sessions."""
+    cfg, cache, ev = reference
+    import akc_drake.evaluation.experiment as ex
+    from akc_drake.evaluation import cache as cache_mod
+
+    # render_sessions goes through the same cache: nothing renders again.
+    calls = []
+    real = cache_mod.render_uncached
+    try:
+        cache_mod.render_uncached = lambda spec, progress=None: calls.append(spec) or real(spec, progress)
+        sessions = render_sessions(cfg, cache=cache)
+    finally:
+        cache_mod.render_uncached = real
+    assert calls == []
+    classic = ex.run_experiment(cfg, sessions)
+    assert digest(classic) == digest(ev)
+    assert [r["motion"] for r in ev.results][:1] == ["I"] and len(ev.results) == 2 * 7 * 6
+
+
+def test_local_cluster_1_and_2_workers_bit_identical(reference):
+    cfg, cache, ev = reference
+    ref = digest(ev)
+    one = evaluate_tasks(cfg, scheduler="local", n_workers=1, cache=cache, progress=False)
+    assert digest(one) == ref
+    # Two workers, rendering again in the workers (no cache): the renders are identical too.
+    two = evaluate_tasks(cfg, scheduler="local", n_workers=2, cache=False, progress=False)
+    assert digest(two) == ref
+    assert not one.failures and not two.failures
+
+
+def test_scheduler_address_bit_identical_and_a_bad_clip_fails_alone(reference, tmp_path):
+    from dask_cluster import dask_cluster
+
+    from akc_drake.evaluation.tasks import session_specs
+
+    cfg, cache, ev = reference
+    ref = digest(ev)
+    bad = tmp_path / "broken.npz"
+    bad.write_bytes(b"not a session")
+    specs = session_specs(cfg)
+    clips = {"I": {"spec": specs["I"]}, "broken": {"session_npz": str(bad)}, "II": {"spec": specs["II"]}}
+    with dask_cluster(tmp_path / "cluster", 2) as cluster:
+        got = evaluate_tasks(cfg, scheduler=cluster.address, cache=cache, progress=False)
+        assert digest(got) == ref
+        lines = []
+        partial = evaluate_tasks(
+            cfg, scheduler=cluster.address, cache=cache, progress=False, clips=clips, log=lines.append
+        )
+    assert list(partial.runs) == ["I", "II"]
+    assert [f.label for f in partial.failures] == ["broken"]
+    assert len(lines) == 1 and lines[0].startswith(f"clip broken: UserError: {bad}: not a session .npz file (")
+    assert digest(partial) == ref
+    doc = partial.to_json()
+    assert doc["failures"] == [{"clip": "broken", "error": lines[0].split(": ", 1)[1], "attempts": 1}]
