@@ -67,6 +67,16 @@ from akc_drake.systems import timing
 
 RENDERER_NAME = "akc_vtk"
 
+#: The operator bodies a simulated camera can render (``--body``).
+BODIES = ("primitive", "skinned")
+
+
+def check_body(body: str) -> str:
+    """``body`` if it names one of :data:`BODIES`, else a ValueError naming the choices."""
+    if body not in BODIES:
+        raise ValueError(f"body must be one of {', '.join(BODIES)}, got {body!r}")
+    return body
+
 
 @dataclass(frozen=True)
 class CameraPlacement:
@@ -189,13 +199,16 @@ class LandmarkTruth(LeafSystem):
         - landmarks_true_C
     """
 
-    def __init__(self, params: OperatorParams, X_CO: RigidTransform):
+    def __init__(self, params: OperatorParams, X_CO: RigidTransform, landmarks_O: Callable | None = None):
         """Args:
         params: the operator's dimensions.
         X_CO: pose of the operator frame O in the camera frame C.
+        landmarks_O: ``q (T, 10) -> (T, 12, 3)`` true landmarks in O (default: the primitive operator's,
+            :func:`~akc_drake.operator.model.landmarks_from_q`; the skinned body passes its rig's).
         """
         super().__init__()
         self._params = params
+        self._landmarks_O = landmarks_O
         self._R = X_CO.rotation().matrix()
         self._p = X_CO.translation()
         self._q = self.DeclareVectorInputPort("q", 2 * NUM_ARM_DOF)
@@ -203,7 +216,10 @@ class LandmarkTruth(LeafSystem):
 
     def landmarks_C(self, q: np.ndarray) -> np.ndarray:
         """``(12, 3)`` landmarks in C for the canonical joint vector ``q = [q_left, q_right]``."""
-        lm_O = landmarks_from_q(q[:NUM_ARM_DOF], q[NUM_ARM_DOF:], self._params)[0]
+        if self._landmarks_O is not None:
+            lm_O = self._landmarks_O(np.asarray(q, float)[None])[0]
+        else:
+            lm_O = landmarks_from_q(q[:NUM_ARM_DOF], q[NUM_ARM_DOF:], self._params)[0]
         return lm_O @ self._R.T + self._p
 
     def _calc(self, context, output):
@@ -246,6 +262,7 @@ class DepthCameraSource(Diagram):
         render_label: bool = True,
         background_wall_m: float | None = 1.5,
         render_color: bool = True,
+        body: str = "primitive",
     ):
         """Args:
         motion: the operator's joint trajectory.
@@ -258,6 +275,9 @@ class DepthCameraSource(Diagram):
         render_color: render the colour image; False exports a constant black image instead, which halves the
             cost of a frame when the detector does not look at colour (the simulated detector).
         background_wall_m: a wall this far behind the operator (None: no wall, empty background).
+        body: "primitive" (the operator built from primitives, fast) or "skinned" (MakeHuman's body on the
+            CMU-MB rig, :mod:`akc_drake.operator.skinned`, deformable geometry a real detector sees; its
+            true landmarks are the rig's joint centres).
         """
         super().__init__()
         if not isinstance(motion, OperatorMotion):
@@ -270,6 +290,8 @@ class DepthCameraSource(Diagram):
         self.motion = motion
         self.render_label = bool(render_label)
         self.X_OC = _as_X_OC(camera_pose)
+        self.body = check_body(body)
+        self.skinned = None
         period = 1.0 / K.rate_hz
         offset = timing.stage_offset("source")
 
@@ -278,7 +300,15 @@ class DepthCameraSource(Diagram):
         scene_graph.set_name("scene_graph")
         plant = MultibodyPlant(0.0)
         plant.RegisterAsSourceForSceneGraph(scene_graph)
-        self.instance = add_operator(plant, self.params)
+        if self.body == "skinned":
+            from akc_drake.operator.skinned import skinned_operator
+            from akc_drake.systems.skinned_body import SkinnedBody, register_skinned_body
+
+            self.skinned = skinned_operator(self.params)
+            self.skinned.check_q(motion.q(), where=f"motion {motion.name}")
+            self.instance = None
+        else:
+            self.instance = add_operator(plant, self.params)
         if background_wall_m is not None:
             plant.RegisterVisualGeometry(
                 plant.world_body(),
@@ -294,10 +324,20 @@ class DepthCameraSource(Diagram):
         traj = PiecewisePolynomial.FirstOrderHold(motion.times - motion.start, motion.q().T)
         q_source = builder.AddSystem(TrajectorySource(traj))
         q_source.set_name("operator_trajectory")
-        to_pose = builder.AddSystem(MultibodyPositionToGeometryPose(plant))
-        to_pose.set_name("operator_pose")
-        idx = operator_position_indices(plant, self.instance)
-        if np.array_equal(idx, np.arange(plant.num_positions())):
+        if self.skinned is not None:
+            source_id, ids = register_skinned_body(scene_graph, self.skinned)
+            skin = builder.AddSystem(SkinnedBody(self.skinned, ids))
+            skin.set_name("skinned_body")
+            builder.Connect(q_source.get_output_port(), skin.get_input_port())
+            builder.Connect(skin.get_output_port(0), scene_graph.get_source_configuration_port(source_id))
+            self.skinned_system = skin
+        else:
+            to_pose = builder.AddSystem(MultibodyPositionToGeometryPose(plant))
+            to_pose.set_name("operator_pose")
+        idx = operator_position_indices(plant, self.instance) if self.skinned is None else None
+        if self.skinned is not None:
+            pass
+        elif np.array_equal(idx, np.arange(plant.num_positions())):
             builder.Connect(q_source.get_output_port(), to_pose.get_input_port())
         else:
             P = np.zeros((plant.num_positions(), 2 * NUM_ARM_DOF))
@@ -305,7 +345,8 @@ class DepthCameraSource(Diagram):
             perm = builder.AddSystem(MatrixGain(P))
             builder.Connect(q_source.get_output_port(), perm.get_input_port())
             builder.Connect(perm.get_output_port(), to_pose.get_input_port())
-        builder.Connect(to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id()))
+        if self.skinned is None:
+            builder.Connect(to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id()))
 
         # Drake's image coordinates put pixel i's centre at i + 0.5 (texture coordinates); ours put it at i
         # (akc_drake.core.camera), hence the half-pixel shift of the principal point.
@@ -332,7 +373,13 @@ class DepthCameraSource(Diagram):
         builder.Connect(sensor.depth_image_32F_output_port(), noise_sys.get_input_port())
         self.noise_system = noise_sys
 
-        truth = builder.AddSystem(LandmarkTruth(self.params, self.X_OC.inverse()))
+        truth = builder.AddSystem(
+            LandmarkTruth(
+                self.params,
+                self.X_OC.inverse(),
+                None if self.skinned is None else self.skinned.landmarks_O,
+            )
+        )
         truth.set_name("landmark_truth")
         builder.Connect(q_source.get_output_port(), truth.get_input_port())
         self.truth_system = truth
@@ -378,7 +425,12 @@ class DepthCameraSource(Diagram):
         self.set_name("depth_camera_source")
 
     def body_names_by_label(self) -> dict[int, str]:
-        """Label value -> body name for the label image (the label is the plant's body index)."""
+        """Label value -> body name for the label image (the label is the plant's body index, or the
+        skinned body's region)."""
+        if self.skinned is not None:
+            from akc_drake.systems.skinned_body import REGION_LABEL_BASE
+
+            return {REGION_LABEL_BASE + k: f"skinned_{n}" for k, n in enumerate(self.skinned.regions)}
         return {int(i): self.plant.get_body(i).name() for i in self.plant.GetBodyIndices(self.instance)}
 
 

@@ -1,0 +1,211 @@
+"""Linear blend skinning and the tetrahedral "shell" a deformable render geometry needs (pure numpy).
+
+Linear blend skinning (LBS): each bone ``b`` has an affine map ``M_b = [A_b | t_b]`` (3 x 4) from the rest
+pose to the current pose; a point ``v`` with bone weights ``w_b`` (summing to 1) goes to
+``sum_b w_b (A_b v + t_b)``. :class:`LinearBlendSkinning` evaluates that for every point at once with one
+matrix product ``W @ M`` (``W`` the ``(N, B)`` weights, ``M`` the ``(B, 12)`` bone maps), and only for the
+points some moving bone touches: the rest of the body keeps its rest position.
+
+SceneGraph renders a deformable geometry from a tetrahedral mesh. :func:`tet_shell` turns a closed surface
+into a "shell": one tetrahedron per surface triangle, its fourth vertex a little inside the surface, so
+that the boundary the renderer draws is the surface itself (the small inner faces are hidden inside the
+body). The inner vertices are skinned like the surface ones, with the mean weights of their triangle
+(:func:`shell_weights`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Default depth of a shell tetrahedron's inner vertex below its triangle (metres).
+SHELL_DEPTH_M = 0.002
+
+
+def rigid_map(R: np.ndarray, pivot_rest: np.ndarray, pivot_posed: np.ndarray) -> np.ndarray:
+    """The ``(3, 4)`` map ``v -> R (v - pivot_rest) + pivot_posed``."""
+    R = np.asarray(R, dtype=float)
+    return np.hstack([R, (np.asarray(pivot_posed, float) - R @ np.asarray(pivot_rest, float))[:, None]])
+
+
+def stretch_map(head: np.ndarray, tail: np.ndarray, new_head: np.ndarray, new_tail: np.ndarray, scale: float):
+    """The ``(3, 4)`` affine map that takes a bone ``head -> tail`` onto ``new_head -> new_tail``.
+
+    Directions across the bone are scaled by ``scale``; the bone vector itself goes onto the new one, so
+    a bone is stretched along its length (and turned, when the new vector points elsewhere).
+
+    Raises:
+        ValueError: a zero-length bone or a non-positive scale.
+    """
+    head, tail = np.asarray(head, float), np.asarray(tail, float)
+    a = tail - head
+    n = float(np.linalg.norm(a))
+    if not n > 1e-12 or not scale > 0:
+        raise ValueError(f"stretch_map needs a bone of non-zero length and scale > 0, got |a| = {n}, {scale}")
+    d = a / n
+    b = np.asarray(new_tail, float) - np.asarray(new_head, float)
+    S = scale * (np.eye(3) - np.outer(d, d)) + np.outer(b, d) / n
+    return np.hstack([S, (np.asarray(new_head, float) - S @ head)[:, None]])
+
+
+def apply_map(M: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``(N, 3)`` points mapped by the ``(3, 4)`` affine map ``M``."""
+    return np.asarray(points, float) @ M[:, :3].T + M[:, 3]
+
+
+class LinearBlendSkinning:
+    """Vectorised linear blend skinning of a fixed set of points.
+
+    Args:
+        rest: ``(N, 3)`` rest positions.
+        weights: ``(N, B)`` bone weights (each row sums to 1).
+        moving_bones: indices of the bones whose map may differ from the identity; every other bone must
+            keep the identity map (checked), so points they alone carry are never recomputed. None: all.
+
+    Raises:
+        ValueError: shapes that disagree, negative weights or rows that do not sum to 1 (within 1e-6).
+    """
+
+    def __init__(self, rest: np.ndarray, weights: np.ndarray, moving_bones=None):
+        rest = np.asarray(rest, dtype=float)
+        W = np.asarray(weights, dtype=float)
+        if rest.ndim != 2 or rest.shape[1] != 3:
+            raise ValueError(f"rest must have shape (N, 3), got {rest.shape}")
+        if W.ndim != 2 or W.shape[0] != rest.shape[0]:
+            raise ValueError(f"weights must have shape ({rest.shape[0]}, B), got {W.shape}")
+        if np.any(W < 0) or not np.allclose(W.sum(axis=1), 1.0, atol=1e-6):
+            raise ValueError("weights must be non-negative and sum to 1 for every point")
+        self.rest = rest
+        self.weights = W
+        self.num_bones = W.shape[1]
+        moving = np.arange(self.num_bones) if moving_bones is None else np.unique(np.asarray(moving_bones, int))
+        self.moving_bones = moving
+        self._static = np.setdiff1d(np.arange(self.num_bones), moving)
+        self.rows = np.flatnonzero(W[:, moving].sum(axis=1) > 0.0)
+        self._W = np.ascontiguousarray(W[np.ix_(self.rows, moving)])
+        self._x = np.ascontiguousarray(rest[self.rows])
+        self._identity = np.hstack([np.eye(3), np.zeros((3, 1))])
+
+    def skin(self, maps: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Skinned positions ``(N, 3)`` for the bone maps ``maps`` ``(B, 3, 4)``.
+
+        Args:
+            maps: one affine map per bone (rest -> posed).
+            out: an ``(N, 3)`` array to write into (its rows outside the moving set are set to rest).
+
+        Raises:
+            ValueError: a wrong shape, or a bone outside ``moving_bones`` whose map is not the identity.
+        """
+        maps = np.asarray(maps, dtype=float)
+        if maps.shape != (self.num_bones, 3, 4):
+            raise ValueError(f"maps must have shape ({self.num_bones}, 3, 4), got {maps.shape}")
+        if self._static.size and not np.allclose(maps[self._static], self._identity, atol=1e-12):
+            raise ValueError("a bone outside moving_bones has a non-identity map")
+        if out is None:
+            out = self.rest.copy()
+        else:
+            out[:] = self.rest
+        delta = (maps[self.moving_bones] - self._identity).reshape(len(self.moving_bones), 12)
+        A = (self._W @ delta).reshape(-1, 3, 4)
+        x = self._x
+        out[self.rows] += A[:, :, 0] * x[:, 0:1] + A[:, :, 1] * x[:, 1:2] + A[:, :, 2] * x[:, 2:3] + A[:, :, 3]
+        return out
+
+
+def blend_affine(points: np.ndarray, weights: np.ndarray, maps: np.ndarray) -> np.ndarray:
+    """All points through all bone maps at once (no moving-bone shortcut): ``(N, 3)``."""
+    A = (np.asarray(weights, float) @ np.asarray(maps, float).reshape(len(maps), 12)).reshape(-1, 3, 4)
+    return np.einsum("nij,nj->ni", A[:, :, :3], points) + A[:, :, 3]
+
+
+def triangle_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Unit normals ``(T, 3)`` of the triangles (right-hand rule on the vertex order)."""
+    P = points[triangles]
+    n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    return n / (np.linalg.norm(n, axis=1, keepdims=True) + 1e-15)
+
+
+def tet_shell(points: np.ndarray, triangles: np.ndarray, depth: float = SHELL_DEPTH_M):
+    """A tetrahedral shell under a surface: one tetrahedron per triangle.
+
+    Args:
+        points: ``(V, 3)`` surface vertices.
+        triangles: ``(T, 3)`` triangles, counter-clockwise seen from outside (outward normals).
+        depth: how far inside the surface each inner vertex lies (metres).
+
+    Returns:
+        ``(shell_points, tets)``: ``(V + T, 3)`` the surface vertices followed by one inner vertex per
+        triangle (its centroid moved ``depth`` against the normal), and ``(T, 4)`` tetrahedra with a positive
+        volume (the order Drake's volume meshes use).
+    """
+    points = np.asarray(points, float)
+    triangles = np.asarray(triangles, dtype=np.int64)
+    inner = points[triangles].mean(axis=1) - depth * triangle_normals(points, triangles)
+    pts = np.vstack([points, inner])
+    tets = np.column_stack([triangles, len(points) + np.arange(len(triangles))])
+    a, b, c, d = (pts[tets[:, i]] for i in range(4))
+    flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) < 0
+    tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+    return pts, tets
+
+
+def shell_weights(weights: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Bone weights ``(V + T, B)`` of a shell's points: the surface's, then each triangle's mean."""
+    W = np.asarray(weights, float)
+    return np.vstack([W, W[np.asarray(triangles)].mean(axis=1)])
+
+
+def vtk_tetra_text(points: np.ndarray, tets: np.ndarray, title: str = "shell") -> str:
+    """A legacy ASCII VTK unstructured grid of tetrahedra (what ``RegisterDeformableGeometry`` reads)."""
+    lines = [
+        "# vtk DataFile Version 3.0",
+        title,
+        "ASCII",
+        "DATASET UNSTRUCTURED_GRID",
+        f"POINTS {len(points)} double",
+    ]
+    lines += [f"{x:.9f} {y:.9f} {z:.9f}" for x, y, z in np.asarray(points, float)]
+    lines.append(f"CELLS {len(tets)} {5 * len(tets)}")
+    lines += [f"4 {a} {b} {c} {d}" for a, b, c, d in np.asarray(tets, int)]
+    lines.append(f"CELL_TYPES {len(tets)}")
+    lines += ["10"] * len(tets)
+    return "\n".join(lines) + "\n"
+
+
+def obj_surface_text(points: np.ndarray, triangles: np.ndarray) -> str:
+    """A Wavefront OBJ of the triangles that use ``points`` (unused points are kept, so indices match).
+
+    A shell's outer surface: given to SceneGraph as the deformable geometry's embedded render mesh, so that
+    the renderer shades the surface with its own smooth normals (the shell's inner faces share the surface
+    vertices and would otherwise bend their normals).
+    """
+    points = np.asarray(points, float)
+    triangles = np.asarray(triangles, int)
+    P = points[triangles]
+    face_n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])  # area-weighted
+    normals = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(normals, triangles[:, k], face_n)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True) + 1e-15
+    lines = [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in points]
+    lines += [f"vn {x:.6f} {y:.6f} {z:.6f}" for x, y, z in normals]
+    lines += [f"f {a}//{a} {b}//{b} {c}//{c}" for a, b, c in triangles + 1]
+    return "\n".join(lines) + "\n"
+
+
+def embed_inside(points: np.ndarray, tets: np.ndarray, triangles: np.ndarray, nudge_m: float = 1e-6):
+    """The surface vertices of a shell, each moved ``nudge_m`` toward the centroid of a tetrahedron that has it.
+
+    SceneGraph locates every vertex of an embedded render mesh inside one tetrahedron of the control mesh; a
+    vertex exactly on a shell corner may fall just outside all of them by rounding. A micrometre inward
+    puts it strictly inside one, without visibly moving the surface.
+
+    Returns:
+        ``(n, 3)`` for the ``n = triangles.max() + 1`` surface vertices.
+    """
+    points = np.asarray(points, float)
+    n = int(np.max(triangles)) + 1
+    owner = np.full(n, -1)
+    owner[np.asarray(tets)[:, :3].ravel()] = np.repeat(np.arange(len(tets)), 3)
+    centre = points[np.asarray(tets)[owner]].mean(axis=1)
+    d = centre - points[:n]
+    return points[:n] + nudge_m * d / (np.linalg.norm(d, axis=1, keepdims=True) + 1e-15)

@@ -1,0 +1,132 @@
+"""The skinned operator in a SceneGraph: deformable geometries whose vertices follow the operator's pose.
+
+:func:`register_skinned_body` registers one deformable geometry per clothing region
+(:data:`~akc_drake.operator.skinned.REGIONS`, a tetrahedral shell each, with its colour and a render label)
+with a SceneGraph; :class:`SkinnedBody` is the LeafSystem that turns the operator's joint angles into their
+vertex positions (linear blend skinning, :mod:`akc_drake.core.skinning`) on SceneGraph's source
+configuration port, and outputs the true landmarks (the rig's joint centres) in the world frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import (
+    GeometryConfigurationVector,
+    GeometryInstance,
+    IllustrationProperties,
+    Mesh,
+    PerceptionProperties,
+    RenderLabel,
+    Rgba,
+)
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import LeafSystem
+
+from akc_drake.core.skeleton import NUM_LANDMARKS
+from akc_drake.operator.model import NUM_ARM_DOF
+from akc_drake.operator.skinned import SkinnedOperator
+
+#: Render labels of the regions (the primitive operator's bodies use the plant's body indices, < 100).
+REGION_LABEL_BASE = 100
+#: SceneGraph's resolution hint for the shells (only used by proximity queries, which we do not register).
+_RESOLUTION_HINT = 0.05
+
+
+def register_skinned_body(
+    scene_graph, body: SkinnedOperator, X_WO: RigidTransform | None = None, source_name: str = "skinned_operator"
+):
+    """Register ``body``'s region shells with ``scene_graph`` (before the diagram is built).
+
+    Args:
+        scene_graph: a SceneGraph (with its renderer added, or added later).
+        body: the skinned operator.
+        X_WO: pose of the operator frame O in the world (default identity); the shells' vertices are
+            given in the world frame.
+        source_name: the geometry source's name.
+
+    Returns:
+        ``(source_id, {region: GeometryId})``.
+    """
+    source_id = scene_graph.RegisterSource(source_name)
+    files = body.shell_files()
+    ids = {}
+    for k, (name, (path, obj)) in enumerate(files.items()):
+        instance = GeometryInstance(RigidTransform(), Mesh(str(path)), f"skinned_{name}")
+        rgba = Rgba(*body.colors[name])
+        props = PerceptionProperties()
+        props.AddProperty("phong", "diffuse", rgba)
+        # Render the outer surface only (its own smooth normals), embedded in the shell.
+        props.AddProperty("deformable", "embedded_mesh", str(obj))
+        props.AddProperty("label", "id", RenderLabel(REGION_LABEL_BASE + k))
+        instance.set_perception_properties(props)
+        illus = IllustrationProperties()
+        illus.AddProperty("phong", "diffuse", rgba)
+        instance.set_illustration_properties(illus)
+        ids[name] = scene_graph.RegisterDeformableGeometry(
+            source_id, scene_graph.world_frame_id(), instance, _RESOLUTION_HINT
+        )
+    return source_id, ids
+
+
+class SkinnedBody(LeafSystem):
+    """Operator joint angles -> the skinned body's vertex positions and true landmarks (direct feedthrough).
+
+    .. pydrake_system::
+
+        name: SkinnedBody
+        input_ports:
+        - q
+        output_ports:
+        - geometry_configuration
+        - landmarks_true_W
+
+    ``q`` is ``[q_left, q_right]`` (10 angles, :func:`~akc_drake.operator.model.full_q` order);
+    ``geometry_configuration`` a GeometryConfigurationVector for SceneGraph's source configuration port;
+    ``landmarks_true_W`` the 12 true landmarks (row-major (12, 3)) in the world frame.
+    """
+
+    def __init__(self, body: SkinnedOperator, geometry_ids: dict, X_WO: RigidTransform | None = None):
+        """Args:
+        body: the skinned operator.
+        geometry_ids: ``{region: GeometryId}`` from :func:`register_skinned_body`.
+        X_WO: pose of the operator frame O in the world (default identity).
+        """
+        super().__init__()
+        self.body = body
+        self._ids = dict(geometry_ids)
+        X = X_WO if X_WO is not None else RigidTransform()
+        self._R = X.rotation().matrix()
+        self._p = X.translation()
+        self._buffer = np.empty_like(body.points_rest)
+        self._q = self.DeclareVectorInputPort("q", 2 * NUM_ARM_DOF)
+        self.DeclareAbstractOutputPort(
+            "geometry_configuration",
+            lambda: AbstractValue.Make(GeometryConfigurationVector()),
+            self._calc_configuration,
+            prerequisites_of_calc={self._q.ticket()},
+        )
+        self.DeclareVectorOutputPort(
+            "landmarks_true_W",
+            3 * NUM_LANDMARKS,
+            self._calc_landmarks,
+            prerequisites_of_calc={self._q.ticket()},
+        )
+
+    def configuration(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """``{region: (n, 3)}`` world-frame shell vertices for the pose ``q`` (raises UserError if impossible)."""
+        q = self.body.check_q(q)[0]
+        P = self.body.posed_points(q, out=self._buffer)
+        if not np.array_equal(self._R, np.eye(3)) or np.any(self._p):
+            P = P @ self._R.T + self._p
+        return self.body.region_points(P)
+
+    def _calc_configuration(self, context, output):
+        value = GeometryConfigurationVector()
+        for name, pts in self.configuration(self._q.Eval(context)).items():
+            value.set_value(self._ids[name], pts.ravel())
+        output.set_value(value)
+
+    def _calc_landmarks(self, context, output):
+        lm = self.body.landmarks_O(self._q.Eval(context)[None])[0]
+        output.SetFromVector((lm @ self._R.T + self._p).ravel())
