@@ -158,9 +158,25 @@ def render_spec(
     }
 
 
+_FINGERPRINT_SUFFIXES = (".py", ".sdf", ".urdf", ".obj", ".mtl", ".json", ".yaml", ".png")
+
+
+def fingerprint_files() -> list[Path]:
+    """The package files a render can depend on: everything but ``evaluation/`` and ``commands/``."""
+    import akc_drake
+
+    root = Path(akc_drake.__file__).resolve().parent
+    skip = {"evaluation", "commands", "__pycache__"}
+    return [
+        p
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and p.suffix in _FINGERPRINT_SUFFIXES and not skip & set(p.relative_to(root).parts)
+    ]
+
+
 @functools.lru_cache(maxsize=1)
 def renderer_fingerprint() -> str:
-    """SHA-256 of the akc-drake and Drake versions and of the package's modules a render can depend on."""
+    """SHA-256 of the akc-drake and Drake versions and of :func:`fingerprint_files` (names and content)."""
     import importlib.metadata
 
     import akc_drake
@@ -172,14 +188,8 @@ def renderer_fingerprint() -> str:
     except importlib.metadata.PackageNotFoundError:
         drake = "?"
     h.update(f"akc-drake {akc_drake.__version__} drake {drake}\n".encode())
-    skip = {"evaluation", "commands", "__pycache__"}
-    for p in sorted(root.rglob("*")):
-        rel = p.relative_to(root)
-        if not p.is_file() or skip & set(rel.parts[:-1]) or rel.parts[0] in skip:
-            continue
-        if p.suffix not in (".py", ".sdf", ".urdf", ".obj", ".json", ".yaml", ".mtl", ".png"):
-            continue
-        h.update(str(rel).encode() + b"\0")
+    for p in fingerprint_files():
+        h.update(str(p.relative_to(root)).encode() + b"\0")
         h.update(hashlib.sha256(p.read_bytes()).digest())
     return h.hexdigest()
 

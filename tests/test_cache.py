@@ -1,0 +1,151 @@
+"""The render cache (akc_drake.evaluation.cache): computed once, reused, renders again when the spec changes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from akc_drake.core.camera import CameraIntrinsics
+from akc_drake.evaluation import cache as C
+from akc_drake.evaluation.session import Session
+
+INTR = CameraIntrinsics(width=160, height=120, fx=154.0, fy=154.0, cx=79.5, cy=59.5)
+
+
+class CountingRenderer:
+    """A stand-in renderer: a small deterministic session per spec; counts its calls."""
+
+    def __init__(self):
+        self.calls: list[dict] = []
+
+    def __call__(self, spec, progress=None):
+        self.calls.append(spec)
+        rng = np.random.default_rng(spec["seed"])
+        T = 8
+        truth = rng.normal(size=(T, 12, 3))
+        if progress is not None:
+            progress(T, spec["name"])
+        return Session(
+            np.arange(T) / 10.0,
+            truth + 0.01,
+            np.ones((T, 12)),
+            rng.normal(size=(T, 12, 2)),
+            truth,
+            INTR,
+            spec["name"],
+            source_time_s=np.full(T, 0.05),
+        )
+
+
+def spec(**kw):
+    base = dict(intrinsics=INTR, seed=1)
+    base.update(kw)
+    return C.render_spec("I", {"kind": "builtin", "name": "I", "cycles": 2}, **base)
+
+
+def test_second_call_does_not_render_and_a_changed_spec_does(tmp_path):
+    r = CountingRenderer()
+    frames = []
+    s1, hit1 = C.cached_render(spec(), cache=tmp_path, render=r, progress=lambda n, name: frames.append(n))
+    s2, hit2 = C.cached_render(spec(), cache=tmp_path, render=r, progress=lambda n, name: frames.append(n))
+    assert (hit1, hit2) == (False, True) and len(r.calls) == 1
+    assert frames == [8, 8]  # a hit reports its frames at once
+    for k in ("t", "raw", "visibility", "pixels", "truth", "cycle_starts", "source_time_s"):
+        assert getattr(s1, k).tobytes() == getattr(s2, k).tobytes()
+    assert s2.intrinsics == INTR and s2.motion == "I"
+    # Any change of the spec renders again: seed, camera, cycles, detector.
+    C.cached_render(spec(seed=2), cache=tmp_path, render=r)
+    C.cached_render(spec(intrinsics=CameraIntrinsics()), cache=tmp_path, render=r)
+    C.cached_render(
+        C.render_spec("I", {"kind": "builtin", "name": "I", "cycles": 3}, intrinsics=INTR, seed=1),
+        cache=tmp_path,
+        render=r,
+    )
+    C.cached_render(spec(detector="mediapipe"), cache=tmp_path, render=r)
+    assert len(r.calls) == 5
+    assert len({C.spec_key(s) for s in r.calls}) == 5
+    # Each entry is the session plus its spec, under renders/<k[:2]>/<k>.npz.
+    key = C.spec_key(spec())
+    assert (tmp_path / "renders" / key[:2] / f"{key}.npz").is_file()
+    assert (tmp_path / "renders" / key[:2] / f"{key}.json").is_file()
+
+
+def test_a_renderer_change_renders_again(tmp_path, monkeypatch):
+    r = CountingRenderer()
+    C.cached_render(spec(), cache=tmp_path, render=r)
+    monkeypatch.setattr(C, "renderer_fingerprint", lambda: "another renderer")
+    C.cached_render(spec(), cache=tmp_path, render=r)
+    assert len(r.calls) == 2
+
+
+def test_fingerprint_covers_the_renderer_not_the_evaluation():
+    import akc_drake
+
+    fp = C.renderer_fingerprint()
+    assert len(fp) == 64 and fp == C.renderer_fingerprint()
+    root = __import__("pathlib").Path(akc_drake.__file__).parent
+    files = {str(p.relative_to(root)) for p in C.fingerprint_files()}
+    assert "systems/depth_camera_source.py" in files and "operator/motions.py" in files
+    assert "__init__.py" in files  # the version
+    assert not any(f.startswith(("evaluation/", "commands/")) for f in files)
+
+
+def test_motion_files_count_by_content(tmp_path):
+    r = CountingRenderer()
+    a = tmp_path / "a" / "clip.bvh"
+    a.parent.mkdir()
+    a.write_text("HIERARCHY one")
+    b = tmp_path / "b" / "clip.bvh"
+    b.parent.mkdir()
+    b.write_text("HIERARCHY one")
+
+    def file_spec(p):
+        return C.render_spec("clip", {"kind": "file", "path": str(p), "skeleton": None}, intrinsics=INTR)
+
+    C.cached_render(file_spec(a), cache=tmp_path / "c", render=r)
+    C.cached_render(file_spec(b), cache=tmp_path / "c", render=r)  # same content elsewhere: a hit
+    assert len(r.calls) == 1
+    b.write_text("HIERARCHY two")
+    C.cached_render(file_spec(b), cache=tmp_path / "c", render=r)
+    assert len(r.calls) == 2
+    from akc_drake.errors import UserError
+
+    with pytest.raises(UserError, match="missing.bvh: no such motion file"):
+        file_spec(tmp_path / "missing.bvh")
+
+
+def test_damaged_entry_renders_again(tmp_path):
+    r = CountingRenderer()
+    C.cached_render(spec(), cache=tmp_path, render=r)
+    key = C.spec_key(spec())
+    (tmp_path / "renders" / key[:2] / f"{key}.npz").write_bytes(b"garbage")
+    s, hit = C.cached_render(spec(), cache=tmp_path, render=r)
+    assert not hit and len(r.calls) == 2 and s.num_frames == 8
+    assert C.cached_render(spec(), cache=tmp_path, render=r)[1]
+
+
+def test_location_off_usage_and_clear(tmp_path, monkeypatch):
+    monkeypatch.setenv("AKC_DRAKE_CACHE", str(tmp_path / "env"))
+    assert C.cache_dir() == tmp_path / "env"
+    monkeypatch.delenv("AKC_DRAKE_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert C.cache_dir() == tmp_path / "xdg" / "akc-drake"
+    monkeypatch.setenv("AKC_DRAKE_CACHE", "off")
+    assert C.cache_dir() is None
+    r = CountingRenderer()
+    C.cached_render(spec(), render=r)
+    C.cached_render(spec(), render=r)
+    assert len(r.calls) == 2  # off: never stored
+    assert C.cache_usage() == {"path": None, "sessions": 0, "bytes": 0}
+    monkeypatch.setenv("AKC_DRAKE_CACHE", str(tmp_path / "env"))
+    C.cached_render(spec(), render=r)
+    C.cached_render(spec(seed=5), render=r)
+    usage = C.cache_usage()
+    assert usage["sessions"] == 2 and usage["bytes"] > 0 and usage["path"] == str(tmp_path / "env")
+    assert C.clear_cache() == usage
+    assert C.cache_usage()["sessions"] == 0
+    C.cached_render(spec(), render=r)
+    assert len(r.calls) == 5
+    assert C.cached_render(spec(), cache=False, render=r)[1] is False
+    with pytest.raises(ValueError, match="unknown motion kind"):
+        C.render_spec("x", {"kind": "video"}, intrinsics=INTR)
