@@ -43,6 +43,17 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", metavar="FILE.yaml", help="a diagram configuration file (YAML)")
 
 
+def _add_scheduler_args(p: argparse.ArgumentParser, workers: bool = True) -> None:
+    p.add_argument(
+        "--scheduler",
+        default="local",
+        metavar="S",
+        help="local (a Dask LocalCluster on this machine, default) | inprocess | tcp://HOST:PORT (a Dask cluster)",
+    )
+    if workers:
+        p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="akc-drake",
@@ -72,14 +83,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="FILE")
     p.add_argument("--width", type=int, default=640, help=argparse.SUPPRESS)
     p.add_argument("--height", type=int, default=480, help=argparse.SUPPRESS)
+    _add_scheduler_args(p)
 
     p = sub.add_parser("sweep", help="AKC weight and shrink-factor sensitivity study (paper Fig. 5, Table VII)")
     p.add_argument("--motion", default="both", choices=("I", "II", "both"))
     p.add_argument("--cycles", type=int, default=30, metavar="N")
-    p.add_argument("--jobs", type=int, default=2, metavar="N")
+    p.add_argument("--jobs", type=int, default=2, metavar="N", help="local worker processes (default: 2)")
+    _add_scheduler_args(p, workers=False)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", metavar="DIR")
     p.add_argument("--json", metavar="FILE")
+
+    p = sub.add_parser("cache", help="where the render cache is and how big; --clear empties it")
+    p.add_argument("--clear", action="store_true", help="delete every cached rendered session")
 
     p = sub.add_parser("graph", help="write the system graph of a diagram as .dot and .svg")
     p.add_argument("--diagram", required=True, choices=("mocap", "teleop"))
@@ -125,6 +141,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="measure the speed of every stage (see README, Performance)")
     p.add_argument("--quick", action="store_true")
     p.add_argument("--json", metavar="FILE")
+
+    p = sub.add_parser("export", help="a poses.npz (from run) to BVH, TRC, C3D, CSV or a ROS 2 MCAP bag")
+    p.add_argument("--poses", required=True, metavar="FILE.npz", help="the poses.npz that 'run' writes")
+    p.add_argument("--format", required=True, metavar="FMT", help="bvh | trc | c3d | csv | mcap")
+    p.add_argument("--out", required=True, metavar="FILE")
+    p.add_argument("--stage", default="corrected", metavar="S",
+                   help="raw | accepted | filtered | corrected | truth (default: corrected)")
+    p.add_argument("--frame", default="world", choices=("world", "camera"),
+                   help="world: gravity-aligned, floor at z=0 (default); camera: the camera frame")
+    p.add_argument("--calibration", metavar="FILE.npz", help="a T-pose poses.npz to estimate the world frame from")
+    p.add_argument("--smooth", default="none", choices=("none", "rts"),
+                   help="rts: zero-phase Rauch-Tung-Striebel smoothing in place of the forward KF (offline)")
+    p.add_argument("--dims", metavar="FILE.json", help="calibrated body dimensions (default: those in the npz)")
+    p.add_argument("--json", metavar="FILE", help="write a summary (world frame, RTS gain with ground truth)")
 
     return parser
 

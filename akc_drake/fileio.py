@@ -86,3 +86,28 @@ def write_json(path: str | Path, data) -> Path:
     """Write ``data`` as indented JSON atomically; numpy values are converted, NaN and inf become null."""
     text = json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n"
     return atomic_write_text(path, text)
+
+
+def atomic_write_via_path(path: str | Path, writer: Callable[[Path], object]) -> Path:
+    """Atomically write ``path`` with a library that writes to a file name (ezc3d, rosbags).
+
+    ``writer(tmp)`` writes a temporary file ``tmp`` next to ``path`` (same suffix, so libraries that choose the
+    format from it still work); it is then renamed to ``path``. On any error the temporary file is removed and an
+    earlier ``path`` is left untouched.
+    """
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=f".tmp{p.suffix}", dir=p.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        tmp_path.unlink()  # the writer creates it (some libraries refuse to overwrite)
+        writer(tmp_path)
+        if not tmp_path.is_file():
+            raise OSError(f"{p}: the writer produced no file")
+        os.chmod(tmp_path, 0o666 & ~_umask())
+        os.replace(tmp_path, p)
+    except BaseException:
+        tmp_path.unlink(missing_ok=True)
+        raise
+    return p

@@ -1,0 +1,183 @@
+"""Exports of the pipeline's skeletons: BVH, TRC, C3D, CSV, and every stage in one ROS 2 MCAP bag.
+
+:func:`export_poses` is what ``akc-drake export`` and ``run/evaluate --export`` call. Coordinates:
+
+* ``frame="world"`` (default): the gravity-aligned world frame W of :mod:`akc_drake.core.world_frame` (z up, floor
+  at 0, origin on the floor below the camera); CSV and C3D are written in W (Z up), TRC and BVH in W's Y-up
+  version (TRC: X forward of the operator, Y up, Z right, OpenSim's convention; BVH: Y up, the character facing
+  +Z).
+* ``frame="camera"``: the camera frame C unchanged (x right, y down, z forward) in every format.
+
+Units: CSV metres, TRC and C3D millimetres, BVH centimetres.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from akc_drake.core.skeleton import LANDMARKS, BodyDimensions
+from akc_drake.core.world_frame import BVH_FROM_W, Y_UP_FROM_W, WorldFrame
+from akc_drake.errors import UserError
+from akc_drake.io.export.poses import STAGES, PoseSet, load_poses, world_frame_for
+
+#: Skeleton formats and their file suffixes.
+FORMATS: dict[str, str] = {"bvh": ".bvh", "trc": ".trc", "c3d": ".c3d", "csv": ".csv"}
+SMOOTHERS: tuple[str, ...] = ("none", "rts")
+
+
+def check_format(fmt: str) -> str:
+    """``fmt`` lower-cased, or a :class:`UserError` listing the formats."""
+    f = str(fmt).strip().lower()
+    if f not in FORMATS:
+        raise UserError(f"--format: unknown format {fmt!r}; choose from {', '.join(FORMATS)}")
+    return f
+
+
+def check_writable(path) -> Path:
+    """A :class:`UserError` naming ``path`` when its folder cannot be created or written (before any work)."""
+    p = Path(path)
+    if p.is_dir():
+        raise UserError(f"{p}: is a folder, not a file")
+    folder = p.parent
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    import os
+
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        raise UserError(f"{p}: cannot write into {existing}")
+    return p
+
+
+def stage_points(poses: PoseSet, stage: str, smooth: str = "none", dims: BodyDimensions | None = None) -> np.ndarray:
+    """The ``(T, 12, 3)`` camera-frame landmarks of ``stage``, with the RTS smoother in place of the KF if asked.
+
+    With ``smooth="rts"``: ``filtered`` and ``corrected`` are recomputed from ``accepted`` (the KF's input) by
+    :func:`akc_drake.core.smoother.smoothed_stages` (``corrected`` needs the calibrated ``dims``); ``raw``,
+    ``accepted`` and ``truth`` are smoothed directly.
+    """
+    if stage not in STAGES:
+        raise UserError(f"--stage: unknown stage {stage!r}; choose from {', '.join(STAGES)}")
+    if smooth not in SMOOTHERS:
+        raise UserError(f"--smooth: unknown smoother {smooth!r}; choose from {', '.join(SMOOTHERS)}")
+    if smooth == "none":
+        return poses.stage(stage)
+    from akc_drake.core.smoother import rts_smooth, smoothed_stages
+
+    dt = 1.0 / poses.rate_hz
+    if stage in ("filtered", "corrected") and "accepted" in poses.stages:
+        d = dims or poses.dims
+        if stage == "corrected" and d is None:
+            raise UserError(f"{poses.source}: --smooth rts on 'corrected' needs the arm lengths (--dims FILE.json)")
+        return smoothed_stages(poses.stages["accepted"], dt, d if stage == "corrected" else None)[stage]
+    return rts_smooth(poses.stage(stage), dt)
+
+
+def _dims_for_bvh(poses: PoseSet, points_C: np.ndarray, dims: BodyDimensions | None) -> BodyDimensions:
+    if dims is not None:
+        return dims
+    if poses.dims is not None:
+        return poses.dims
+    from akc_drake.core.skeleton import SEGMENT_NAMES, segment_lengths
+
+    seg = segment_lengths(points_C)
+    vals = {k: float(np.nanmedian(seg[k])) if np.isfinite(seg[k]).any() else np.nan for k in SEGMENT_NAMES}
+    try:
+        return BodyDimensions(**vals)
+    except ValueError as e:
+        raise UserError(f"{poses.source}: no arm lengths for the BVH hierarchy ({e}); give --dims FILE.json") from None
+
+
+def write_points(fmt: str, out, t: np.ndarray, points_C: np.ndarray, world: WorldFrame, *,
+                 rate_hz: float, dims: BodyDimensions | None = None) -> Path:
+    """Write camera-frame landmarks ``(T, 12, 3)`` in ``world`` (identity for the camera frame) as ``fmt``."""
+    fmt = check_format(fmt)
+    camera = world.source == "identity"
+    P_W = world.to_world(points_C)
+    names = list(LANDMARKS)
+    if fmt == "csv":
+        from akc_drake.io.export.table import write_csv
+
+        return write_csv(out, t, P_W, names)
+    if fmt == "trc":
+        from akc_drake.io.export.table import write_trc
+
+        P = P_W if camera else P_W @ Y_UP_FROM_W.T
+        return write_trc(out, t, P * 1000.0, names, rate_hz=rate_hz)
+    if fmt == "c3d":
+        from akc_drake.io.export.c3d import write_c3d
+
+        return write_c3d(out, P_W * 1000.0, names, rate_hz=rate_hz, z_up=not camera)
+    from akc_drake.operator.bvh_export import write_bvh_export
+
+    if dims is None:
+        raise ValueError("BVH export needs the body dimensions")
+    P = P_W if camera else P_W @ BVH_FROM_W.T
+    try:
+        return write_bvh_export(out, P, dims, frame_time=1.0 / rate_hz)
+    except ValueError as e:
+        raise UserError(f"{out}: {e}") from None
+
+
+def export_poses(poses: PoseSet, fmt: str, out, *, stage: str = "corrected", frame: str = "world",
+                 calibration: PoseSet | None = None, smooth: str = "none",
+                 dims: BodyDimensions | None = None) -> dict:
+    """Export one stage of ``poses`` to ``out`` as ``fmt``; returns a summary for the JSON/stdout.
+
+    Args:
+        poses: the session (:func:`load_poses`).
+        fmt: ``bvh``, ``trc``, ``c3d`` or ``csv``.
+        out: the file to write (atomically).
+        stage: which skeleton (``raw``, ``accepted``, ``filtered``, ``corrected``, ``truth``).
+        frame: ``world`` or ``camera``.
+        calibration: a T-pose session to estimate the world frame from (default: ``poses`` itself).
+        smooth: ``none`` or ``rts``.
+        dims: the calibrated body dimensions (default: those stored in ``poses``).
+    """
+    fmt = check_format(fmt)
+    check_writable(out)
+    world = world_frame_for(poses, calibration, frame=frame)
+    P = stage_points(poses, stage, smooth, dims)
+    bvh_dims = _dims_for_bvh(poses, P, dims) if fmt == "bvh" else None
+    path = write_points(fmt, out, poses.t, P, world, rate_hz=poses.rate_hz, dims=bvh_dims)
+    summary = {
+        "path": str(path),
+        "format": fmt,
+        "stage": stage,
+        "frame": frame,
+        "smooth": smooth,
+        "frames": poses.num_frames,
+        "rate_hz": poses.rate_hz,
+        "world_frame": world.as_dict(),
+    }
+    if bvh_dims is not None:
+        summary["bvh_dims"] = bvh_dims.as_dict()
+    return summary
+
+
+def export_bag(poses: PoseSet, out, *, frame: str = "world", calibration: PoseSet | None = None) -> dict:
+    """Every stage of ``poses`` (and the operator's control frames) in one ROS 2 MCAP bag at ``out``."""
+    from akc_drake.io.export.ros2bag import write_ros2_bag
+
+    check_writable(out)
+    world = world_frame_for(poses, calibration, frame="world")
+    counts = write_ros2_bag(out, poses.t, poses.stages, world=world, frame=frame)
+    return {"path": str(out), "format": "mcap", "frame": frame, "frames": poses.num_frames,
+            "messages": counts, "world_frame": world.as_dict()}
+
+
+def rts_report(poses: PoseSet, dims: BodyDimensions | None = None) -> dict | None:
+    """With ground truth: RMSE of the forward KF vs the RTS smoother (``filtered`` and, with dims, ``corrected``)
+    on the arm joints (:func:`akc_drake.core.smoother.rts_gain`); None without truth or ``accepted``."""
+    if "truth" not in poses.stages or "accepted" not in poses.stages:
+        return None
+    from akc_drake.core.smoother import rts_gain, smoothed_stages
+
+    smoothed = smoothed_stages(poses.stages["accepted"], 1.0 / poses.rate_hz, dims or poses.dims)
+    return rts_gain(poses.stages["truth"], poses.stages, smoothed)
+
+
+__all__ = ["FORMATS", "PoseSet", "load_poses", "export_poses", "export_bag", "rts_report", "write_points",
+           "stage_points", "check_format"]
