@@ -149,3 +149,19 @@ def test_location_off_usage_and_clear(tmp_path, monkeypatch):
     assert C.cached_render(spec(), cache=False, render=r)[1] is False
     with pytest.raises(ValueError, match="unknown motion kind"):
         C.render_spec("x", {"kind": "video"}, intrinsics=INTR)
+
+
+def test_cache_command(tmp_path, monkeypatch, capsys):
+    from akc_drake.cli import main as cli_main
+
+    monkeypatch.setenv("AKC_DRAKE_CACHE", str(tmp_path))
+    r = CountingRenderer()
+    C.cached_render(spec(), render=r)
+    assert cli_main(["cache"]) == 0
+    assert capsys.readouterr().out.startswith(f"render cache {tmp_path}: 1 sessions (")
+    assert cli_main(["cache", "--clear"]) == 0
+    assert f"render cache {tmp_path}: removed 1 sessions" in capsys.readouterr().out
+    assert C.cache_usage()["sessions"] == 0
+    monkeypatch.setenv("AKC_DRAKE_CACHE", "off")
+    assert cli_main(["cache"]) == 0
+    assert "off" in capsys.readouterr().out

@@ -8,7 +8,6 @@ prints the tables in the paper's layout (ours, the paper's figure in brackets), 
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 from akc_drake.errors import UserError
@@ -87,45 +86,24 @@ def _check_outputs(args) -> None:
         raise UserError(f"--out {args.out}: exists and is not a folder")
 
 
-def run(config, progress_bar: bool = True):
-    """Render the sessions and run the experiment with tqdm progress bars (on stderr)."""
-    from tqdm import tqdm
+def run(config, progress_bar: bool = True, scheduler: str = "local", n_workers: int | None = None):
+    """Run the experiment as tasks (:func:`~akc_drake.evaluation.tasks.evaluate_tasks`) with tqdm progress bars.
 
-    from akc_drake.evaluation.experiment import frames_to_render, render_sessions, run_experiment, work_units
+    Args:
+        config: the experiment.
+        progress_bar: show the progress bars (stderr).
+        scheduler: "local" (a LocalCluster on this machine's cores), "inprocess" or "tcp://HOST:PORT".
+        n_workers: local worker processes (default: one per core).
+    """
+    from akc_drake.evaluation.tasks import evaluate_tasks
 
-    total = frames_to_render(config) or None
-    with tqdm(
-        total=total,
-        desc="render",
-        unit="frame",
-        file=sys.stderr,
-        disable=not progress_bar,
-        dynamic_ncols=True,
-    ) as bar:
-
-        def on_frame(n, name):
-            bar.set_postfix_str(name, refresh=False)
-            bar.update(n)
-
-        t0 = time.perf_counter()
-        sessions = render_sessions(config, on_frame)
-        render_s = time.perf_counter() - t0
-    with tqdm(
-        total=work_units(config, sessions),
-        desc="evaluate",
-        unit="frame",
-        file=sys.stderr,
-        disable=not progress_bar,
-        dynamic_ncols=True,
-    ) as bar:
-
-        def on_work(n, label):
-            bar.set_postfix_str(label, refresh=False)
-            bar.update(n)
-
-        ev = run_experiment(config, sessions, on_work)
-    ev.render_s = render_s
-    return ev
+    return evaluate_tasks(
+        config,
+        scheduler=scheduler,
+        n_workers=n_workers,
+        progress=progress_bar,
+        log=lambda line: print(f"akc-drake evaluate: {line}", file=sys.stderr),
+    )
 
 
 def main(args) -> int:
@@ -138,7 +116,13 @@ def main(args) -> int:
         from akc_drake.operator.retarget import load_motion_file
 
         load_motion_file(config.motion_file, config.skeleton)
-    ev = run(config)
+    from akc_drake.evaluation.executor import check_scheduler
+
+    scheduler = check_scheduler(getattr(args, "scheduler", "local"))
+    workers = getattr(args, "workers", None)
+    if workers is not None and workers < 1:
+        raise UserError(f"--workers must be at least 1, got {workers}")
+    ev = run(config, scheduler=scheduler, n_workers=workers)
     for table in ev.tables:
         print(format_table(table))
         print()
@@ -149,5 +133,10 @@ def main(args) -> int:
     if args.out:
         files = write_evaluation(ev, args.out)
         print(f"wrote {args.out}/report.md and {len(files) - 1} more files")
-    print(f"rendering {ev.render_s:.1f} s, methods and metrics {ev.elapsed_s:.1f} s")
+    print(f"calibration {ev.render_s:.1f} s, clips (render + methods) {ev.elapsed_s:.1f} s")
+    if ev.failures:
+        print(f"{len(ev.failures)} clip(s) failed, left out of the tables:")
+        for f in ev.failures:
+            print(f"  {f.line()}")
+        return 1
     return 0
