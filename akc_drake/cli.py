@@ -142,6 +142,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true")
     p.add_argument("--json", metavar="FILE")
 
+    p = sub.add_parser("export", help="a poses.npz (from run) to BVH, TRC, C3D, CSV or a ROS 2 MCAP bag")
+    p.add_argument("--poses", required=True, metavar="FILE.npz", help="the poses.npz that 'run' writes")
+    p.add_argument("--format", required=True, metavar="FMT", help="bvh | trc | c3d | csv | mcap")
+    p.add_argument("--out", required=True, metavar="FILE")
+    p.add_argument("--stage", default="corrected", metavar="S",
+                   help="raw | accepted | filtered | corrected | truth (default: corrected)")
+    p.add_argument("--frame", default="world", choices=("world", "camera"),
+                   help="world: gravity-aligned, floor at z=0 (default); camera: the camera frame")
+    p.add_argument("--calibration", metavar="FILE.npz", help="a T-pose poses.npz to estimate the world frame from")
+    p.add_argument("--smooth", default="none", choices=("none", "rts"),
+                   help="rts: zero-phase Rauch-Tung-Striebel smoothing in place of the forward KF (offline)")
+    p.add_argument("--dims", metavar="FILE.json", help="calibrated body dimensions (default: those in the npz)")
+    p.add_argument("--json", metavar="FILE", help="write a summary (world frame, RTS gain with ground truth)")
+
     return parser
 
 
