@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from akc_drake.errors import UserError
-from akc_drake.evaluation.executor import TaskFailure, check_scheduler, failures, run_tasks
+from akc_drake.evaluation.executor import TaskFailure, check_scheduler, failures, open_scheduler, run_tasks
 
 
 def square_root(x: float) -> dict:
@@ -76,7 +76,12 @@ def test_argument_checks():
 def test_local_cluster_same_results_and_failure_line():
     items = [4.0, -1.0, 2.0, 9.0]
     ref = run_tasks(square_root, items, scheduler="inprocess", progress=False)
-    got = run_tasks(square_root, items, scheduler="local", n_workers=2, progress=False, timeout_s=120)
+    with open_scheduler("local", 2) as sched:
+        assert sched.workers() == 2 and sched.client is not None
+        got = run_tasks(square_root, items, scheduler=sched, progress=False, timeout_s=120)
+        again = run_tasks(square_root, items[:1], scheduler=sched, progress=False)  # same workers, reused
+        assert again[0]["root"] == 2.0
+    assert sched.client is None and sched.cluster is None  # stopped on exit
     for a, b in zip(ref, got, strict=True):
         if isinstance(a, TaskFailure):
             assert isinstance(b, TaskFailure) and b.line() == a.line() == "task 1: ValueError: math domain error"

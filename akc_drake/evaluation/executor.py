@@ -175,7 +175,8 @@ def run_tasks(
         fn: a module-level function (importable by the workers) taking one plain argument and returning
             plain data (see the module docstring).
         items: the tasks' inputs (plain data).
-        scheduler: "inprocess", "local" or "tcp://HOST:PORT" (see the module docstring).
+        scheduler: "inprocess", "local" or "tcp://HOST:PORT" (see the module docstring), or an open
+            :class:`Scheduler` (from :func:`open_scheduler`) to run several calls on the same workers.
         n_workers: worker processes of the local cluster (default: ``os.cpu_count()``, at most one per
             task); ignored otherwise.
         desc: the progress bar's label.
@@ -193,7 +194,6 @@ def run_tasks(
         UserError: a bad scheduler value, a cluster that cannot be reached or has no workers, or workers
             with another akc-drake version.
     """
-    scheduler = check_scheduler(scheduler)
     items = list(items)
     if labels is None:
         labels = [f"task {i}" for i in range(len(items))]
@@ -204,15 +204,88 @@ def run_tasks(
         raise ValueError(f"retries must be an integer >= 0, got {retries!r}")
     if n_workers is not None and (isinstance(n_workers, bool) or not isinstance(n_workers, int) or n_workers < 1):
         raise ValueError(f"n_workers must be a positive integer, got {n_workers!r}")
+    if not isinstance(scheduler, Scheduler):
+        scheduler = check_scheduler(scheduler)
     if not items:
         return []
+    if not isinstance(scheduler, Scheduler):
+        n = None if n_workers is None else n_workers
+        if scheduler == "local":
+            n = max(1, min(n or os.cpu_count() or 1, len(items)))
+        with open_scheduler(scheduler, n) as sched:
+            return run_tasks(
+                fn,
+                items,
+                scheduler=sched,
+                desc=desc,
+                labels=labels,
+                retries=retries,
+                progress=progress,
+                timeout_s=timeout_s,
+                on_result=on_result,
+            )
     from tqdm import tqdm
 
     bar = tqdm(total=len(items), desc=desc, unit="task", file=sys.stderr, disable=not progress, dynamic_ncols=True)
     with bar:
-        if scheduler == "inprocess":
+        if scheduler.client is None:
             return _run_inprocess(fn, items, labels, bar, on_result)
-        return _run_dask(fn, items, labels, scheduler, n_workers, retries, bar, timeout_s, on_result)
+        return _run_dask(fn, items, labels, scheduler.client, retries, bar, timeout_s, on_result)
+
+
+class Scheduler:
+    """Where tasks run, kept open across several :func:`run_tasks` calls (a context manager).
+
+    Attributes:
+        name: "inprocess", "local" or the cluster's address.
+        client: the ``distributed.Client`` (None in-process).
+        cluster: the ``LocalCluster`` this object started (None otherwise).
+    """
+
+    def __init__(self, scheduler: str = "local", n_workers: int | None = None):
+        self.name = check_scheduler(scheduler)
+        if n_workers is not None and (isinstance(n_workers, bool) or not isinstance(n_workers, int) or n_workers < 1):
+            raise ValueError(f"n_workers must be a positive integer, got {n_workers!r}")
+        self.n_workers = n_workers
+        self.client = None
+        self.cluster = None
+
+    def __enter__(self) -> Scheduler:
+        if self.name == "local":
+            from distributed import Client
+
+            self.cluster = _start_local(self.n_workers or os.cpu_count() or 1)
+            self.client = Client(self.cluster, set_as_default=False)
+        elif self.name != "inprocess":
+            self.client = _connect(self.name)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        if self.cluster is not None:
+            self.cluster.close()
+            self.cluster = None
+
+    def workers(self) -> int:
+        """How many workers are connected (1 in-process)."""
+        if self.client is None:
+            return 1
+        return len(self.client.scheduler_info(n_workers=-1).get("workers", {})) or 1
+
+
+def open_scheduler(scheduler: str = "local", n_workers: int | None = None) -> Scheduler:
+    """A :class:`Scheduler` to use in a ``with`` block: ``with open_scheduler("local", 2) as s: run_tasks(...,
+    scheduler=s)``; a local cluster is started on entry and stopped on exit.
+
+    Raises:
+        UserError: a bad scheduler value, or a cluster that cannot be reached (on entry).
+    """
+    return Scheduler(scheduler, n_workers)
 
 
 def _finish(index: int, record: dict, labels, attempts: int):
@@ -292,28 +365,22 @@ def _check_workers(client, address: str) -> None:
             )
 
 
-def _run_dask(fn, items, labels, scheduler, n_workers, retries, bar, timeout_s, on_result) -> list:
+def _run_dask(fn, items, labels, client, retries, bar, timeout_s, on_result) -> list:
     from distributed import as_completed
 
-    cluster = None
-    if scheduler == "local":
-        n = n_workers or os.cpu_count() or 1
-        cluster = _start_local(max(1, min(n, len(items))))
-        from distributed import Client
-
-        client = Client(cluster, set_as_default=False)
-    else:
-        client = _connect(scheduler)
     tag = uuid.uuid4().hex[:8]
     results: list = [None] * len(items)
     attempts = [0] * len(items)
     done = [False] * len(items)
     n_failed = 0
+    live: dict = {}
     try:
 
         def submit(i):
             attempts[i] += 1
-            return client.submit(_run_one, fn, items[i], key=f"{_slug(labels[i])}-{i}-{attempts[i]}-{tag}", pure=False)
+            f = client.submit(_run_one, fn, items[i], key=f"{_slug(labels[i])}-{i}-{attempts[i]}-{tag}", pure=False)
+            live[f.key] = f
+            return f
 
         index_of = {}
         futures = []
@@ -334,9 +401,11 @@ def _run_dask(fn, items, labels, scheduler, n_workers, retries, bar, timeout_s, 
                         f2 = submit(i)
                         index_of[f2.key] = i
                         pending.add(f2)
+                        live.pop(fut.key, None)
                         fut.release()
                         continue
                     res = TaskFailure(i, labels[i], exc, "", attempts[i])
+                live.pop(fut.key, None)
                 fut.release()
                 results[i], done[i] = res, True
                 n_failed += isinstance(res, TaskFailure)
@@ -357,9 +426,8 @@ def _run_dask(fn, items, labels, scheduler, n_workers, retries, bar, timeout_s, 
             bar.set_postfix_str(f"{n_failed} failed", refresh=True)
         return results
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        if live:  # timed out or interrupted: nothing keeps running on the cluster for us
+            client.cancel(list(live.values()))
 
 
 def _future_error(fut) -> str:

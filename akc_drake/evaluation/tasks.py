@@ -29,7 +29,7 @@ import numpy as np
 
 from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.core.skeleton import BodyDimensions
-from akc_drake.evaluation.executor import TaskFailure, run_tasks
+from akc_drake.evaluation.executor import TaskFailure, open_scheduler, run_tasks
 from akc_drake.evaluation.session import Session
 
 _SESSION_ARRAYS = ("t", "raw", "visibility", "pixels", "truth", "cycle_starts", "source_time_s")
@@ -272,43 +272,41 @@ def evaluate_tasks(
     if clips is None:
         clips = {name: {"spec": specs[name]} for name in config.motion_names}
     cache_arg = None if cache is None else (False if cache is False else str(cache))
-    t0 = time.perf_counter()
-    rendered = run_tasks(
-        render_task,
-        [{"spec": specs[p], "cache": cache_arg} for p in poses],
-        scheduler=scheduler,
-        n_workers=n_workers,
-        desc="calibration",
-        labels=poses,
-        retries=retries,
-        progress=progress,
-    )
-    bad = [r for r in rendered if isinstance(r, TaskFailure)]
-    if bad:
-        raise ValueError(f"calibration pose {bad[0].line()}")
-    cal_sessions = {p: session_from_plain(r["session"]) for p, r in zip(poses, rendered, strict=True)}
-    tpose_dims, calibrations = calibrations_from(cal_sessions, config)
-    render_s = time.perf_counter() - t0
+    with open_scheduler(scheduler, n_workers) as sched:
+        t0 = time.perf_counter()
+        rendered = run_tasks(
+            render_task,
+            [{"spec": specs[p], "cache": cache_arg} for p in poses],
+            scheduler=sched,
+            desc="calibration",
+            labels=poses,
+            retries=retries,
+            progress=progress,
+        )
+        bad = [r for r in rendered if isinstance(r, TaskFailure)]
+        if bad:
+            raise ValueError(f"calibration pose {bad[0].line()}")
+        cal_sessions = {p: session_from_plain(r["session"]) for p, r in zip(poses, rendered, strict=True)}
+        tpose_dims, calibrations = calibrations_from(cal_sessions, config)
+        render_s = time.perf_counter() - t0
 
-    t1 = time.perf_counter()
-    plain_cfg = config_to_plain(config)
-    base = {
-        "config": plain_cfg,
-        "dims": dims_to_plain(tpose_dims),
-        "calibrations": {k: dims_to_plain(v) for k, v in calibrations.items()},
-        "cache": cache_arg,
-    }
-    names = list(clips)
-    results = run_tasks(
-        clip_task,
-        [{**base, **clips[n]} for n in names],
-        scheduler=scheduler,
-        n_workers=n_workers,
-        desc="clips",
-        labels=names,
-        retries=retries,
-        progress=progress,
-    )
+        t1 = time.perf_counter()
+        base = {
+            "config": config_to_plain(config),
+            "dims": dims_to_plain(tpose_dims),
+            "calibrations": {k: dims_to_plain(v) for k, v in calibrations.items()},
+            "cache": cache_arg,
+        }
+        names = list(clips)
+        results = run_tasks(
+            clip_task,
+            [{**base, **clips[n]} for n in names],
+            scheduler=sched,
+            desc="clips",
+            labels=names,
+            retries=retries,
+            progress=progress,
+        )
     runs, failed = {}, []
     for name, res in zip(names, results, strict=True):
         if isinstance(res, TaskFailure):
