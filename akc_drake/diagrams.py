@@ -478,7 +478,7 @@ class TeleopDiagram(MocapDiagram):
 
 def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measurements | None = None,
                          frame_source=None, detector=None, dims: BodyDimensions | None = None, motion=None,
-                         meshcat=None, time_step: float = 0.005, ik_time_step: float = 0.01,
+                         meshcat=None, lcm=None, time_step: float = 0.005, ik_time_step: float = 0.01,
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
                          torso_tau_s: float = 0.5) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
@@ -486,6 +486,8 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     Args:
         cfg, replay, frame_source, detector, dims, motion: as :func:`build_mocap_diagram`.
         meshcat: a Meshcat to draw the robot, the raw (red) and corrected (blue) skeletons and the camera.
+        lcm: a ``pydrake.lcm.DrakeLcm`` to publish the arm commands, measured arm positions and wrist targets on
+            (:func:`~akc_drake.systems.lcm_publishers.AddLcmPublishers`; channels in README "Using the output").
         time_step: the robot plant's discrete step, seconds (5 ms: the PD actuators are implicit in the discrete
             solver, so this is stable, and it keeps the whole teleop loop at over 2x realtime on two cores).
         ik_time_step: the differential IK period, seconds.
@@ -547,6 +549,16 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         skel.set_name("SkeletonVisualizer")
         builder.Connect(ports.raw, skel.GetInputPort("landmarks_C_raw"))
         builder.Connect(ports.corrected, skel.GetInputPort("landmarks_C_corrected"))
+
+    if lcm is not None:
+        from akc_drake.systems.lcm_publishers import AddLcmPublishers
+
+        sides = ("left", "right")
+        AddLcmPublishers(builder, lcm, q_commanded={s: ik[s].q_commanded_output for s in sides},
+                         q_measured=station.arm_position_output,
+                         X_TE_desired={s: mapper.GetOutputPort(f"X_TE_desired_{s}") for s in sides},
+                         tracking_lost=mapper.GetOutputPort("tracking_lost"), command_period_s=ik_time_step,
+                         frame_period_s=period, frame_offset_s=timing.stage_offset("mapper", cfg.stage_offset_s))
 
     for side in ("left", "right"):
         builder.ExportOutput(ik[side].q_commanded_output, f"q_commanded_{side}")

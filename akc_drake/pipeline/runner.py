@@ -337,6 +337,7 @@ def build_and_run(
     num_frames: int | None = None,
     seconds: float | None = None,
     meshcat=None,
+    lcm=None,
     realtime: bool = False,
     progress: bool = False,
     clock: Clock = time.perf_counter,
@@ -350,6 +351,7 @@ def build_and_run(
         num_frames: at most this many frames (default: the diagram's own count, or until the source ends).
         seconds: at most this many seconds of camera frames.
         meshcat: a ``pydrake.geometry.Meshcat`` for the teleop diagram, or None.
+        lcm: a ``pydrake.lcm.DrakeLcm``: the teleop diagram publishes its commands and control frames on it.
         realtime, progress, clock: as in :func:`run_pipeline`.
 
     Returns:
@@ -359,6 +361,10 @@ def build_and_run(
 
     builder = diagrams.build_teleop_diagram if teleop else diagrams.build_mocap_diagram
     kwargs = {"meshcat": meshcat} if meshcat is not None else {}
+    if lcm is not None:
+        if not teleop:
+            raise UserError("--lcm publishes the robot's commands: use it with --teleop")
+        kwargs["lcm"] = lcm
     built = builder(
         cfg,
         frame_source=inputs.frame_source,

@@ -112,9 +112,12 @@ def run_summary(cfg, inputs, built, result, *, teleop: bool = False, depth_m: fl
     return summary
 
 
-def save_poses(out_dir: str | Path, log) -> Path:
+def save_poses(out_dir: str | Path, log, dims=None) -> Path:
     """Write ``out_dir/poses.npz`` atomically: ``t``, ``raw``, ``accepted``, ``filtered``, ``corrected``,
-    ``truth``, ``visibility``, ``names`` (NaN where missing). Called after a partial run too."""
+    ``truth``, ``visibility``, ``names`` (NaN where missing) and, given the run's ``BodyDimensions``, ``dims``
+    (``[LUA, LLA, RUA, RLA, SW]``, what ``akc-drake export`` builds a BVH and RTS corrections on). Called after a
+    partial run too."""
+    extra = {} if dims is None else {"dims": dims.as_array()}
     return atomic_save_npz(
         Path(out_dir) / "poses.npz",
         t=log.t,
@@ -125,4 +128,5 @@ def save_poses(out_dir: str | Path, log) -> Path:
         truth=log.truth,
         visibility=log.visibility,
         names=np.array(LANDMARKS),
+        **extra,
     )

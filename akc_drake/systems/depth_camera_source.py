@@ -554,14 +554,39 @@ def images_needed(detector: Detector | None) -> tuple[bool, bool]:
     return bool(getattr(detector, "needs_color", True)), bool(getattr(detector, "needs_label", True))
 
 
+#: The detectors a simulated session can use (``--detector``).
+DETECTORS = ("sim", "mediapipe")
+
+
+def make_detector(detector, seed: int = 0, pose_model=None) -> Detector:
+    """A Detector from a name ("sim": :class:`~akc_drake.core.sim_detector.SimulatedDetector`, "mediapipe":
+    :class:`~akc_drake.io.mediapipe_detector.MediaPipeDetector`), or ``detector`` itself when it is one.
+
+    Raises:
+        ValueError: an unknown name. UserError: MediaPipe or its model missing.
+    """
+    if detector is None or detector == "sim":
+        from akc_drake.core.sim_detector import SimulatedDetector
+
+        return SimulatedDetector(seed=seed)
+    if detector == "mediapipe":
+        from akc_drake.io.mediapipe_detector import MediaPipeDetector
+
+        return MediaPipeDetector(model_path=pose_model)
+    if isinstance(detector, str):
+        raise ValueError(f"detector must be one of {', '.join(DETECTORS)}, got {detector!r}")
+    return detector
+
+
 def render_session(
     motion: OperatorMotion,
     intrinsics: CameraIntrinsics | None = None,
     camera_pose=None,
     noise: StereoDepthNoise | None = None,
     seed: int = 0,
-    detector: Detector | None = None,
+    detector: Detector | str | None = None,
     *,
+    body: str = "primitive",
     params: OperatorParams | None = None,
     progress: Callable[[int, int], None] | None = None,
     frame_callback: Callable[[CameraFrame], None] | None = None,
@@ -584,7 +609,9 @@ def render_session(
         camera_pose: :class:`CameraPlacement`, RigidTransform X_OC or 4x4 (default placement).
         noise: depth error model (default: :class:`StereoDepthNoise`).
         seed: seeds the depth noise, and the default detector.
-        detector: any Detector (default: ``SimulatedDetector(seed=seed)``).
+        detector: any Detector, or a name of :data:`DETECTORS` (default "sim": ``SimulatedDetector(seed=seed)``;
+            "mediapipe": MediaPipe on the rendered colour image).
+        body: "primitive" or "skinned" (see :class:`DepthCameraSource`).
         params: the operator (default: the paper's participant).
         progress: called as ``progress(k + 1, T)`` after each frame.
         frame_callback: called with each :class:`CameraFrame` (e.g. to record it); the frame owns its
@@ -600,12 +627,11 @@ def render_session(
     Returns:
         A :class:`Session`.
     """
-    from akc_drake.core.sim_detector import SimulatedDetector
     from akc_drake.systems.landmark_extractor import extract_landmarks, surface_offsets
 
     K = intrinsics or CameraIntrinsics()
     offsets = surface_offsets(surface_offset_m)
-    detector = detector if detector is not None else SimulatedDetector(seed=seed)
+    detector = make_detector(detector, seed)
     if not isinstance(detector, Detector):
         raise ValueError(f"detector must implement the Detector protocol (name, detect), got {detector!r}")
     needs_color, need_label = images_needed(detector)
@@ -620,6 +646,7 @@ def render_session(
         params=params,
         render_label=need_label,
         background_wall_m=background_wall_m,
+        body=body,
     )
     context = source.CreateDefaultContext()
     sensor_ctx = source.sensor.GetMyContextFromRoot(context)
