@@ -54,6 +54,14 @@ def _add_scheduler_args(p: argparse.ArgumentParser, workers: bool = True) -> Non
         p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
 
 
+def _body_detector(p) -> None:
+    """``--body`` and ``--detector``: the simulated operator and the detector that looks at it."""
+    p.add_argument("--body", default="primitive", choices=("primitive", "skinned"),
+                   help="simulated operator: primitive (fast) or skinned (MakeHuman body; default: primitive)")
+    p.add_argument("--detector", default="sim", choices=("sim", "mediapipe"),
+                   help="2D detector on the renders: sim (simulated) or mediapipe (default: sim)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="akc-drake",
@@ -70,6 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--meshcat", action="store_true", help="serve Meshcat on localhost while running")
     p.add_argument("--html", metavar="FILE", help="save the Meshcat recording as a standalone HTML page")
     p.add_argument("--seed", type=int, default=0)
+    _body_detector(p)
 
     p = sub.add_parser("evaluate", help="reproduce the paper's tables and figures against ground truth")
     p.add_argument("--motion", default="both", choices=("I", "II", "both"))
@@ -83,6 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="FILE")
     p.add_argument("--width", type=int, default=640, help=argparse.SUPPRESS)
     p.add_argument("--height", type=int, default=480, help=argparse.SUPPRESS)
+    _body_detector(p)
     _add_scheduler_args(p)
 
     p = sub.add_parser("sweep", help="AKC weight and shrink-factor sensitivity study (paper Fig. 5, Table VII)")
@@ -109,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--seconds", type=float, metavar="S", help="duration for live or bag sources")
     p.add_argument("--out", required=True, metavar="DIR")
+    _body_detector(p)
 
     p = sub.add_parser("run", help="run the mocap (or teleop) diagram on a source")
     _add_source_args(p)
@@ -121,7 +132,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--meshcat", action="store_true")
     p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources)")
     p.add_argument("--out", metavar="DIR", help="where to write poses.npz (default: next to --json)")
+    p.add_argument("--export", metavar="FMT[,FMT]", help="also write the raw, filtered and corrected skeletons to "
+                   "--out as bvh | trc | c3d | csv (see 'akc-drake export')")
+    p.add_argument("--export-frame", default="world", choices=("world", "camera"), help="frame of --export files")
+    p.add_argument("--smooth", default="none", choices=("none", "rts"), help="--export with RTS smoothing")
+    p.add_argument("--ros2-bag", metavar="FILE.mcap", help="write a ROS 2 MCAP bag: skeletons, control frames and, "
+                   "with --teleop, the robot's joint commands and wrist targets")
+    p.add_argument("--lcm", metavar="URL", help="with --teleop: publish joint commands and wrist targets on LCM "
+                   "(memq://, udpm://239.255.76.67:7667 (ttl=0: this host only), file://LOG?mode=w)")
     p.add_argument("--json", metavar="FILE")
+    _body_detector(p)
 
     p = sub.add_parser("calibrate", help="arm lengths and shoulder width from a held T-pose or L-pose")
     _add_source_args(p)
@@ -140,6 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="measure the speed of every stage (see README, Performance)")
     p.add_argument("--quick", action="store_true")
+    _body_detector(p)
     p.add_argument("--json", metavar="FILE")
 
     p = sub.add_parser("export", help="a poses.npz (from run) to BVH, TRC, C3D, CSV or a ROS 2 MCAP bag")

@@ -91,6 +91,8 @@ class PipelineConfig:
             holds it and reports it LOST (then it reads NaN and the robot holds). A negative value (the
             default) means the diagram's own default: 1 s in the mocap diagram (``KFConfig``'s),
             :data:`TELEOP_MAX_PREDICT_S` in the teleop diagram, where an extrapolated wrist drives the robot.
+        body: the simulated operator, ``primitive`` (fast) or ``skinned`` (MakeHuman body, what MediaPipe sees).
+        detector: the 2D detector on simulated renders, ``sim`` or ``mediapipe``.
     """
 
     source: str = "sim"
@@ -109,6 +111,8 @@ class PipelineConfig:
     stage_offset_s: float = 1e-3
     gate_sigma: float = -1.0
     max_predict_s: float = -1.0
+    body: str = "primitive"
+    detector: str = "sim"
 
     def resolved_gate_sigma(self, teleop: bool) -> float | None:
         """The gate the filter gets (None = off): ``gate_sigma`` resolved for the mocap or teleop diagram."""
@@ -134,6 +138,10 @@ class PipelineConfig:
             raise UserError(f"config.weights must be one of {', '.join(WEIGHT_NAMES)}, got {self.weights!r}")
         if self.cycles < 1:
             raise UserError(f"config.cycles must be at least 1, got {self.cycles}")
+        if self.body not in ("primitive", "skinned"):
+            raise UserError(f"config.body must be primitive or skinned, got {self.body!r}")
+        if self.detector not in ("sim", "mediapipe"):
+            raise UserError(f"config.detector must be sim or mediapipe, got {self.detector!r}")
         if not 0.0 <= self.visibility_threshold <= 1.0:
             raise UserError(f"config.visibility_threshold must be in [0, 1], got {self.visibility_threshold}")
         if not 0.0 <= self.proximity < 1.0:

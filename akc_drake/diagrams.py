@@ -166,7 +166,8 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
         needs_color, needs_label = images_needed(detector)
         src = builder.AddSystem(
             DepthCameraSource(motion, intrinsics=intrinsics, camera_pose=placement, noise=noise, seed=cfg.seed,
-                              render_color=needs_color or cfg.camera.render_color, render_label=needs_label)
+                              render_color=needs_color or cfg.camera.render_color, render_label=needs_label,
+                              body=cfg.body)
         )
         src.set_name("DepthCameraSource")
         num_frames = int(np.floor(motion.duration * cfg.camera.rate_hz + 1e-9)) + 1

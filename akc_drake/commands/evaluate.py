@@ -69,6 +69,8 @@ def build_config(args):
             height=getattr(args, "height", 480),
             motion_file=motion_file,
             skeleton=skeleton,
+            body=getattr(args, "body", "primitive"),
+            detector=getattr(args, "detector", "sim"),
         )
     except ValueError as e:
         raise UserError(str(e)) from None

@@ -30,9 +30,9 @@ def _check_args(args) -> None:
 def _record_sim(args, out: Path) -> int:
     from tqdm import tqdm
 
-    from akc_drake.operator.retarget import motion_from_spec
     from akc_drake.core.camera import CameraIntrinsics
     from akc_drake.io.recording import RecordingWriter
+    from akc_drake.operator.retarget import motion_from_spec
     from akc_drake.systems.depth_camera_source import render_session
 
     if args.seconds is not None:
@@ -52,7 +52,13 @@ def _record_sim(args, out: Path) -> int:
             writer.write(frame.t, frame.color, frame.depth_m, frame.truth_C)
 
         session = render_session(
-            motion, intrinsics, seed=args.seed, frame_callback=write, progress=lambda k, T: bar.update(1)
+            motion,
+            intrinsics,
+            seed=args.seed,
+            frame_callback=write,
+            progress=lambda k, T: bar.update(1),
+            body=getattr(args, "body", "primitive"),
+            detector=getattr(args, "detector", "sim"),
         )
     elapsed = time.perf_counter() - t0
     print(

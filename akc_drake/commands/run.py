@@ -37,8 +37,10 @@ def _config(args):
         ("seed", 0),
         ("filter", "KF"),
         ("corrector", "AKC"),
+        ("body", "primitive"),
+        ("detector", "sim"),
     ):
-        value = getattr(args, name)
+        value = getattr(args, name, default)
         if not args.config or value != default:
             setattr(cfg, name, value)
     if getattr(args, "skeleton", None):
@@ -66,6 +68,7 @@ def main(args) -> int:
 
     cfg = _config(args)
     kind = source_kind(cfg.source)
+    lcm = _interop_checks(args)
     inputs = open_inputs(
         cfg,
         dims_path=getattr(args, "dims", None),
@@ -85,6 +88,7 @@ def main(args) -> int:
             teleop=bool(args.teleop),
             seconds=args.seconds,
             meshcat=_meshcat(args),
+            lcm=lcm,
             realtime=(kind == "realsense"),
             progress=sys.stderr.isatty(),
         )
@@ -97,11 +101,56 @@ def main(args) -> int:
         )
     summary = run_summary(cfg, inputs, built, result, teleop=bool(args.teleop), depth_m=args.depth)
     out_dir = Path(args.out) if args.out else (Path(args.json).parent if args.json else Path("out/run"))
-    summary["poses_npz"] = str(save_poses(out_dir, result.log))
+    summary["poses_npz"] = str(save_poses(out_dir, result.log, dims=built.dims))
+    _interop_outputs(args, summary, built, result, out_dir)
     if args.json:
         write_json(args.json, summary)
     _print_summary(summary, result.wall_s)
     return 0
+
+
+def _interop_checks(args):
+    """Check --export/--ros2-bag/--lcm before running (one line, exit 2); returns the DrakeLcm or None."""
+    from akc_drake.pipeline.export import check_format, check_writable
+
+    for f in (args.export or "").split(","):
+        if f.strip():
+            check_format(f)
+    if args.ros2_bag:
+        check_writable(args.ros2_bag)
+    if not args.lcm:
+        return None
+    if not args.teleop:
+        raise UserError("--lcm publishes the robot's commands: use it with --teleop")
+    from akc_drake.systems.lcm_publishers import open_lcm
+
+    lcm = open_lcm(args.lcm)
+    print(f"LCM: publishing on {lcm.get_lcm_url()}", file=sys.stderr)
+    return lcm
+
+
+def _interop_outputs(args, summary: dict, built, result, out_dir: Path) -> None:
+    """--export files and the --ros2-bag, from the run's poses.npz and (teleop) the diagram's logs."""
+    if args.export:
+        from akc_drake.pipeline.export import export_run
+
+        done = export_run(summary["poses_npz"], args.export, out_dir, frame=args.export_frame, smooth=args.smooth)
+        summary["exports"] = [d["path"] for d in done]
+        print(f"exports: {', '.join(summary['exports'])}")
+    if args.ros2_bag:
+        from akc_drake.io.export.poses import load_poses, world_frame_for
+        from akc_drake.io.export.ros2bag import write_ros2_bag
+        from akc_drake.pipeline.export import teleop_recording, write_teleop_bag
+
+        poses = load_poses(summary["poses_npz"])
+        world = world_frame_for(poses)
+        if args.teleop:
+            counts = write_teleop_bag(args.ros2_bag, [teleop_recording(built, result.log)], world=world)
+        else:
+            counts = write_ros2_bag(args.ros2_bag, poses.t, poses.stages, world=world,
+                                    intrinsics=getattr(built, "intrinsics", None))
+        summary["ros2_bag"] = {"path": str(args.ros2_bag), "messages": counts}
+        print(f"ROS 2 bag: {args.ros2_bag} ({sum(counts.values())} messages on {len(counts)} topics)")
 
 
 def _print_summary(summary: dict, wall: float) -> None:

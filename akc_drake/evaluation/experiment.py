@@ -71,6 +71,8 @@ class ExperimentConfig:
         weight_study: also run Table VII (AKC(KF) with Wa, Wb, Wc).
         calibration_study: also run Tables VIII-IX (AKC(KF) with each calibration; renders the L-pose).
         options: occlusion-filter, filter and COIK settings.
+        body: the rendered operator, "primitive" or "skinned" (``--body``).
+        detector: the 2D detector on the renders, "sim" or "mediapipe" (``--detector``).
     """
 
     motions: tuple[str, ...] = ("I", "II")
@@ -88,6 +90,8 @@ class ExperimentConfig:
     weight_study: bool = True
     calibration_study: bool = True
     options: MethodOptions = field(default_factory=MethodOptions)
+    body: str = "primitive"
+    detector: str = "sim"
 
     def __post_init__(self):
         self.methods = parse_methods(self.methods)
@@ -109,6 +113,10 @@ class ExperimentConfig:
                 raise ValueError(f"motion must be I or II, got {m!r}")
         if not self.motions and self.motion_file is None:
             raise ValueError("no motion to evaluate")
+        if self.body not in ("primitive", "skinned"):
+            raise ValueError(f"--body must be primitive or skinned, got {self.body!r}")
+        if self.detector not in ("sim", "mediapipe"):
+            raise ValueError(f"--detector must be sim or mediapipe, got {self.detector!r}")
 
     @property
     def motion_names(self) -> tuple[str, ...]:

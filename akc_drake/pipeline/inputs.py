@@ -93,9 +93,9 @@ def open_inputs(
                 rate_hz=cfg.camera.rate_hz,
             )
         inputs.motion = motion
-        from akc_drake.core.sim_detector import SimulatedDetector
+        from akc_drake.systems.depth_camera_source import make_detector
 
-        inputs.detector = TimedDetector(SimulatedDetector(seed=cfg.seed))
+        inputs.detector = TimedDetector(make_detector(cfg.detector, cfg.seed, pose_model))
         if dims is None:
             inputs.dims_origin = "simulated operator"
         return inputs

@@ -489,7 +489,13 @@ def add_sim_camera_source(builder: DiagramBuilder, cfg, motion: OperatorMotion |
     # The pipeline's simulated detector reads depth and truth only: skip the label render (~5 ms a frame).
     source = builder.AddSystem(
         DepthCameraSource(
-            motion, intrinsics=K, camera_pose=placement, noise=noise, seed=int(cfg.seed), render_label=False
+            motion,
+            intrinsics=K,
+            camera_pose=placement,
+            noise=noise,
+            seed=int(cfg.seed),
+            render_label=False,
+            body=getattr(cfg, "body", "primitive"),
         )
     )
     return source, K, len(motion.frame_times(K.rate_hz))
