@@ -40,9 +40,35 @@ def atomic_write(path: str | Path, writer: Callable, *, binary: bool = True, fsy
 
 
 def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+    """The process's umask, read without changing it (``os.umask`` can only be read by setting it, which would
+    race with other threads creating files)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:  # Linux >= 4.7
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return _probe_umask()
+
+
+def _probe_umask() -> int:
+    """The umask seen on a file created with mode 0o777 (where /proc/self/status has no ``Umask:`` line)."""
+    fd, probe = -1, ""
+    for _ in range(100):
+        probe = os.path.join(tempfile.gettempdir(), f".akc-umask-{os.getpid()}-{os.urandom(6).hex()}")
+        try:
+            fd = os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o777)
+            break
+        except FileExistsError:
+            continue
+    if fd < 0:
+        return 0o022
+    try:
+        return 0o777 & ~os.fstat(fd).st_mode
+    finally:
+        os.close(fd)
+        os.unlink(probe)
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:

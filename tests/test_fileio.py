@@ -35,3 +35,24 @@ def test_files_get_the_usual_permissions_not_mkstemps_0600(tmp_path):
     finally:
         os.umask(mask)
     assert (p.stat().st_mode & 0o777) == 0o644
+
+
+def test_the_umask_is_read_without_changing_it(tmp_path, monkeypatch):
+    import os
+
+    from akc_drake import fileio
+
+    mask = os.umask(0o027)
+    try:
+        expected = 0o027
+        assert fileio._umask() == expected and fileio._probe_umask() == expected
+
+        def no_umask(_):
+            raise AssertionError("os.umask changes the whole process's umask")
+
+        monkeypatch.setattr(os, "umask", no_umask)
+        p = atomic_write_text(tmp_path / "q.txt", "x")
+        assert (p.stat().st_mode & 0o777) == 0o640
+    finally:
+        monkeypatch.undo()
+        os.umask(mask)

@@ -9,12 +9,15 @@ Layout (see DESIGN.md)::
     DIR/ground_truth.npz     simulated recordings only: ``t`` (T,), ``names`` (J,) fixed-width unicode,
                              ``landmarks`` (T, J, 3) in the camera frame C, metres
 
-Crash safety: every file is written to a temporary name and renamed into place, so a file either
-holds its previous complete content or its new complete content. The frame PNGs are written before
-the frame's row is added to ``timestamps.csv`` (rewritten after each frame), so every listed frame
-is complete. ``ground_truth.npz`` is rewritten every ``checkpoint_every`` frames and on
-:meth:`RecordingWriter.close`; after a crash it may cover fewer frames than ``timestamps.csv``, and
-the reader then gives the later frames no ground truth.
+Crash safety: the frame PNGs, ``intrinsics.json`` and ``ground_truth.npz`` are written to a temporary
+name and renamed into place, so such a file either holds its previous complete content or its new
+complete content. ``timestamps.csv`` gets its header the same way, then one appended row per frame,
+flushed at once (a killed process loses no listed frame) and synced to the disk every ``sync_every``
+rows and on close (a power cut loses at most those rows; a torn last row is ignored by the reader).
+The frame PNGs are written before the frame's row is appended, so every listed frame is complete.
+``ground_truth.npz`` is rewritten every ``checkpoint_every`` frames and on :meth:`RecordingWriter.close`;
+after a crash it may cover fewer frames than ``timestamps.csv``, and the reader then gives the later
+frames no ground truth.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -94,6 +98,7 @@ class RecordingWriter:
         intrinsics: the camera's intrinsics; every frame must be ``width`` x ``height``.
         names: landmark names of the ground truth rows (default: :data:`~akc_drake.core.skeleton.LANDMARKS`).
         checkpoint_every: rewrite ``ground_truth.npz`` every this many frames (and on close).
+        sync_every: sync ``timestamps.csv`` to the disk every this many rows (and on close).
         overwrite: allow writing into a folder that already holds ``timestamps.csv``.
 
     Raises:
@@ -107,6 +112,7 @@ class RecordingWriter:
         *,
         names: Sequence[str] = LANDMARKS,
         checkpoint_every: int = 25,
+        sync_every: int = 30,
         overwrite: bool = False,
     ):
         if not isinstance(intrinsics, CameraIntrinsics):
@@ -117,6 +123,7 @@ class RecordingWriter:
         if not self.names:
             raise ValueError("names must not be empty")
         self.checkpoint_every = max(int(checkpoint_every), 1)
+        self.sync_every = max(int(sync_every), 1)
         if self.out_dir.exists() and not self.out_dir.is_dir():
             raise UserError(f"{self.out_dir}: exists and is not a folder")
         if (self.out_dir / TIMESTAMPS_FILE).exists() and not overwrite:
@@ -140,6 +147,8 @@ class RecordingWriter:
         self._has_truth: bool | None = None
         self._closed = False
         self._truth_written = 0
+        self._timestamps = None  # the open timestamps.csv, appended to (opened at the first frame)
+        self._unsynced = 0
 
     def __len__(self) -> int:
         return len(self._t)
@@ -209,14 +218,27 @@ class RecordingWriter:
         self._has_truth = has
         if has:
             self._truth.append(truth.copy())
-        self._write_timestamps()
+        self._append_timestamp(i, t)
         if has and len(self._truth) - self._truth_written >= self.checkpoint_every:
             self._write_ground_truth()
         return i
 
-    def _write_timestamps(self) -> None:
-        lines = ["index,t"] + [f"{i},{t!r}" for i, t in enumerate(self._t)]
-        _atomic_write_bytes(self.out_dir / TIMESTAMPS_FILE, ("\n".join(lines) + "\n").encode("ascii"))
+    def _append_timestamp(self, i: int, t: float) -> None:
+        """Append frame ``i``'s row to ``timestamps.csv`` (the header first, atomically), flushed at once."""
+        if self._timestamps is None:
+            path = self.out_dir / TIMESTAMPS_FILE
+            _atomic_write_bytes(path, b"index,t\n")
+            self._timestamps = open(path, "a", encoding="ascii", newline="")  # closed in close()
+        self._timestamps.write(f"{i},{t!r}\n")
+        self._timestamps.flush()  # one write(2): a killed process leaves the row whole or absent
+        self._unsynced += 1
+        if self._unsynced >= self.sync_every:
+            self._sync_timestamps()
+
+    def _sync_timestamps(self) -> None:
+        if self._timestamps is not None and self._unsynced:
+            os.fsync(self._timestamps.fileno())
+            self._unsynced = 0
 
     def _write_ground_truth(self) -> None:
         t = np.asarray(self._t[: len(self._truth)], dtype=np.float64)
@@ -233,7 +255,13 @@ class RecordingWriter:
         if self._closed:
             return
         self._closed = True
-        self._write_timestamps()
+        if self._timestamps is None:
+            _atomic_write_bytes(self.out_dir / TIMESTAMPS_FILE, b"index,t\n")  # no frames: the header alone
+        else:
+            try:
+                self._sync_timestamps()
+            finally:
+                self._timestamps.close()
         if self._has_truth:
             self._write_ground_truth()
 
@@ -315,6 +343,9 @@ class RecordingReader:
         except UnicodeDecodeError as e:
             raise UserError(f"{p}: not a text file ({e})") from None
         rows = list(csv.reader(text.splitlines()))
+        # A last row without its newline was torn by a crash (the writer appends whole rows): ignore it
+        # when it does not parse.
+        torn_line = len(rows) if len(rows) > 1 and not text.endswith("\n") else None
         if not rows or [c.strip() for c in rows[0]] != ["index", "t"]:
             got = ",".join(rows[0]) if rows else "an empty file"
             raise UserError(f"{p}: line 1 must be the header 'index,t', got {got!r}")
@@ -322,28 +353,39 @@ class RecordingReader:
         for line_no, row in enumerate(rows[1:], start=2):
             if not row or all(not c.strip() for c in row):
                 continue
-            if len(row) != 2:
-                raise UserError(f"{p}: line {line_no}: expected 'index,t', got {','.join(row)!r}")
-            try:
-                index = int(row[0])
-            except ValueError:
-                raise UserError(f"{p}: line {line_no}: index must be an integer, got {row[0]!r}") from None
-            try:
-                t = float(row[1])
-            except ValueError:
-                raise UserError(f"{p}: line {line_no}: t must be a number, got {row[1]!r}") from None
-            if index != len(ts):
-                raise UserError(
-                    f"{p}: line {line_no}: index must be {len(ts)} (frames count from 0), got {index}"
-                )
-            if not math.isfinite(t):
-                raise UserError(f"{p}: line {line_no}: t must be finite, got {row[1]!r}")
-            if ts and not t > ts[-1]:
-                raise UserError(
-                    f"{p}: line {line_no}: timestamps not increasing (t = {t!r} after {ts[-1]!r})"
-                )
-            ts.append(t)
+            if line_no == torn_line:
+                try:
+                    self._parse_row(p, line_no, row, ts)
+                except UserError:
+                    break
+                continue
+            self._parse_row(p, line_no, row, ts)
         return np.asarray(ts, dtype=np.float64)
+
+    @staticmethod
+    def _parse_row(p: Path, line_no: int, row: list[str], ts: list[float]) -> None:
+        """Check one ``index,t`` row of ``p`` and append its t to ``ts``; UserError naming the line."""
+        if len(row) != 2:
+            raise UserError(f"{p}: line {line_no}: expected 'index,t', got {','.join(row)!r}")
+        try:
+            index = int(row[0])
+        except ValueError:
+            raise UserError(f"{p}: line {line_no}: index must be an integer, got {row[0]!r}") from None
+        try:
+            t = float(row[1])
+        except ValueError:
+            raise UserError(f"{p}: line {line_no}: t must be a number, got {row[1]!r}") from None
+        if index != len(ts):
+            raise UserError(
+                f"{p}: line {line_no}: index must be {len(ts)} (frames count from 0), got {index}"
+            )
+        if not math.isfinite(t):
+            raise UserError(f"{p}: line {line_no}: t must be finite, got {row[1]!r}")
+        if ts and not t > ts[-1]:
+            raise UserError(
+                f"{p}: line {line_no}: timestamps not increasing (t = {t!r} after {ts[-1]!r})"
+            )
+        ts.append(t)
 
     def _load_ground_truth(self):
         p = self.path / GROUND_TRUTH_FILE
