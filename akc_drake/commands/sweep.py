@@ -1,9 +1,10 @@
 """``akc-drake sweep``: the AKC weight and shrink-factor sensitivity study (paper §III-E, Fig. 5, Table VII).
 
-Renders the T-pose (calibration) and each motion once, tunes (w1, w2, w3, s) on each motion's first cycle
-over a grid in ``--jobs`` worker processes, applies every optimum to the other cycles of both motions
-(cross-motion robustness), prints the optimum and Table VII, and writes ``--json`` and ``--out DIR``
-(heatmaps, the s curve, ``sweep.md``, ``tables/table7.csv``).
+Renders the T-pose (calibration) and each motion once (through the render cache), tunes (w1, w2, w3, s) on
+each motion's first cycle over a grid, as tasks on ``--scheduler`` (default: a Dask LocalCluster of ``--jobs``
+workers; ``inprocess``; or ``tcp://HOST:PORT``, a Dask cluster), applies every optimum to the other cycles of
+both motions (cross-motion robustness), prints the optimum and Table VII, and writes ``--json`` and
+``--out DIR`` (heatmaps, the s curve, ``sweep.md``, ``tables/table7.csv``).
 """
 
 from __future__ import annotations
@@ -16,15 +17,8 @@ from akc_drake.errors import UserError
 
 
 def main(args) -> int:
-    from tqdm import tqdm
-
-    from akc_drake.evaluation.experiment import (
-        CYCLE_S,
-        ExperimentConfig,
-        calibrate_session,
-        frames_to_render,
-        render_sessions,
-    )
+    from akc_drake.evaluation.executor import TaskFailure, check_scheduler, open_scheduler, run_tasks
+    from akc_drake.evaluation.experiment import CYCLE_S, ExperimentConfig, calibrate_session
     from akc_drake.evaluation.report import (
         atomic_write_text,
         format_table,
@@ -33,11 +27,13 @@ def main(args) -> int:
         write_tables,
     )
     from akc_drake.evaluation.sweep import SweepGrid, run_sweep, sweep_figures
+    from akc_drake.evaluation.tasks import render_task, session_from_plain, session_specs
 
     if args.cycles < 1:
         raise UserError(f"--cycles must be at least 1, got {args.cycles}")
     if args.jobs < 1:
         raise UserError(f"--jobs must be at least 1, got {args.jobs}")
+    scheduler = check_scheduler(getattr(args, "scheduler", "local"))
     if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
         raise UserError(f"--out {args.out}: exists and is not a folder")
     if args.json and Path(args.json).is_dir():
@@ -49,27 +45,24 @@ def main(args) -> int:
     grid = SweepGrid()
 
     t0 = time.perf_counter()
-    with tqdm(
-        total=frames_to_render(config), desc="render", unit="frame", file=sys.stderr, dynamic_ncols=True
-    ) as bar:
-        sessions = render_sessions(config, lambda n, name: bar.update(n))
-    dims = calibrate_session(sessions["tpose"], "tpose", config.options)
-    motion_sessions = {m: sessions[m] for m in motions}
-    n_keys = len(motions) + (1 if len(motions) > 1 else 0)
-    units = (
-        len(grid.points()) * len(motions) + n_keys * len(grid.s_curve) * len(motions) + n_keys * len(motions)
-    )
-    with tqdm(
-        total=units, desc=f"sweep ({args.jobs} jobs)", unit="run", file=sys.stderr, dynamic_ncols=True
-    ) as bar:
-        result = run_sweep(
-            motion_sessions, dims, grid, jobs=args.jobs, options=config.options, progress=bar.update
+    specs = session_specs(config)
+    names = ["tpose", *motions]
+    with open_scheduler(scheduler, args.jobs) as sched:
+        rendered = run_tasks(
+            render_task, [{"spec": specs[n]} for n in names], scheduler=sched, desc="render", labels=names
         )
+        bad = [r for r in rendered if isinstance(r, TaskFailure)]
+        if bad:
+            raise UserError(f"rendering {bad[0].line()}")
+        sessions = {n: session_from_plain(r["session"]) for n, r in zip(names, rendered, strict=True)}
+        dims = calibrate_session(sessions["tpose"], "tpose", config.options)
+        motion_sessions = {m: sessions[m] for m in motions}
+        workers = sched.workers()
+        print(f"sweep on {scheduler} ({workers} worker{'s' if workers != 1 else ''})", file=sys.stderr)
+        result = run_sweep(motion_sessions, dims, grid, args.jobs, config.options, scheduler=sched, show_progress=True)
     elapsed = time.perf_counter() - t0
 
-    print(
-        "Optimum weights (tuned on the first cycle; objective = L2 norm of the joints' RMS Euclidean errors):"
-    )
+    print("Optimum weights (tuned on the first cycle; objective = L2 norm of the joints' RMS Euclidean errors):")
     for key, best in result.optimum.items():
         label = "Motions I and II" if key == "both" else f"Motion {key}"
         print(
@@ -84,6 +77,8 @@ def main(args) -> int:
         "cycles": args.cycles,
         "seed": args.seed,
         "jobs": args.jobs,
+        "scheduler": scheduler,
+        "workers": result.jobs,
         "rate_hz": config.rate_hz,
         "cycle_s": CYCLE_S,
         "elapsed_s": elapsed,
@@ -96,8 +91,7 @@ def main(args) -> int:
         figs = sweep_figures(result, out / "figures")
         write_tables([result.table7], out)
         lines = [
-            f"- **{k}**: w1={b['w1']:g}, w2={b['w2']:g}, w3={b['w3']:g}, s={b['s']:g} "
-            f"({b['objective_cm']:.2f} cm)"
+            f"- **{k}**: w1={b['w1']:g}, w2={b['w2']:g}, w3={b['w3']:g}, s={b['s']:g} ({b['objective_cm']:.2f} cm)"
             for k, b in result.optimum.items()
         ]
         md = report_markdown(

@@ -7,19 +7,19 @@ Euclidean error against the truth (cm; Table IX's "L2-norm"). "both" is the mean
 objectives. The optimum per motion (and for both) is then applied to every other cycle of its own and
 of the other motion (cross-motion robustness, Table VII).
 
-The KF runs once per motion; the grid is split into chunks evaluated by ``jobs`` worker processes
-(``concurrent.futures.ProcessPoolExecutor`` with the ``spawn`` start method). The workers receive plain
-numpy arrays and floats through the pool's initializer, once, and then only weight tuples; they import
-only the numpy core (no Drake).
+The KF runs once per motion; the grid is split into chunks, each a :func:`sweep_chunk` task on the
+evaluation's executor (:func:`~akc_drake.evaluation.executor.run_tasks`: in this process, on a Dask
+``LocalCluster`` of ``jobs`` workers, or on a Dask cluster at ``tcp://HOST:PORT``). A task receives plain numpy
+arrays and floats (the tuning frames, the dimensions, its weight tuples) and returns an array of objectives; the
+values do not depend on where or in how many chunks they run. Figures are drawn on
+``matplotlib.figure.Figure`` (no pyplot state).
 """
 
 from __future__ import annotations
 
 import math
-import multiprocessing
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -117,47 +117,54 @@ def evaluate_point(point, filtered: np.ndarray, truth: np.ndarray, dims: BodyDim
     return objective_cm(est, truth)
 
 
-# Worker-process globals, set once by the pool initializer.
-_WORKER: dict = {}
+def sweep_chunk(item: dict) -> dict:
+    """Task: the objectives of a chunk of grid points on every motion.
 
+    Args:
+        item: ``{"start": index of the first point, "points": (n, 4), "filtered": [(T, 12, 3) per motion],
+            "truth": [(T, 12, 3) per motion], "dims": [LUA, LLA, RUA, RLA, SW]}`` (plain arrays and floats).
 
-def _init_worker(motions: list[str], filtered: list[np.ndarray], truth: list[np.ndarray], dims: list[float]):
-    _WORKER["motions"] = motions
-    _WORKER["filtered"] = filtered
-    _WORKER["truth"] = truth
-    _WORKER["dims"] = BodyDimensions(*dims)
-
-
-def _eval_chunk(start: int, points: np.ndarray) -> tuple[int, np.ndarray]:
-    """Objectives ``(n_motions, len(points))`` of a chunk of grid points (in a worker)."""
-    out = np.empty((len(_WORKER["motions"]), len(points)))
-    for m in range(len(_WORKER["motions"])):
+    Returns:
+        ``{"start": int, "objective": (n_motions, n) cm}``.
+    """
+    dims = BodyDimensions(*[float(v) for v in item["dims"]])
+    points = np.asarray(item["points"], dtype=float).reshape(-1, 4)
+    out = np.empty((len(item["filtered"]), len(points)))
+    for m, (filtered, truth) in enumerate(zip(item["filtered"], item["truth"], strict=True)):
         for i, p in enumerate(points):
-            out[m, i] = evaluate_point(p, _WORKER["filtered"][m], _WORKER["truth"][m], _WORKER["dims"])
-    return start, out
+            out[m, i] = evaluate_point(p, filtered, truth, dims)
+    return {"start": int(item["start"]), "objective": out}
 
 
 def evaluate_points(
     points: np.ndarray,
     data: dict[str, tuple[np.ndarray, np.ndarray]],
     dims: BodyDimensions,
-    jobs: int = 1,
+    scheduler="inprocess",
     progress: Callable[[int], None] | None = None,
+    chunks: int = 32,
+    show_progress: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Objective of every point on every motion, in ``jobs`` processes.
+    """Objective of every point on every motion, as :func:`sweep_chunk` tasks on ``scheduler``.
 
     Args:
         points: ``(N, 4)`` grid points (w1, w2, w3, s).
         data: ``{motion: (filtered (T, 12, 3), truth (T, 12, 3))}`` of the tuning frames.
         dims: the calibrated body dimensions.
-        jobs: worker processes (1: in this process).
+        scheduler: "inprocess", "local", "tcp://HOST:PORT" or an open
+            :class:`~akc_drake.evaluation.executor.Scheduler`.
         progress: called with the number of points finished (times motions) as chunks complete.
+        chunks: how many tasks the points are split into (the values do not depend on it).
+        show_progress: show a progress bar over the tasks.
 
     Returns:
         ``{motion: (N,) objective in cm}``.
+
+    Raises:
+        RuntimeError: a chunk failed (its one-line reason).
     """
-    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
-        raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
+    from akc_drake.evaluation.executor import TaskFailure, run_tasks
+
     points = np.asarray(points, dtype=float).reshape(-1, 4)
     motions = list(data)
     filtered = [np.ascontiguousarray(data[m][0], dtype=float) for m in motions]
@@ -167,33 +174,31 @@ def evaluate_points(
     result = np.empty((len(motions), N))
     if N == 0:
         return {m: result[i] for i, m in enumerate(motions)}
-    n_chunks = min(N, max(1, jobs * 8))
-    bounds = np.linspace(0, N, n_chunks + 1).astype(int)
-    chunks = [(int(a), points[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
-    if jobs == 1:
-        _init_worker(motions, filtered, truth, dims_list)
-        try:
-            for start, pts in chunks:
-                _, vals = _eval_chunk(start, pts)
-                result[:, start : start + len(pts)] = vals
-                if progress is not None:
-                    progress(len(pts) * len(motions))
-        finally:
-            _WORKER.clear()
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(
-            max_workers=jobs,
-            mp_context=ctx,
-            initializer=_init_worker,
-            initargs=(motions, filtered, truth, dims_list),
-        ) as pool:
-            futures = [pool.submit(_eval_chunk, start, pts) for start, pts in chunks]
-            for fut in as_completed(futures):
-                start, vals = fut.result()
-                result[:, start : start + vals.shape[1]] = vals
-                if progress is not None:
-                    progress(vals.shape[1] * len(motions))
+    bounds = np.linspace(0, N, min(N, max(1, int(chunks))) + 1).astype(int)
+    items = [
+        {"start": int(a), "points": points[a:b], "filtered": filtered, "truth": truth, "dims": dims_list}
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        if b > a
+    ]
+
+    def done(_i, res):
+        if progress is not None and not isinstance(res, TaskFailure):
+            progress(res["objective"].shape[1] * len(motions))
+
+    results = run_tasks(
+        sweep_chunk,
+        items,
+        scheduler=scheduler,
+        desc="sweep",
+        labels=[f"points {it['start']}-{it['start'] + len(it['points']) - 1}" for it in items],
+        progress=show_progress,
+        on_result=done,
+    )
+    for res in results:
+        if isinstance(res, TaskFailure):
+            raise RuntimeError(f"sweep chunk {res.line()}")
+        start, vals = res["start"], res["objective"]
+        result[:, start : start + vals.shape[1]] = vals
     return {m: result[i] for i, m in enumerate(motions)}
 
 
@@ -230,9 +235,7 @@ class SweepResult:
             "grid": self.grid.as_dict(),
             "objective": "L2 norm over elbows and shoulders of the RMS Euclidean error (cm), first cycle",
             "optimum": self.optimum,
-            "s_curve": {
-                k: {"s": list(self.grid.s_curve), "objective_cm": v} for k, v in self.s_curve.items()
-            },
+            "s_curve": {k: {"s": list(self.grid.s_curve), "objective_cm": v} for k, v in self.s_curve.items()},
             "objective_cm": {k: v for k, v in self.objective.items()},
             "cross_motion": self.cross,
             "tuning_frames": self.tuning_frames,
@@ -258,6 +261,9 @@ def run_sweep(
     jobs: int = 1,
     options=None,
     progress: Callable[[int], None] | None = None,
+    *,
+    scheduler=None,
+    show_progress: bool = False,
 ) -> SweepResult:
     """The sensitivity study over the motions in ``sessions``.
 
@@ -265,14 +271,29 @@ def run_sweep(
         sessions: ``{motion: Session}`` (e.g. ``{"I": ..., "II": ...}``); each session renders once.
         dims: calibrated body dimensions (the T-pose calibration).
         grid: the grid (default :class:`SweepGrid`).
-        jobs: worker processes.
+        jobs: worker processes of the local cluster (with ``scheduler`` None: 1 runs in this process,
+            more on a Dask ``LocalCluster`` of ``jobs`` workers).
         options: :class:`~akc_drake.evaluation.methods.MethodOptions` for the occlusion filter and KF.
         progress: called with units done (one unit = one weight set on one motion's tuning frames, or one
             full-session AKC run of the cross-motion study).
+        scheduler: "inprocess", "local", "tcp://HOST:PORT" or an open
+            :class:`~akc_drake.evaluation.executor.Scheduler` (the grid's chunks run there).
+        show_progress: show progress bars over the grid's tasks.
 
     Returns:
         The :class:`SweepResult`.
     """
+    from akc_drake.evaluation.executor import Scheduler, open_scheduler
+
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
+        raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
+    if scheduler is None:
+        scheduler = "inprocess" if jobs == 1 else "local"
+    if not isinstance(scheduler, Scheduler):
+        with open_scheduler(scheduler, int(jobs)) as sched:
+            return run_sweep(
+                sessions, dims, grid, jobs, options, progress, scheduler=sched, show_progress=show_progress
+            )
     from akc_drake.evaluation.methods import MethodRunner
 
     t0 = time.perf_counter()
@@ -288,7 +309,7 @@ def run_sweep(
         tuning[name] = (filtered[sl], s.truth[sl])
 
     points = grid.points()
-    flat = evaluate_points(points, tuning, dims, jobs, progress)
+    flat = evaluate_points(points, tuning, dims, scheduler, progress, show_progress=show_progress)
     objective = {m: v.reshape(grid.shape) for m, v in flat.items()}
     if len(objective) > 1:
         objective["both"] = np.mean([objective[m] for m in sessions], axis=0)
@@ -302,7 +323,9 @@ def run_sweep(
         for key in objective:
             i1, i2, i3 = best_w[key]
             curve_pts += [(grid.w1[i1], grid.w2[i2], grid.w3[i3], s) for s in grid.s_curve]
-        curve_vals = evaluate_points(np.array(curve_pts), tuning, dims, jobs, progress)
+        curve_vals = evaluate_points(
+            np.array(curve_pts), tuning, dims, scheduler, progress, chunks=4, show_progress=show_progress
+        )
         n = len(grid.s_curve)
         for k_i, key in enumerate(objective):
             rows = slice(k_i * n, (k_i + 1) * n)
@@ -330,7 +353,7 @@ def run_sweep(
         objective,
         s_curve,
         optimum,
-        jobs=jobs,
+        jobs=scheduler.workers(),
         dims=dims,
         tuning_frames={m: int(tuning[m][0].shape[0]) for m in sessions},
     )
@@ -363,9 +386,7 @@ def cross_motion(
                 progress(1)
             for joint in ("shoulder", "elbow"):
                 j = INDEX[f"left_{joint}"]
-                per = np.array(
-                    [metrics.rmse_per_axis(est[sl, j], s.truth[sl, j])[0] for sl in cycles], dtype=float
-                )
+                per = np.array([metrics.rmse_per_axis(est[sl, j], s.truth[sl, j])[0] for sl in cycles], dtype=float)
                 with np.errstate(all="ignore"):
                     mean = np.nanmean(per, axis=0) * 100.0
                     std = np.nanstd(per, axis=0) * 100.0
@@ -422,10 +443,60 @@ def cross_motion_table(rows: list[dict], motions: list[str]):
     return t
 
 
+def _save_png(fig, path) -> Path:
+    from akc_drake.fileio import atomic_write
+
+    return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
+
+
+def plot_heatmaps(panels: list[dict], path, title: str) -> Path:
+    """Heatmaps of the objective over two weights (the paper's Fig. 5 a-c), written as a PNG.
+
+    Args:
+        panels: dicts with ``title``, ``x`` values, ``y`` values, ``z`` ``(len(y), len(x))``, ``xlabel``,
+            ``ylabel`` and optionally ``best`` ``(x, y)`` to mark.
+        path: the PNG to write.
+        title: the figure's title.
+    """
+    from matplotlib.figure import Figure
+
+    n = len(panels)
+    fig = Figure(figsize=(4.2 * n, 3.8), layout="tight")
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    for ax, p in zip(axes, panels, strict=True):
+        z = np.asarray(p["z"], dtype=float)
+        im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(len(p["x"])), [f"{v:g}" for v in p["x"]], fontsize=7)
+        ax.set_yticks(range(len(p["y"])), [f"{v:g}" for v in p["y"]], fontsize=7)
+        ax.set_xlabel(p["xlabel"])
+        ax.set_ylabel(p["ylabel"])
+        ax.set_title(p["title"], fontsize=9)
+        if p.get("best") is not None:
+            bx, by = p["best"]
+            ax.plot(list(p["x"]).index(bx), list(p["y"]).index(by), marker="*", color="red", ms=12)
+        fig.colorbar(im, ax=ax, label="L2 norm of joint errors (cm)")
+    fig.suptitle(title)
+    return _save_png(fig, path)
+
+
+def plot_curves(x, curves: dict[str, np.ndarray], path, xlabel: str, ylabel: str, title: str) -> Path:
+    """Curves over ``x`` (the paper's Fig. 5 d, the shrink-factor curve), written as a PNG."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 3.8), layout="tight")
+    ax = fig.subplots()
+    for label, y in curves.items():
+        ax.plot(x, y, marker="o", label=label)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return _save_png(fig, path)
+
+
 def sweep_figures(result: SweepResult, out_dir) -> list[Path]:
     """Heatmaps through each optimum (Fig. 5 a-c) and the s curve (Fig. 5 d) as PNG in ``out_dir``."""
-    from akc_drake.evaluation.report import plot_curves, plot_heatmaps
-
     out_dir = Path(out_dir)
     g = result.grid
     paths = []
@@ -470,9 +541,7 @@ def sweep_figures(result: SweepResult, out_dir) -> list[Path]:
             )
         )
     if result.s_curve:
-        curves = {
-            ("Motions I and II" if k == "both" else f"Motion {k}"): v for k, v in result.s_curve.items()
-        }
+        curves = {("Motions I and II" if k == "both" else f"Motion {k}"): v for k, v in result.s_curve.items()}
         paths.append(
             plot_curves(
                 np.array(g.s_curve),
