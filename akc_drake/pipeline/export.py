@@ -13,6 +13,7 @@ Units: CSV metres, TRC and C3D millimetres, BVH centimetres.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -179,5 +180,108 @@ def rts_report(poses: PoseSet, dims: BodyDimensions | None = None) -> dict | Non
     return rts_gain(poses.stages["truth"], poses.stages, smoothed)
 
 
-__all__ = ["FORMATS", "PoseSet", "load_poses", "export_poses", "export_bag", "rts_report", "write_points",
-           "stage_points", "check_format"]
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Hooks for run / evaluate / demo
+
+
+def export_run(npz_path, formats, out_dir, *, frame: str = "world", smooth: str = "none",
+               stages=("raw", "filtered", "corrected"), dims: BodyDimensions | None = None) -> list[dict]:
+    """``run/evaluate --export FMT[,FMT]``: each of ``stages`` of a ``poses.npz`` as ``out_dir/<stage>.<ext>``."""
+    fmts = [check_format(f) for f in str(formats).split(",") if f.strip()] if isinstance(formats, str) else [
+        check_format(f) for f in formats]
+    if not fmts:
+        raise UserError("--export: give at least one format (bvh, trc, c3d, csv)")
+    poses = load_poses(npz_path)
+    out = []
+    for fmt in fmts:
+        for stage in stages:
+            if stage in poses.stages:
+                out.append(export_poses(poses, fmt, Path(out_dir) / f"{stage}{FORMATS[fmt]}", stage=stage,
+                                        frame=frame, smooth=smooth, dims=dims))
+    return out
+
+
+@dataclass
+class TeleopRecording:
+    """One teleop run's arrays for a ROS 2 bag (:func:`teleop_recording`).
+
+    Attributes:
+        t: ``(T,)`` camera frame times (s); skeletons: stage -> ``(T, 12, 3)`` in C;
+        commands: the arm joint commands at the IK rate; targets: ``{frame: (t, (N, 4, 4))}`` wrist targets in
+        the robot's torso frame.
+    """
+
+    t: np.ndarray
+    skeletons: dict
+    commands: object
+    targets: dict
+
+
+def teleop_recording(td, log=None, num_frames: int | None = None) -> TeleopRecording:
+    """The arrays a built and simulated TeleopDiagram logged: skeletons (stage loggers), arm commands and wrist
+    targets (its TeleopMonitor's history, ``keep_history=True``).
+
+    Args:
+        td: a :class:`~akc_drake.diagrams.TeleopDiagram` after its simulation.
+        log: its :class:`~akc_drake.diagrams.MocapLog` (default: read from the loggers with the last context).
+        num_frames: frames to read when ``log`` is None.
+    """
+    from akc_drake.diagrams import camera_period, read_logs
+    from akc_drake.io.export.ros2bag import JointSeries
+    from akc_drake.robot.model import arm_joint_names
+
+    if log is None:
+        log = read_logs(td.loggers, td._last_context, camera_period(td.config), num_frames)
+    skeletons = {"raw": log.raw, "filtered": log.estimated, "corrected": log.corrected}
+    hist = td.monitor.history_arrays()
+    t = np.asarray(hist.get("t", []), dtype=float)
+    if len(t) == 0:
+        raise ValueError("the teleop monitor kept no history (keep_history=False)")
+    names = arm_joint_names("left") + arm_joint_names("right")
+    q = np.concatenate([np.asarray(hist["q_left"]), np.asarray(hist["q_right"])], axis=1)
+    targets = {f"{s}_wrist_target": (t, np.asarray(hist[f"target_{s}"])) for s in ("left", "right")}
+    return TeleopRecording(np.asarray(log.t, dtype=float), skeletons, JointSeries(t, names, q), targets)
+
+
+def write_teleop_bag(path, recordings, *, world: WorldFrame | None = None, gap_s: float = 1.0,
+                     start_ns: int | None = None) -> dict[str, int]:
+    """``run/demo --ros2-bag``: teleop runs one after the other (``gap_s`` apart) in one MCAP bag.
+
+    Args:
+        path: the ``.mcap`` file.
+        recordings: :class:`TeleopRecording`\\ s (e.g. one per motion).
+        world: the world frame (default: estimated from the first recording's filtered skeleton).
+    """
+    from akc_drake.core.world_frame import estimate_world_frame
+    from akc_drake.io.export.ros2bag import JointSeries, write_ros2_bag
+
+    recs = list(recordings)
+    if not recs:
+        raise ValueError("write_teleop_bag: no recording")
+    if world is None:
+        try:
+            world = estimate_world_frame(recs[0].skeletons["filtered"])
+        except ValueError:
+            world = WorldFrame.camera()
+    offset, ts, sk, qt, qv, tg = 0.0, [], {}, [], [], {}
+    for r in recs:
+        ts.append(r.t + offset)
+        for k, v in r.skeletons.items():
+            sk.setdefault(k, []).append(v)
+        qt.append(r.commands.t + offset)
+        qv.append(r.commands.position)
+        for k, (tt, X) in r.targets.items():
+            tg.setdefault(k, ([], []))
+            tg[k][0].append(tt + offset)
+            tg[k][1].append(X)
+        offset = max(float(ts[-1][-1]), float(qt[-1][-1])) + gap_s
+    cmds = JointSeries(np.concatenate(qt), recs[0].commands.names, np.concatenate(qv))
+    return write_ros2_bag(path, np.concatenate(ts), {k: np.concatenate(v) for k, v in sk.items()}, world=world,
+                          joint_commands=cmds, robot_frames={k: (np.concatenate(a), np.concatenate(b))
+                                                             for k, (a, b) in tg.items()}, start_ns=start_ns)
+
+
+__all__ = ["FORMATS", "PoseSet", "TeleopRecording", "check_format", "export_bag", "export_poses", "export_run",
+           "load_poses", "rts_report", "stage_points", "teleop_recording", "write_points", "write_teleop_bag"]

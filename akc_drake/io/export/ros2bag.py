@@ -13,6 +13,8 @@ topic                           type                           content
                                                                ``operator_torso -> operator_{left,right}_wrist``
                                                                (the control frames of eq. 17, from the corrected
                                                                skeleton)
+``/tf``                         tf2_msgs/TFMessage             with a robot: ``robot_torso ->``
+                                                               ``{left,right}_wrist_target`` (the IK's targets)
 ``/robot/joint_commands``       sensor_msgs/JointState         the robot's commanded joint positions (teleop)
 ``/robot/joint_states``         sensor_msgs/JointState         the robot's measured positions and velocities
 ``/camera/color/camera_info``   sensor_msgs/CameraInfo         per frame, when the intrinsics are known
@@ -59,7 +61,7 @@ STAGE_COLOURS = {
     "corrected": (0.2, 0.4, 0.95, 1.0),
     "truth": (0.6, 0.6, 0.6, 1.0),
 }
-WORLD, CAMERA, TORSO = "world", "camera", "operator_torso"
+WORLD, CAMERA, TORSO, ROBOT_TORSO = "world", "camera", "operator_torso", "robot_torso"
 
 
 @dataclass
@@ -182,6 +184,7 @@ def _joint_state(msgs: _Msgs, ns: int, names, q, v=None):
 
 
 def _camera_info(msgs: _Msgs, ns: int, K) -> object:
+    """CameraInfo of our CameraIntrinsics (or any object with the same fields)."""
     fx, fy, cx, cy = float(K.fx), float(K.fy), float(K.cx), float(K.cy)
     return msgs.CameraInfo(
         header=msgs.header(ns, CAMERA),
@@ -207,6 +210,7 @@ def write_ros2_bag(
     frame: str = "world",
     joint_commands: JointSeries | None = None,
     joint_states: JointSeries | None = None,
+    robot_frames: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
     intrinsics=None,
     images: Iterable[np.ndarray] | None = None,
     start_ns: int | None = None,
@@ -220,6 +224,8 @@ def write_ros2_bag(
         world: the world frame (``world -> camera`` on ``/tf_static``); None: identity.
         frame: ``"world"`` (markers in the world frame) or ``"camera"`` (markers in the camera frame).
         joint_commands, joint_states: the robot's commands and state, when there is a robot.
+        robot_frames: ``{child frame: (t (N,), X (N, 4, 4))}`` poses in the robot's torso frame (the mapped wrist
+            targets), written on ``/tf`` with parent ``robot_torso`` (non-finite poses are skipped).
         intrinsics: a :class:`~akc_drake.core.camera.CameraIntrinsics` for ``camera_info``.
         images: per frame ``(H, W, 3)`` uint8 RGB images for ``image_raw`` (optional).
         start_ns: the session start, ns since the epoch (default: now).
@@ -281,6 +287,12 @@ def write_ros2_bag(
                     ns = start + int(round(tk * 1e9))
                     v = None if series.velocity is None else series.velocity[k]
                     put(topic, _joint_state(msgs, ns, series.names, series.position[k], v), ns)
+            for child, (tr, Xs) in (robot_frames or {}).items():
+                for tk, X in zip(np.asarray(tr, dtype=float), np.asarray(Xs, dtype=float), strict=True):
+                    if np.all(np.isfinite(X)):
+                        ns = start + int(round(tk * 1e9))
+                        put("/tf", msgs.TFMessage(transforms=[msgs.transform(ns, ROBOT_TORSO, child, X[:3, :3],
+                                                                             X[:3, 3])]), ns)
             if intrinsics is not None:
                 for ns in stamps:
                     put("/camera/color/camera_info", _camera_info(msgs, ns, intrinsics), ns)
