@@ -128,13 +128,24 @@ def main(args) -> int:
     for table in ev.tables:
         print(format_table(table))
         print()
+    from akc_drake.evaluation.detector_metrics import detector_report, format_report
+
+    det = {name: detector_report(run.session) for name, run in ev.runs.items()}
+    det_md = "".join(format_report(f"motion {name}", rep) + "\n" for name, rep in det.items())
+    print(det_md)
     # JSON first (small, what scripts read), then the folder.
     if args.json:
-        write_json(args.json, ev.to_json())
+        data = ev.to_json()
+        data["detector_metrics"] = {"body": config.body, "detector": config.detector, "motions": det}
+        write_json(args.json, data)
         print(f"wrote {args.json}")
     if args.out:
+        from akc_drake.fileio import atomic_write_text
+
         files = write_evaluation(ev, args.out)
-        print(f"wrote {args.out}/report.md and {len(files) - 1} more files")
+        head = f"# The 2D detector ({config.detector}) on the {config.body} operator, against ground truth\n\n"
+        atomic_write_text(Path(args.out) / "detector.md", head + det_md)
+        print(f"wrote {args.out}/report.md, detector.md and {len(files) - 1} more files")
     print(f"calibration {ev.render_s:.1f} s, clips (render + methods) {ev.elapsed_s:.1f} s")
     if ev.failures:
         print(f"{len(ev.failures)} clip(s) failed, left out of the tables:")

@@ -1,0 +1,141 @@
+"""How good is the 2D detector on the rendered operator, measured against the exact ground truth.
+
+For a session (:class:`~akc_drake.evaluation.session.Session`: detected pixels, visibility, raw 3D landmarks
+and the true joint centres in the camera frame):
+
+* **detection rate**: the share of frames where the detector found a person;
+* **2D pixel error** per landmark: distance between the detected pixel and the projected true joint centre,
+  separately for frames where the joint is visible and where it is occluded;
+* **flags**: how often an occluded joint is flagged by ``visibility < threshold`` and how often by the
+  proximity check (the paper's 5 %: a proximal joint whose pixel lies within ``proximity`` of the image
+  diagonal from a distal joint of the same arm that is nearer the camera), and how often a visible joint is
+  flagged by mistake;
+* **depth error**: the depth read at the detected pixel (the raw landmark's z) minus the true z.
+
+Occlusion ground truth (:func:`true_occlusion`) is geometric and independent of the detector: a landmark is
+occluded when a limb segment of either arm (upper arm, forearm, hand; capsules of the radii below) covers its
+projected pixel and lies more than ``margin_m`` in front of the landmark's own surface.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from akc_drake.core.camera import CameraIntrinsics
+from akc_drake.core.skeleton import INDEX, LANDMARKS, NUM_LANDMARKS, SIDES
+
+#: Capsule radii of the occluding segments (metres): upper arm, forearm, hand.
+SEGMENT_RADIUS_M = (0.045, 0.038, 0.040)
+#: Radius of the body around each landmark kind (its surface is this much nearer than its centre).
+LANDMARK_RADIUS_M = {"shoulder": 0.055, "elbow": 0.045, "wrist": 0.032, "pinky": 0.015, "index": 0.015, "hip": 0.09}
+_PROXIMAL = {"shoulder": ("elbow", "wrist"), "elbow": ("wrist",)}
+
+
+def _project(P: np.ndarray, K: CameraIntrinsics) -> np.ndarray:
+    z = P[..., 2]
+    with np.errstate(all="ignore"):
+        return np.stack([K.fx * P[..., 0] / z + K.cx, K.fy * P[..., 1] / z + K.cy], axis=-1)
+
+
+def true_occlusion(truth: np.ndarray, K: CameraIntrinsics, margin_m: float = 0.04, samples: int = 24):
+    """``(T, 12)`` bool: which true landmarks an arm segment hides from the camera (see the module doc)."""
+    truth = np.asarray(truth, float)
+    T = truth.shape[0]
+    occ = np.zeros((T, NUM_LANDMARKS), dtype=bool)
+    uv = _project(truth, K)
+    s = np.linspace(0.0, 1.0, samples)
+    for side in SIDES:
+        S, E, W = (truth[:, INDEX[f"{side}_{n}"]] for n in ("shoulder", "elbow", "wrist"))
+        tip = W + 2.0 * (0.5 * (truth[:, INDEX[f"{side}_index"]] + truth[:, INDEX[f"{side}_pinky"]]) - W)
+        for (a, b), r in zip(((S, E), (E, W), (W, tip)), SEGMENT_RADIUS_M, strict=True):
+            pts = a[:, None] + s[None, :, None] * (b - a)[:, None]  # (T, n, 3)
+            puv = _project(pts, K)
+            r_px = K.fx * r / pts[..., 2]
+            for j, name in enumerate(LANDMARKS):
+                rad = LANDMARK_RADIUS_M[name.split("_", 1)[1]]
+                d = np.linalg.norm(puv - uv[:, j][:, None], axis=2)
+                front = pts[..., 2] + r < truth[:, j, 2][:, None] - rad - margin_m
+                occ[:, j] |= np.any((d < r_px) & front, axis=1)
+    return occ
+
+
+def proximity_flags(pixels: np.ndarray, raw_z: np.ndarray, K: CameraIntrinsics, proximity: float = 0.05):
+    """``(T, 12)`` bool: the paper's proximity check on the detected pixels (distal joint nearer the camera)."""
+    flags = np.zeros(pixels.shape[:2], dtype=bool)
+    limit = proximity * float(np.hypot(K.width, K.height))
+    for side in SIDES:
+        for prox, distal in _PROXIMAL.items():
+            i = INDEX[f"{side}_{prox}"]
+            for dname in distal:
+                k = INDEX[f"{side}_{dname}"]
+                d = np.linalg.norm(pixels[:, i] - pixels[:, k], axis=1)
+                with np.errstate(invalid="ignore"):
+                    flags[:, i] |= (d < limit) & (raw_z[:, k] < raw_z[:, i])
+    return flags
+
+
+def detector_report(session, visibility_threshold: float = 0.7, proximity: float = 0.05) -> dict:
+    """The detector's figures on one session (plain JSON types; pixel errors in px, depth errors in cm).
+
+    Returns:
+        ``{"frames", "detection_rate", "joints": {name: {"visible": {...}, "occluded": {...}}}}`` where each
+        part holds ``frames``, ``px_median``, ``px_p90``, ``depth_err_cm_median`` (|raw z - true z|) and
+        ``flag_visibility`` / ``flag_proximity`` / ``flag_any`` (shares of those frames flagged).
+    """
+    K = session.intrinsics
+    truth, pix, vis = np.asarray(session.truth), np.asarray(session.pixels), np.asarray(session.visibility)
+    raw = np.asarray(session.raw)
+    found = np.isfinite(pix).any(axis=(1, 2))
+    err = np.linalg.norm(pix - _project(truth, K), axis=2)
+    occ = true_occlusion(truth, K)
+    f_vis = vis < visibility_threshold
+    f_prox = proximity_flags(pix, raw[..., 2], K, proximity)
+    dz = np.abs(raw[..., 2] - truth[..., 2]) * 100.0
+
+    def stats(mask: np.ndarray) -> dict:
+        m = mask & found
+        n = int(m.sum())
+
+        def q(a, p):
+            v = a[m & np.isfinite(a)]
+            return round(float(np.percentile(v, p)), 2) if v.size else None
+
+        return {
+            "frames": n,
+            "px_median": q(err_j, 50),
+            "px_p90": q(err_j, 90),
+            "depth_err_cm_median": q(dz_j, 50),
+            "flag_visibility": round(float(fv_j[m].mean()), 3) if n else None,
+            "flag_proximity": round(float(fp_j[m].mean()), 3) if n else None,
+            "flag_any": round(float((fv_j | fp_j)[m].mean()), 3) if n else None,
+        }
+
+    joints = {}
+    for j, name in enumerate(LANDMARKS):
+        err_j, dz_j, fv_j, fp_j = err[:, j], dz[:, j], f_vis[:, j], f_prox[:, j]
+        joints[name] = {"visible": stats(~occ[:, j]), "occluded": stats(occ[:, j])}
+    return {"frames": int(len(found)), "detection_rate": round(float(found.mean()), 4), "joints": joints}
+
+
+def format_report(name: str, rep: dict) -> str:
+    """A Markdown table of :func:`detector_report` for one session."""
+    lines = [
+        f"Detector on {name}: person found in {100 * rep['detection_rate']:.1f} % of {rep['frames']} frames",
+        "",
+        "| landmark | frames vis/occ | px median vis / occ | px p90 vis / occ | |dz| cm vis / occ "
+        "| occluded flagged: vis<0.7 / proximity / either | visible flagged (false) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+
+    def f(x, fmt="{:.1f}"):
+        return "-" if x is None else fmt.format(x)
+
+    for name_j, r in rep["joints"].items():
+        v, o = r["visible"], r["occluded"]
+        lines.append(
+            f"| {name_j} | {v['frames']}/{o['frames']} | {f(v['px_median'])} / {f(o['px_median'])} "
+            f"| {f(v['px_p90'])} / {f(o['px_p90'])} | {f(v['depth_err_cm_median'])} / {f(o['depth_err_cm_median'])} "
+            f"| {f(o['flag_visibility'], '{:.0%}')} / {f(o['flag_proximity'], '{:.0%}')} / "
+            f"{f(o['flag_any'], '{:.0%}')} | {f(v['flag_any'], '{:.0%}')} |"
+        )
+    return "\n".join(lines) + "\n"
