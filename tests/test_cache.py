@@ -62,8 +62,10 @@ def test_second_call_does_not_render_and_a_changed_spec_does(tmp_path):
         render=r,
     )
     C.cached_render(spec(detector="mediapipe"), cache=tmp_path, render=r)
-    assert len(r.calls) == 5
-    assert len({C.spec_key(s) for s in r.calls}) == 5
+    C.cached_render(spec(options={"surface_offset_m": 0.0}), cache=tmp_path, render=r)
+    assert len(r.calls) == 6
+    assert len({C.spec_key(s) for s in r.calls}) == 6
+    assert C._render_kwargs(spec(options={"surface_offset_m": 0.0})) == {"surface_offset_m": 0.0}
     # Each entry is the session plus its spec, under renders/<k[:2]>/<k>.npz.
     key = C.spec_key(spec())
     assert (tmp_path / "renders" / key[:2] / f"{key}.npz").is_file()

@@ -111,6 +111,7 @@ def render_spec(
     body: str = "primitive",
     detector: str = "sim",
     camera: str = "default",
+    options: dict | None = None,
 ) -> dict:
     """The plain-JSON description of one rendered session.
 
@@ -124,6 +125,7 @@ def render_spec(
         cycle_s: the motion's cycle period (None: cycles from the motion, or none).
         frames: keep only the first ``frames`` frames (calibration holds).
         body, detector, camera: the operator's body, the detector and the camera placement by name.
+        options: more keyword arguments of ``render_session`` (plain values, e.g. ``surface_offset_m``).
 
     Raises:
         ValueError: an unknown motion kind; UserError (from reading) a missing motion file.
@@ -155,6 +157,7 @@ def render_spec(
         "body": str(body),
         "detector": str(detector),
         "camera": str(camera),
+        "options": json.loads(json.dumps(options or {}, sort_keys=True)),
     }
 
 
@@ -228,6 +231,7 @@ def _render_kwargs(spec: dict) -> dict:
         default = {"body": "primitive", "detector": "sim", "camera": "default"}[field]
         if spec.get(field, default) != default:
             kwargs[field] = spec[field]
+    kwargs.update(spec.get("options") or {})
     if kwargs:
         import inspect
 

@@ -158,6 +158,7 @@ def session_specs(config) -> dict[str, dict]:
     for extra in ("body", "detector"):
         if hasattr(config, extra):
             common[extra] = getattr(config, extra)
+    common["options"] = render_options(config)
     calib_s = config.calibration_frames / config.rate_hz
     specs = {}
     for pose in ["tpose"] + (["lpose"] if config.calibration_study else []):
@@ -175,6 +176,18 @@ def session_specs(config) -> dict[str, dict]:
                 name, {"kind": "builtin", "name": name, "cycles": config.cycles}, cycle_s=CYCLE_S, **common
             )
     return specs
+
+
+def render_options(config) -> dict:
+    """Extra ``render_session`` keyword arguments the config implies (its protocol's, when it has one)."""
+    protocol = getattr(config, "protocol", None)
+    if protocol is None:
+        return {}
+    try:
+        from akc_drake.evaluation.protocol import render_kwargs
+    except ImportError:
+        return {}
+    return dict(render_kwargs(protocol))
 
 
 # ============================================================================================ tasks
