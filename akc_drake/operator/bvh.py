@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from akc_drake.errors import UserError
+from akc_drake.fileio import atomic_write_text
 
 #: Metres per length unit.
 UNIT_TO_METRES: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
@@ -633,6 +634,4 @@ def write_bvh(path: str | os.PathLike, motion: BVHMotion, *, precision: int | No
         motion: the motion.
         precision: decimals for the values; ``None`` (default) round-trips exactly.
     """
-    text = format_bvh(motion, precision=precision)
-    with open(os.fspath(path), "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(text)
+    atomic_write_text(os.fspath(path), format_bvh(motion, precision=precision))
