@@ -88,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, metavar="S")
     p.add_argument("--methods", default=",".join(METHODS), help="comma-separated, from: " + ", ".join(METHODS))
     p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"))
+    p.add_argument("--export", metavar="FMT[,FMT]", help="also write every method's skeleton to --out/exports as "
+                   "bvh | trc | c3d | csv, and the RTS smoother's gain (rts_gain.json)")
+    p.add_argument("--export-frame", default="world", choices=("world", "camera"), help="frame of --export files")
     p.add_argument("--out", metavar="DIR", help="write report.md, CSV tables and PNG figures here")
     p.add_argument("--json", metavar="FILE")
     p.add_argument("--width", type=int, default=640, help=argparse.SUPPRESS)

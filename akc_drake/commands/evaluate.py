@@ -108,11 +108,34 @@ def run(config, progress_bar: bool = True, scheduler: str = "local", n_workers: 
     )
 
 
+def _export(ev, args) -> None:
+    """--export: every method's skeleton per motion, and the RTS smoother's gain (exports/rts_gain.json)."""
+    from akc_drake.fileio import write_json as write_plain_json
+    from akc_drake.pipeline.export import export_evaluation
+
+    out = Path(args.out) / "exports"
+    exp = export_evaluation(ev, args.export, out, frame=args.export_frame)
+    write_plain_json(out / "rts_gain.json", exp["rts_gain"])
+    print(f"wrote {len(exp['files'])} exports to {out}")
+    for motion, gain in exp["rts_gain"].items():
+        for stage, g in gain.items():
+            print(f"  motion {motion}, {stage}: RMSE forward {g['forward_rmse_cm']:.2f} cm, "
+                  f"RTS {g['rts_rmse_cm']:.2f} cm")
+
+
 def main(args) -> int:
     from akc_drake.evaluation.report import format_table, write_evaluation, write_json
 
     config = build_config(args)
     _check_outputs(args)
+    if getattr(args, "export", None):
+        from akc_drake.pipeline.export import check_format
+
+        if not args.out:
+            raise UserError("--export writes into --out DIR/exports: give --out")
+        for f in args.export.split(","):
+            if f.strip():
+                check_format(f)
     if config.motion_file:
         # Read the motion file now: a bad file is reported in one line before the calibration renders.
         from akc_drake.operator.retarget import load_motion_file
@@ -146,6 +169,8 @@ def main(args) -> int:
         head = f"# The 2D detector ({config.detector}) on the {config.body} operator, against ground truth\n\n"
         atomic_write_text(Path(args.out) / "detector.md", head + det_md)
         print(f"wrote {args.out}/report.md, detector.md and {len(files) - 1} more files")
+    if getattr(args, "export", None):
+        _export(ev, args)
     print(f"calibration {ev.render_s:.1f} s, clips (render + methods) {ev.elapsed_s:.1f} s")
     if ev.failures:
         print(f"{len(ev.failures)} clip(s) failed, left out of the tables:")

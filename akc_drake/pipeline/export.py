@@ -283,5 +283,63 @@ def write_teleop_bag(path, recordings, *, world: WorldFrame | None = None, gap_s
                                                              for k, (a, b) in tg.items()}, start_ns=start_ns)
 
 
-__all__ = ["FORMATS", "PoseSet", "TeleopRecording", "check_format", "export_bag", "export_poses", "export_run",
+def _file_stem(method: str) -> str:
+    """``AKC(KF)`` -> ``AKC_KF``: a method name as a file name."""
+    return method.replace("(", "_").replace(")", "").replace("+", "plus").replace(",", "_")
+
+
+def export_evaluation(ev, formats, out_dir, *, frame: str = "world") -> dict:
+    """``evaluate --export FMT[,FMT]``: each method's skeleton per motion as ``out_dir/<motion>/<method>.<ext>``
+    (plus ``raw`` and ``truth``), and the RTS smoother's accuracy gain over the forward KF.
+
+    Args:
+        ev: the :class:`~akc_drake.evaluation.experiment.Evaluation`.
+        formats: comma-separated formats (bvh, trc, c3d, csv).
+        out_dir: the export folder.
+        frame: ``world`` (estimated per motion from the occlusion filter's output) or ``camera``.
+
+    Returns:
+        ``{"files": [...], "rts_gain": {motion: rts_gain(...)}}``: the gain on the evaluated frames (the first
+        cycle excluded as in the tables) of RTS(KF) over KF and of AKC on RTS(KF) over AKC(KF).
+    """
+    from akc_drake.core.akc import WEIGHT_PRESETS
+    from akc_drake.core.kalman import KFConfig
+    from akc_drake.core.occlusion import occlusion_filter
+    from akc_drake.core.smoother import rts_gain, smoothed_stages
+
+    fmts = [check_format(f) for f in str(formats).split(",") if f.strip()]
+    if not fmts:
+        raise UserError("--export: give at least one format (bvh, trc, c3d, csv)")
+    cfg = ev.config
+    opts = cfg.options
+    files, gains = [], {}
+    for motion, run in ev.runs.items():
+        s = run.session
+        accepted = np.stack([
+            np.asarray(occlusion_filter(s.raw[k], s.pixels[k], s.visibility[k], s.intrinsics.width,
+                                        visibility_threshold=opts.visibility_threshold,
+                                        proximity=opts.proximity)[0]) for k in range(s.num_frames)])
+        base = PoseSet(t=np.asarray(s.t, dtype=float), stages={"accepted": accepted}, dims=ev.dims, source=motion)
+        world = world_frame_for(base, frame=frame)
+        outputs = {"raw": s.raw, "truth": s.truth, **{m: r.estimates for m, r in run.methods.items()}}
+        for fmt in fmts:
+            for name, P in outputs.items():
+                path = Path(out_dir) / str(motion) / f"{_file_stem(name)}{FORMATS[fmt]}"
+                check_writable(path)
+                files.append(str(write_points(fmt, path, base.t, P, world, rate_hz=base.rate_hz,
+                                              dims=ev.dims if fmt == "bvh" else None)))
+        if "KF" in run.methods:
+            mask = s.evaluation_mask(cfg.exclude_first_cycle)
+            truth = np.where(mask[:, None, None], s.truth, np.nan)
+            forward = {"filtered": run.methods["KF"].estimates}
+            if "AKC(KF)" in run.methods:
+                forward["corrected"] = run.methods["AKC(KF)"].estimates
+            smoothed = smoothed_stages(accepted, 1.0 / base.rate_hz, ev.dims, opts.kf_config or KFConfig(),
+                                       WEIGHT_PRESETS[cfg.weights])
+            gains[str(motion)] = rts_gain(truth, forward, smoothed)
+    return {"files": files, "rts_gain": gains}
+
+
+__all__ = ["FORMATS", "PoseSet", "TeleopRecording", "check_format", "export_bag", "export_evaluation", "export_poses",
+           "export_run",
            "load_poses", "rts_report", "stage_points", "teleop_recording", "write_points", "write_teleop_bag"]
