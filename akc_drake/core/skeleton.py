@@ -99,6 +99,14 @@ PROXIMAL_DISTAL_PAIRS: tuple[tuple[str, str], ...] = tuple(
 )
 
 
+#: The paper's pairs (§II-C): "the depth of a proximal joint (e.g., elbow or shoulder) is discarded when its
+#: projected 2D position lies within a small neighborhood ... of a distal joint (e.g., wrist)". Ours above add
+#: shoulder-elbow (the upper arm pointing at the camera hides the shoulder behind the elbow) and the knuckles.
+PAPER_PROXIMAL_DISTAL_PAIRS: tuple[tuple[str, str], ...] = tuple(
+    (f"{side}_{prox}", f"{side}_wrist") for side in SIDES for prox in ("shoulder", "elbow")
+)
+
+
 def idx(name: str) -> int:
     """Index of landmark ``name`` in :data:`LANDMARKS` (``KeyError`` naming the landmark otherwise)."""
     try:

@@ -10,6 +10,8 @@ method         occlusion filter   filter       corrector
 ``EKF``        yes                EKF          none
 ``AKC(KF)``    yes                KF           AKC
 ``AKC(EKF)``   yes                EKF          AKC
+``AKC+(KF)``   yes                KF           AKC+
+``AKC+(EKF)``  yes                EKF          AKC+
 ``COIK(KF)``   yes                KF           COIK
 ``COIK(EKF)``  yes                EKF          COIK
 =============  =================  ===========  ==========
@@ -33,14 +35,16 @@ from akc_drake.core.skeleton import NUM_LANDMARKS, BodyDimensions
 from akc_drake.evaluation.session import Session
 
 #: Every method, in the order the paper's tables list them.
-METHODS: tuple[str, ...] = ("Raw", "KF", "EKF", "COIK(KF)", "AKC(KF)", "AKC(EKF)", "COIK(EKF)")
+METHODS: tuple[str, ...] = (
+    "Raw", "KF", "EKF", "COIK(KF)", "AKC(KF)", "AKC(EKF)", "AKC+(KF)", "AKC+(EKF)", "COIK(EKF)"
+)
 
 #: Stage names used in the per-frame timings.
 STAGES: tuple[str, ...] = ("source", "occlusion", "filter", "corrector")
 
 _FILTERS = ("none", "KF", "EKF")
-_CORRECTORS = ("none", "AKC", "COIK")
-_PATTERN = re.compile(r"^\s*(AKC|COIK)\s*\(\s*(KF|EKF)\s*\)\s*$")
+_CORRECTORS = ("none", "AKC", "AKC+", "COIK")
+_PATTERN = re.compile(r"^\s*(AKC\+|AKC|COIK)\s*\(\s*(KF|EKF)\s*\)\s*$")
 
 
 @dataclass(frozen=True)
@@ -51,7 +55,7 @@ class MethodSpec:
         name: the canonical name (e.g. ``"AKC(KF)"``).
         occlusion: whether the occlusion filter runs first.
         filter: ``"none"``, ``"KF"`` or ``"EKF"``.
-        corrector: ``"none"``, ``"AKC"`` or ``"COIK"``.
+        corrector: ``"none"``, ``"AKC"`` (the paper's), ``"AKC+"`` (ours) or ``"COIK"``.
     """
 
     name: str
@@ -128,7 +132,7 @@ class MethodResult:
 
 
 # ---------------------------------------------------------------------------------------------- stages
-def _occlusion_pass(session: Session, visibility_threshold: float, proximity: float):
+def _occlusion_pass(session: Session, visibility_threshold: float, proximity: float, rules=None):
     from akc_drake.core.occlusion import occlusion_filter
 
     T = session.num_frames
@@ -145,15 +149,23 @@ def _occlusion_pass(session: Session, visibility_threshold: float, proximity: fl
             width,
             visibility_threshold=visibility_threshold,
             proximity=proximity,
+            **(rules or {}),
         )
         dt[k] = clock() - t0
         out[k] = res[0] if isinstance(res, tuple) else res
     return out, dt
 
 
-def make_filter(kind: str, dims: BodyDimensions | None, kf_config=None, ekf_config=None):
-    """A fresh core filter: ``ConstantVelocityKF`` for ``"KF"``, ``ExtendedKalmanFilterCV`` for ``"EKF"``."""
+def make_filter(kind: str, dims: BodyDimensions | None, kf_config=None, ekf_config=None, ekf_kind="coupled"):
+    """A fresh core filter: ``ConstantVelocityKF`` for ``"KF"``; for ``"EKF"`` our coupled
+    ``ExtendedKalmanFilterCV`` (``ekf_kind="coupled"``) or the paper's ``PerJointEKF`` (``"per_joint"``)."""
+    from akc_drake.core import ekf as ekf_mod
     from akc_drake.core import kalman
+
+    if kind == "EKF" and ekf_kind == "per_joint":
+        if dims is None:
+            raise ValueError("the EKF needs body dimensions (dims)")
+        return ekf_mod.PerJointEKF(dims, ekf_config)
 
     if kind == "KF":
         return (
@@ -190,8 +202,11 @@ def run_filter(filt, measurements: np.ndarray, t: np.ndarray):
     return out, dt_run
 
 
-def run_akc(corrector, poses: np.ndarray):
-    """Run an ``ArmKinematicCorrector`` over ``poses`` ``(T, 12, 3)``; (corrected, seconds, status)."""
+def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None):
+    """Run an AKC or AKC+ corrector over ``poses`` ``(T, 12, 3)``; (corrected, seconds, status).
+
+    ``measured`` ``(T, 12, 3)`` is the occlusion filter's output, given to AKC+ (which keeps trusted depths).
+    """
     T = poses.shape[0]
     out = np.empty((T, NUM_LANDMARKS, 3))
     dt_run = np.empty(T)
@@ -200,7 +215,7 @@ def run_akc(corrector, poses: np.ndarray):
     clock = time.perf_counter
     for k in range(T):
         t0 = clock()
-        res = corrector.correct(poses[k])
+        res = corrector.correct(poses[k]) if measured is None else corrector.correct(poses[k], measured[k])
         dt_run[k] = clock() - t0
         out[k] = res.pose
         fb = getattr(res, "fallback", None)
@@ -238,7 +253,12 @@ class MethodOptions:
     Attributes:
         visibility_threshold, proximity: the occlusion filter's (paper: 0.7 and 5 % of the width).
         kf_config, ekf_config: core filter configurations (None: the filters' defaults).
+        ekf_kind: "coupled" (ours, :class:`~akc_drake.core.ekf.ExtendedKalmanFilterCV`) or "per_joint" (the
+            paper's eq. 5, :class:`~akc_drake.core.ekf.PerJointEKF`).
+        occlusion_rules: extra keyword arguments of the occlusion filter (None: ours; the paper's:
+            :data:`akc_drake.core.occlusion.PAPER_RULES`).
         coik_config: COIK configuration (None: the solver's default).
+        akc_plus_config: AKC+ settings (None: the defaults).
     """
 
     visibility_threshold: float = 0.7
@@ -246,6 +266,9 @@ class MethodOptions:
     kf_config: object | None = None
     ekf_config: object | None = None
     coik_config: object | None = None
+    akc_plus_config: object | None = None
+    ekf_kind: str = "coupled"
+    occlusion_rules: dict | None = None
 
 
 class MethodRunner:
@@ -273,7 +296,8 @@ class MethodRunner:
         """(accepted landmarks ``(T, 12, 3)``, seconds per frame) of the occlusion filter."""
         if self._occ is None:
             self._occ = _occlusion_pass(
-                self.session, self.options.visibility_threshold, self.options.proximity
+                self.session, self.options.visibility_threshold, self.options.proximity,
+                self.options.occlusion_rules,
             )
         return self._occ
 
@@ -281,7 +305,8 @@ class MethodRunner:
         """(output ``(T, 12, 3)``, seconds per frame) of filter ``kind`` on the occlusion filter's output."""
         if kind not in self._filtered:
             accepted, _ = self.occlusion()
-            filt = make_filter(kind, self.dims, self.options.kf_config, self.options.ekf_config)
+            o = self.options
+            filt = make_filter(kind, self.dims, o.kf_config, o.ekf_config, o.ekf_kind)
             self._filtered[kind] = run_filter(filt, accepted, self.session.t)
         return self._filtered[kind]
 
@@ -302,6 +327,10 @@ class MethodRunner:
             times["filter"] = t_filt
             if spec.corrector == "AKC":
                 est, t_cor, status = run_akc(make_akc(self.dims, self.weights), est)
+                times["corrector"] = t_cor
+            elif spec.corrector == "AKC+":
+                accepted, _ = self.occlusion()
+                est, t_cor, status = run_akc(make_akc_plus(self.dims, self.options.akc_plus_config), est, accepted)
                 times["corrector"] = t_cor
             elif spec.corrector == "COIK":
                 est, t_cor, status = run_coik(make_coik(self.dims, self.options.coik_config), est)
@@ -334,6 +363,13 @@ def make_akc(dims: BodyDimensions, weights):
     from akc_drake.core.akc import ArmKinematicCorrector
 
     return ArmKinematicCorrector(dims, resolve_weights(weights))
+
+
+def make_akc_plus(dims: BodyDimensions, config=None):
+    """A fresh ``ArmKinematicCorrectorPlus`` (AKC+)."""
+    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+
+    return ArmKinematicCorrectorPlus(dims, config)
 
 
 def make_coik(dims: BodyDimensions, config=None):

@@ -1,0 +1,437 @@
+"""AKC+: our arm kinematic correction, which keeps what the camera sees and rebuilds only what it loses.
+
+The paper's AKC (:mod:`akc_drake.core.akc`) replaces the elbow and shoulder depths of every frame by one of
+four Pythagorean candidates, even when the camera measured those depths well; on real motion that makes
+well-seen joints worse than the filter it corrects (a mirror candidate picked on a noisy frame, or an
+in-plane arm whose ± depths are both wrong). AKC+ changes three things, and keeps the wrist as the anchor
+and the arm lengths exact:
+
+1. **Trusted depths are kept.** A joint's depth is *trusted* when, this frame, it was measured and passed
+   the occlusion filter (``measured`` row finite), agrees with the filtered estimate within
+   ``consistency_m`` (a depth the filter refused to follow is an outlier), and gives a segment length within
+   ``length_tol_m`` of the calibrated one (an occluder's depth makes a 3D segment too short or too long,
+   whatever the 2D view). A trusted joint is moved only as much as the exact lengths require:
+
+   * trusted shoulder: the shoulder stays where the filter has it and the elbow is put on the circle where
+     the sphere of radius ``l_f`` about the wrist meets the sphere of radius ``l_u`` about the shoulder,
+     at the point nearest the filtered elbow (trusted elbow) or nearest the chosen Pythagorean candidate
+     (untrusted elbow). Wrist and shoulder are unchanged; a noise-free arm is unchanged.
+   * untrusted shoulder: the elbow is put at ``l_f`` from the wrist (radially if trusted, else a
+     Pythagorean candidate), then the shoulder at ``l_u`` from the elbow (a Pythagorean candidate).
+
+2. **Temporally consistent candidate choice.** For a joint whose depth is not trusted, the two Pythagorean
+   candidates (x, y of the filtered joint kept, eq. 7-8 with the full calibrated length) are scored as
+   Gaussian log-likelihoods rather than the paper's weighted distances::
+
+       J = |p - p̂|^2 / sigma_f^2 + |p - p_prev|^2 / sigma_t^2 [+ (width - l_s)^2 / sigma_l^2]
+
+   ``sigma_f`` (the filter's say) grows with the number of frames since the joint's depth was last trusted
+   (a constant-velocity filter extrapolating a lost depth drifts), ``sigma_t`` is how far a joint may move
+   in one frame. Switching to the mirror candidate (2r away) therefore needs the filter to favour it by a
+   margin that grows with r: no switch without evidence from the data, but an arm that passes through the
+   image plane (r -> 0) follows the filter. Folded (< ``elbow_min_deg``) or hyperextended candidates get a
+   large penalty, as the paper's m5 with our signed angle.
+3. **No shrink factor.** Trusted depths make the near-in-plane ± instability, the shrink factor's reason,
+   moot: an in-plane arm is usually seen. Where the in-plane distance exceeds the length (noise) the joint
+   is put at the length along its in-plane direction at the anchor's depth.
+
+Every output arm has exactly the calibrated lengths (to rounding). Plain Python floats (about 10 µs per
+frame for both arms; numpy calls would cost more than the arithmetic).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from akc_drake.core.akc import AKCResult
+from akc_drake.core.arm_geometry import bends_backwards, torso_axes
+from akc_drake.core.skeleton import NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
+
+_sqrt = math.sqrt
+_hypot = math.hypot
+_isfinite = math.isfinite
+_NAN = float("nan")
+_BIG = 1e6
+
+#: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters.
+STATE_SIZE = 24
+
+
+@dataclass(frozen=True)
+class AKCPlusConfig:
+    """Settings of AKC+ (see the module docstring). Lengths in metres.
+
+    Attributes:
+        consistency_m: a measured depth farther than this from the filtered one is not trusted.
+        length_tol_m: a measured joint whose segment length (to the wrist, or to a trusted elbow) is off the
+            calibrated one by more than this is not trusted.
+        sigma_filter_m: the filter's depth standard deviation for a joint whose depth was just lost.
+        drift_m_per_frame: added to it per frame without a trusted depth (extrapolation drift).
+        sigma_temporal_m: how far a joint may move between two frames (10 Hz: 1 m/s -> 0.1 m).
+        sigma_width_m: standard deviation of the shoulder-width term (0 turns it off).
+        elbow_min_deg: candidates folded more than this (or hyperextended) are penalised.
+        xy_tol_m: a trusted shoulder that would move the elbow's image position (x, y) by more than this is
+            not trusted after all.
+    """
+
+    consistency_m: float = 0.05
+    length_tol_m: float = 0.10
+    sigma_filter_m: float = 0.05
+    drift_m_per_frame: float = 0.02
+    sigma_temporal_m: float = 0.10
+    sigma_width_m: float = 0.05
+    elbow_min_deg: float = 40.0
+    xy_tol_m: float = 0.03
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"AKCPlusConfig.{f.name} must be a finite number >= 0, got {v!r}")
+            object.__setattr__(self, f.name, float(v))
+        for name in ("sigma_filter_m", "sigma_temporal_m"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"AKCPlusConfig.{name} must be > 0, got {getattr(self, name)!r}")
+        if self.elbow_min_deg >= 180.0:
+            raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")
+
+
+def _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
+    """The elbow at ``lf`` from the wrist and ``lu`` from the shoulder nearest to ``p``; None if none exists.
+
+    The two spheres meet in a circle (centre on the wrist-shoulder line, plane normal to it); the nearest
+    point of the circle to ``p`` is ``p``'s projection on the plane pushed out to the radius.
+    """
+    nx, ny, nz = sx - wx, sy - wy, sz - wz
+    d = _hypot(nx, ny, nz)
+    if not (abs(lf - lu) < d < lf + lu):
+        return None
+    nx, ny, nz = nx / d, ny / d, nz / d
+    a = (d * d + lf * lf - lu * lu) / (2.0 * d)
+    h = _sqrt(max(lf * lf - a * a, 0.0))
+    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
+    qx, qy, qz = px - cx, py - cy, pz - cz
+    t = qx * nx + qy * ny + qz * nz
+    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
+    q = _hypot(qx, qy, qz)
+    if q < 1e-12:  # p on the axis: any point of the circle; take one orthogonal to the axis and to y
+        qx, qy, qz = nz, 0.0, -nx
+        q = _hypot(qx, qy, qz)
+        if q < 1e-12:
+            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
+    f = h / q
+    return cx + qx * f, cy + qy * f, cz + qz * f
+
+
+def _pythagoras(ax, ay, az, px, py, length):
+    """The two points at ``length`` from anchor ``a`` with the x, y of ``p`` (eq. 7-8), or None if too far."""
+    dx, dy = px - ax, py - ay
+    r2 = length * length - dx * dx - dy * dy
+    if r2 < 0.0:
+        return None
+    r = _sqrt(r2)
+    return (px, py, az + r), (px, py, az - r)
+
+
+def _in_plane(ax, ay, az, px, py, length):
+    """The point at ``length`` from ``a`` along the in-plane direction to ``p``, at ``a``'s depth."""
+    dx, dy = px - ax, py - ay
+    n = _hypot(dx, dy)
+    if n < 1e-12:
+        return ax, ay + length, az
+    f = length / n
+    return ax + dx * f, ay + dy * f, az
+
+
+def _radial(ax, ay, az, px, py, pz, length):
+    """``p`` moved along its direction from ``a`` to ``length`` from it (eq. 9's form)."""
+    dx, dy, dz = px - ax, py - ay, pz - az
+    n = _hypot(dx, dy, dz)
+    if n < 1e-12:
+        return ax, ay + length, az
+    f = length / n
+    return ax + dx * f, ay + dy * f, az + dz * f
+
+
+def _d2(p, qx, qy, qz):
+    dx, dy, dz = p[0] - qx, p[1] - qy, p[2] - qz
+    return dx * dx + dy * dy + dz * dz
+
+
+class ArmKinematicCorrectorPlus:
+    """AKC+ for both arms (see the module docstring); the same interface as the paper's corrector.
+
+    Args:
+        dims: the calibrated body dimensions.
+        config: settings.
+
+    Missing inputs are handled as the paper's corrector does: a missing wrist holds the arm's last
+    output (NaN if none); a missing elbow/shoulder x, y reuses the last output's (held if none).
+    """
+
+    def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
+        if not isinstance(dims, BodyDimensions):
+            raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
+        config = AKCPlusConfig() if config is None else config
+        if not isinstance(config, AKCPlusConfig):
+            raise ValueError(f"config must be an AKCPlusConfig, got {type(config).__name__}")
+        self._dims = dims
+        self.config = config
+        self._lf = (dims.LLA, dims.RLA)
+        self._lu = (dims.LUA, dims.RUA)
+        self._ls = dims.SW
+        self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
+        self._inv_t2 = 1.0 / config.sigma_temporal_m**2
+        self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
+        self._cos_min = math.cos(math.radians(config.elbow_min_deg))
+        self.reset()
+
+    @property
+    def dims(self) -> BodyDimensions:
+        return self._dims
+
+    def reset(self) -> None:
+        """Forget the previous output and the untrusted-frame counters."""
+        self._prev: list[tuple | None] = [None, None]
+        self._lost = [0.0, 0.0, 0.0, 0.0]  # frames without a trusted depth: (left elbow, left shoulder, right ...)
+
+    def get_state_vector(self) -> np.ndarray:
+        """``(24,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters."""
+        v = np.full(STATE_SIZE, np.nan)
+        for side in (0, 1):
+            p = self._prev[side]
+            if p is not None:
+                v[9 * side : 9 * side + 9] = p
+            v[18 + side] = 0.0 if p is None else 1.0
+        v[20:24] = self._lost
+        return v
+
+    def set_state_vector(self, v) -> None:
+        """Restore :meth:`get_state_vector`'s vector.
+
+        Raises:
+            ValueError: naming the wrong shape, a bad flag or counter, or non-finite joints of a valid arm.
+        """
+        a = np.asarray(v, dtype=float)
+        if a.shape != (STATE_SIZE,):
+            raise ValueError(f"AKC+ state vector must have shape ({STATE_SIZE},), got {a.shape}")
+        prev: list[tuple | None] = [None, None]
+        for side in (0, 1):
+            flag = a[18 + side]
+            if flag not in (0.0, 1.0):
+                raise ValueError(f"AKC+ state vector: validity flag [{18 + side}] must be 0 or 1, got {flag!r}")
+            if flag == 1.0:
+                joints = a[9 * side : 9 * side + 9]
+                if not np.all(np.isfinite(joints)):
+                    raise ValueError(f"AKC+ state vector: {SIDES[side]} arm is flagged valid but not finite")
+                prev[side] = tuple(joints.tolist())
+        lost = a[20:24]
+        if not np.all(np.isfinite(lost) & (lost >= 0)):
+            raise ValueError(f"AKC+ state vector: counters [20:24] must be >= 0, got {lost.tolist()}")
+        self._prev = prev
+        self._lost = lost.tolist()
+
+    # ------------------------------------------------------------------ hot path (plain floats)
+    def _trusted(self, m, o, fz, ax, ay, az, length):
+        """Whether measured row ``m[o:o+3]`` gives a trusted depth (see the module docstring)."""
+        if m is None:
+            return False
+        mx, my, mz = m[o], m[o + 1], m[o + 2]
+        if not _isfinite(mx + my + mz):
+            return False
+        cfg = self.config
+        if abs(mz - fz) > cfg.consistency_m:
+            return False
+        return abs(_hypot(mx - ax, my - ay, mz - az) - length) <= cfg.length_tol_m
+
+    def _choose(self, cands, fx, fy, fz, prev_p, k_lost, extra=None):
+        """The candidate with the smallest Gaussian cost (filter prior, temporal prior, extra terms)."""
+        cfg = self.config
+        sf = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[k_lost]
+        inv_f2 = 1.0 / (sf * sf)
+        best = None
+        best_j = math.inf
+        for i, p in enumerate(cands):
+            j = _d2(p, fx, fy, fz) * inv_f2
+            if prev_p is not None:
+                j += _d2(p, prev_p[0], prev_p[1], prev_p[2]) * self._inv_t2
+            if extra is not None:
+                j += extra[i]
+            if j < best_j:
+                best_j, best = j, p
+        return best, best_j
+
+    def _penalty(self, s, e, w, lu, lf, axes):
+        """Large when the arm's elbow is folded below elbow_min_deg or hyperextended (m5 with our sign)."""
+        ux, uy, uz = s[0] - e[0], s[1] - e[1], s[2] - e[2]
+        fx, fy, fz = w[0] - e[0], w[1] - e[1], w[2] - e[2]
+        cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
+        if cos_t > self._cos_min or bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
+            return _BIG
+        return 0.0
+
+    def _arm(self, v, m, side, axes, other_shoulder):
+        """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
+        o_s, o_e, o_w = self._offsets[side]
+        wx, wy, wz = v[o_w], v[o_w + 1], v[o_w + 2]
+        if not _isfinite(wx + wy + wz):
+            return None
+        prev = self._prev[side]
+        ex, ey, ez = v[o_e], v[o_e + 1], v[o_e + 2]
+        if not _isfinite(ex + ey):
+            if prev is None:
+                return None
+            ex, ey = prev[3], prev[4]
+        if not _isfinite(ez):
+            ez = prev[5] if prev is not None else wz
+        sx, sy, sz = v[o_s], v[o_s + 1], v[o_s + 2]
+        if not _isfinite(sx + sy):
+            if prev is None:
+                return None
+            sx, sy = prev[0], prev[1]
+        if not _isfinite(sz):
+            sz = prev[2] if prev is not None else ez
+        lf, lu = self._lf[side], self._lu[side]
+        ke, ks = 2 * side, 2 * side + 1
+        te = self._trusted(m, o_e, ez, wx, wy, wz, lf)
+        # A trusted shoulder must also fit the (trusted) elbow, or be within reach of the wrist.
+        if te:
+            ts = self._trusted(m, o_s, sz, ex, ey, ez, lu)
+        else:
+            ts = self._trusted(m, o_s, sz, sx, sy, sz, 0.0) and _hypot(sx - wx, sy - wy, sz - wz) <= lf + lu
+        pe = (prev[3], prev[4], prev[5]) if prev is not None else None
+        ps = (prev[0], prev[1], prev[2]) if prev is not None else None
+        w = (wx, wy, wz)
+        s = e = None
+        if ts:
+            s = (sx, sy, sz)
+            if te:
+                e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
+            else:
+                pair = _pythagoras(wx, wy, wz, ex, ey, lf)
+                if pair is not None:
+                    cands = []
+                    for c in pair:
+                        q = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, c[0], c[1], c[2])
+                        cands.append(q if q is not None else c)
+                    extra = [self._penalty(s, c, w, lu, lf, axes) for c in cands]
+                    e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
+                    e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, e[0], e[1], e[2])
+                else:
+                    e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *_in_plane(wx, wy, wz, ex, ey, lf))
+            # A shoulder depth that forces the elbow off its (reliable) image position is wrong, e.g. the depth
+            # of an occluding upper arm; so is a shoulder out of reach of the wrist. Then: the chain below.
+            if e is None or _hypot(e[0] - ex, e[1] - ey) > self.config.xy_tol_m:
+                ts = False
+        if not ts:
+            if te:
+                e = _radial(wx, wy, wz, ex, ey, ez, lf)
+                s_pair = _pythagoras(e[0], e[1], e[2], sx, sy, lu)
+                if s_pair is None:
+                    s = _in_plane(e[0], e[1], e[2], sx, sy, lu)
+                else:
+                    s = self._choose_shoulder(s_pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
+            else:
+                e_pair = _pythagoras(wx, wy, wz, ex, ey, lf)
+                e_cands = e_pair if e_pair is not None else (_in_plane(wx, wy, wz, ex, ey, lf),)
+                best = None
+                best_j = math.inf
+                cfg = self.config
+                sfe = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[ke]
+                inv_fe2 = 1.0 / (sfe * sfe)
+                for ec in e_cands:
+                    je = _d2(ec, ex, ey, ez) * inv_fe2
+                    if pe is not None:
+                        je += _d2(ec, pe[0], pe[1], pe[2]) * self._inv_t2
+                    s_pair = _pythagoras(ec[0], ec[1], ec[2], sx, sy, lu)
+                    if s_pair is None:
+                        sc = _in_plane(ec[0], ec[1], ec[2], sx, sy, lu)
+                        js = self._shoulder_cost(sc, ec, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
+                    else:
+                        sc, js = None, math.inf
+                        for c in s_pair:
+                            jc = self._shoulder_cost(c, ec, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
+                            if jc < js:
+                                sc, js = c, jc
+                    if je + js < best_j:
+                        best_j, best = je + js, (sc, ec)
+                s, e = best
+        self._lost[ke] = 0.0 if te else self._lost[ke] + 1.0
+        self._lost[ks] = 0.0 if ts else self._lost[ks] + 1.0
+        return (*s, *e, wx, wy, wz)
+
+    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
+        cfg = self.config
+        sf = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[ks]
+        j = _d2(c, sx, sy, sz) / (sf * sf)
+        if ps is not None:
+            j += _d2(c, ps[0], ps[1], ps[2]) * self._inv_t2
+        if other is not None and self._inv_w2:
+            dw = _hypot(c[0] - other[0], c[1] - other[1], c[2] - other[2]) - self._ls
+            j += dw * dw * self._inv_w2
+        return j + self._penalty(c, e, w, lu, lf, axes)
+
+    def _choose_shoulder(self, pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
+        j0 = self._shoulder_cost(pair[0], e, w, sx, sy, sz, ps, ks, lu, lf, axes, other)
+        j1 = self._shoulder_cost(pair[1], e, w, sx, sy, sz, ps, ks, lu, lf, axes, other)
+        return pair[1] if j1 < j0 else pair[0]
+
+    def correct(self, pose, measured=None) -> AKCResult:
+        """Correct one filtered pose.
+
+        Args:
+            pose: ``(12, 3)`` filtered landmarks in the camera frame, NaN where missing.
+            measured: ``(12, 3)`` this frame's measurement after the occlusion filter (NaN where rejected
+                or where the depth was dropped), or None when there is none (no depth is trusted).
+
+        Returns:
+            An :class:`~akc_drake.core.akc.AKCResult`; ``chosen`` is 0 for a corrected arm (-1 held),
+            ``fallback`` marks arms with no trusted depth, ``cost`` is NaN.
+
+        Raises:
+            ValueError: if ``pose`` or ``measured`` does not have shape (12, 3).
+        """
+        a = np.asarray(pose, dtype=np.float64)
+        if a.shape != (NUM_LANDMARKS, 3):
+            raise ValueError(f"pose must have shape ({NUM_LANDMARKS}, 3), got {a.shape}")
+        v = a.ravel().tolist()
+        m = None
+        if measured is not None:
+            b = np.asarray(measured, dtype=np.float64)
+            if b.shape != (NUM_LANDMARKS, 3):
+                raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
+            m = b.ravel().tolist()
+        axes = torso_axes(v)
+        chosen = [-1, -1]
+        held = [True, True]
+        fallback = [False, False]
+        for side in (0, 1):
+            # The other shoulder for the width term: its last corrected position (the filtered one may be
+            # drifting on a lost depth), else the filtered one.
+            po = self._prev[1 - side]
+            if po is not None:
+                other = (po[0], po[1], po[2])
+            else:
+                o_other = self._offsets[1 - side][0]
+                other = (v[o_other], v[o_other + 1], v[o_other + 2])
+                if not _isfinite(sum(other)):
+                    other = None
+            lost_before = (self._lost[2 * side], self._lost[2 * side + 1])
+            out = self._arm(v, m, side, axes, other)
+            if out is not None and _isfinite(sum(out)):
+                self._prev[side] = out
+                held[side] = False
+                chosen[side] = 0
+                fallback[side] = self._lost[2 * side] > 0 and self._lost[2 * side + 1] > 0
+            else:
+                self._lost[2 * side], self._lost[2 * side + 1] = lost_before
+                out = self._prev[side] if self._prev[side] is not None else (_NAN,) * 9
+            o_s, o_e, o_w = self._offsets[side]
+            v[o_s : o_s + 3] = out[0:3]
+            v[o_e : o_e + 3] = out[3:6]
+            v[o_w : o_w + 3] = out[6:9]
+        return AKCResult(np.array(v).reshape(NUM_LANDMARKS, 3), chosen, fallback, held, [_NAN, _NAN])

