@@ -37,13 +37,14 @@ $(STAMP): pyproject.toml Makefile constraints.txt
 	@touch $(STAMP)
 
 # Debian packages: graphviz (dot) renders the system graphs; libgl1 and libglib2.0-0 are what OpenCV's contrib
-# build (the one MediaPipe requires) loads. Installed with apt-get when we are root.
+# build (the one MediaPipe requires) loads; chromium takes the headless screenshot of the demo's Meshcat page
+# (tests/test_meshcat_view.py). Installed with apt-get when we are root.
 system-deps:
 	@if command -v dot >/dev/null 2>&1 && ldconfig -p 2>/dev/null | grep -q libusb-1.0 \
-	  && ldconfig -p 2>/dev/null | grep -q 'libGL.so.1 '; then :; \
+	  && ldconfig -p 2>/dev/null | grep -q 'libGL.so.1 ' && command -v chromium >/dev/null 2>&1; then :; \
 	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
-	  echo "installing Debian packages graphviz (system graphs), libusb-1.0-0 (pyrealsense2), libgl1 libglib2.0-0 (OpenCV)"; \
-	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq graphviz libusb-1.0-0 libgl1 libglib2.0-0 >/dev/null) \
+	  echo "installing Debian packages graphviz (system graphs), libusb-1.0-0 (pyrealsense2), libgl1 libglib2.0-0 (OpenCV), chromium (Meshcat screenshot)"; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq graphviz libusb-1.0-0 libgl1 libglib2.0-0 chromium >/dev/null) \
 	  || echo "warning: could not install graphviz; 'akc-drake graph' will write .dot files only. Install it with: sudo apt-get install graphviz"; \
 	else \
 	  echo "warning: graphviz ('dot') is missing; 'akc-drake graph' will write .dot files only. Install it with: sudo apt-get install graphviz"; \

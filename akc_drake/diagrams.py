@@ -457,6 +457,7 @@ class TeleopDiagram(MocapDiagram):
     monitor: object = None
     meshcat: object = None
     ik_time_step: float = 0.01
+    clip_log: object = None
 
     def simulate(self, num_frames: int | None = None, *, duration: float | None = None, progress: bool = False,
                  simulator: Simulator | None = None):
@@ -481,7 +482,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                          frame_source=None, detector=None, dims: BodyDimensions | None = None, motion=None,
                          meshcat=None, lcm=None, time_step: float = 0.005, ik_time_step: float = 0.01,
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
-                         torso_tau_s: float = 0.5) -> TeleopDiagram:
+                         torso_model=None, smoothing: bool = True, workspace: bool = True) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
@@ -493,12 +494,18 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
             solver, so this is stable, and it keeps the whole teleop loop at over 2x realtime on two cores).
         ik_time_step: the differential IK period, seconds.
         keep_history: keep the monitor's full history (for plots); off for long runs.
-        mapping: the operator-to-robot :class:`~akc_drake.core.frames.RobotMapping` (default: from the shoulders).
+        mapping: the operator-to-robot :class:`~akc_drake.core.frames.RobotMapping` (default:
+            :func:`~akc_drake.core.frames.calibrated_mapping` of ``dims``: the operator's reach scaled to the
+            robot's, shoulders on shoulders).
         log_stages: add the per-stage VectorLogSinks (off for long runs: their logs grow with time).
-        torso_tau_s: time constant of the FrameMapper's torso-frame low-pass (0 turns it off): AKC's choice of
-            mirror candidate for a shoulder would otherwise yaw the torso frame, and every target, in one frame.
+        torso_model: a calibrated :class:`~akc_drake.core.frames.TorsoModel` (the torso carried by the hips);
+            None: eq. (17)'s torso from the shoulders.
+        smoothing: One Euro smoothing on SE(3) of the torso and wrist frames
+            (:data:`~akc_drake.core.smoothing.WRIST_SMOOTHING`, :data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`).
+        workspace: clip each target into its arm's :class:`~akc_drake.core.frames.Workspace`.
     """
-    from akc_drake.core.frames import RobotMapping
+    from akc_drake.core import smoothing as sm
+    from akc_drake.core.frames import Workspace, calibrated_mapping
     from akc_drake.robot.diff_ik import AddArmDifferentialIK, make_arm_ik_plant
     from akc_drake.robot.model import nominal_ee_pose
     from akc_drake.robot.station import AddRobotStation
@@ -515,9 +522,12 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     loggers = AddStageLoggers(builder, ports, period) if log_stages else {}
 
     mapper = builder.AddSystem(
-        FrameMapper(mapping if mapping is not None else RobotMapping.default(),
+        FrameMapper(mapping if mapping is not None else calibrated_mapping(dims),
                     X_TE_home_left=nominal_ee_pose("left"), X_TE_home_right=nominal_ee_pose("right"),
-                    period_s=period, stage_offset_s=cfg.stage_offset_s, torso_tau_s=torso_tau_s)
+                    period_s=period, stage_offset_s=cfg.stage_offset_s, torso_model=torso_model,
+                    wrist_smoothing=sm.WRIST_SMOOTHING if smoothing else None,
+                    torso_smoothing=sm.TORSO_SMOOTHING if smoothing else None,
+                    workspace={s: Workspace.for_side(s) for s in ("left", "right")} if workspace else None)
     )
     mapper.set_name("FrameMapper")
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))
@@ -540,6 +550,9 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         builder.Connect(mapper.GetOutputPort(f"X_TE_desired_{side}"), monitor.GetInputPort(f"X_TE_desired_{side}"))
         builder.Connect(ik[side].q_commanded_output, monitor.GetInputPort(f"q_commanded_{side}"))
     builder.Connect(mapper.GetOutputPort("tracking_lost"), monitor.GetInputPort("tracking_lost"))
+    clip_log = builder.AddSystem(VectorLogSink(2, period))
+    clip_log.set_name("log_workspace_clipped")
+    builder.Connect(mapper.GetOutputPort("workspace_clipped"), clip_log.get_input_port())
     builder.Connect(station.robot_state_output, monitor.GetInputPort("robot_state"))
 
     if meshcat is not None:
@@ -569,4 +582,5 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     return TeleopDiagram(
         diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"),
         mapper=mapper, station=station, ik=ik, monitor=monitor, meshcat=meshcat, ik_time_step=ik_time_step,
+        clip_log=clip_log,
     )

@@ -33,7 +33,7 @@ def test_ports():
     assert fm.num_input_ports() == 1 and fm.get_input_port(0).get_name() == "landmarks_C"
     assert fm.get_input_port(0).size() == 36
     names = [fm.get_output_port(i).get_name() for i in range(fm.num_output_ports())]
-    assert names == ["X_TE_desired_left", "X_TE_desired_right", "tracking_lost"]
+    assert names == ["X_TE_desired_left", "X_TE_desired_right", "tracking_lost", "workspace_clipped"]
     ctx = fm.CreateDefaultContext()
     assert isinstance(fm.GetOutputPort("X_TE_desired_left").Eval(ctx), RigidTransform)
 
@@ -79,13 +79,14 @@ def test_valid_frames_are_mapped_and_degenerate_frames_hold_and_raise_tracking_l
     np.testing.assert_array_equal(fm.GetOutputPort("tracking_lost").Eval(ctx), [1.0, 0.0])
     assert np.all(np.isfinite(XE_r1))
 
-    # Degenerate torso (coincident shoulders): both sides hold.
+    # Degenerate torso (coincident shoulders): the last torso frame is held and the wrists still map.
     pose2 = camera_pose()
     pose2[INDEX["right_shoulder"]] = pose2[INDEX["left_shoulder"]]
     fm.get_input_port(0).FixValue(ctx, pose2.reshape(36))
     sim.AdvanceTo(2 * PERIOD + OFFSET + 1e-4)
-    np.testing.assert_allclose(_X(fm.GetOutputPort("X_TE_desired_right"), ctx), XE_r1, atol=1e-15)
-    np.testing.assert_array_equal(fm.GetOutputPort("tracking_lost").Eval(ctx), [1.0, 1.0])
+    expected = F.robot_targets(pose2, fm.mapping, torso=F.torso_of(pose0))[1]
+    np.testing.assert_allclose(_X(fm.GetOutputPort("X_TE_desired_right"), ctx), expected, atol=1e-12)
+    np.testing.assert_array_equal(fm.GetOutputPort("tracking_lost").Eval(ctx), [0.0, 0.0])
 
     # Tracking recovers.
     fm.get_input_port(0).FixValue(ctx, camera_pose(wrist_shift=(0.1, 0.0, 0.0)).reshape(36))
@@ -115,15 +116,23 @@ def test_bad_parameters():
         FrameMapper(period_s=-1.0)
 
 
-def test_torso_low_pass_spreads_a_sudden_torso_yaw_over_time():
-    """A shoulder whose depth jumps (AKC switching mirror candidates) yaws the torso frame in one frame; with
-    ``torso_tau_s`` the targets follow it gradually, without it at once."""
+def test_torso_smoothing_spreads_a_sudden_torso_yaw_over_time():
+    """A shoulder whose depth jumps (a corrector switching mirror candidates) yaws eq. (17)'s torso frame in one
+    frame: without smoothing the targets swing at once, with the One Euro torso filter only by part of it, and
+    with the calibrated hip-borne torso not at all."""
+    from akc_drake.core import smoothing as sm
+
     still = camera_pose()
     jumped = still.copy()
     jumped[INDEX["left_shoulder"], 2] += 0.15  # the left shoulder's depth jumps 15 cm away from the camera
     moved = {}
-    for tau in (0.0, 0.5):
-        fm = FrameMapper(torso_tau_s=tau)
+    torso = F.TorsoModel.calibrate(np.stack([still] * 5))
+    for name, kwargs in (
+        ("raw", {}),
+        ("smoothed", {"torso_smoothing": sm.TORSO_SMOOTHING}),
+        ("hips", {"torso_model": torso}),
+    ):
+        fm = FrameMapper(**kwargs)
         sim, ctx = _sim(fm)
         port = fm.get_input_port(0)
         port.FixValue(ctx, still.ravel())
@@ -132,7 +141,20 @@ def test_torso_low_pass_spreads_a_sudden_torso_yaw_over_time():
         port.FixValue(ctx, jumped.ravel())
         sim.AdvanceTo(PERIOD + OFFSET + 1e-4)
         X1 = _X(fm.GetOutputPort("X_TE_desired_right"), ctx)
-        moved[tau] = float(np.linalg.norm(X1[:3, 3] - X0[:3, 3]))
-    assert moved[0.0] > 0.05  # the right-hand target swings with the torso at once
-    # After one 0.1 s frame the low-pass has followed 1 - exp(-0.2) = 18 % of the swing.
-    assert moved[0.5] == pytest.approx((1 - np.exp(-0.2)) * moved[0.0], rel=0.15)
+        moved[name] = float(np.linalg.norm(X1[:3, 3] - X0[:3, 3]))
+    assert moved["raw"] > 0.05  # the right-hand target swings with the torso at once
+    assert moved["smoothed"] < 0.5 * moved["raw"]
+    assert moved["hips"] < 1e-9
+
+
+def test_workspace_clip_is_reported():
+    far = camera_pose(wrist_shift=(0.6, 0.0, 0.0))  # the left wrist 60 cm further forward
+    ws = {s: F.Workspace.for_side(s) for s in ("left", "right")}
+    fm = FrameMapper(workspace=ws)
+    sim, ctx = _sim(fm)
+    fm.get_input_port(0).FixValue(ctx, far.ravel())
+    sim.AdvanceTo(OFFSET + 1e-4)
+    X = _X(fm.GetOutputPort("X_TE_desired_left"), ctx)
+    assert ws["left"].contains(X[:3, 3], tol=1e-6)
+    assert np.linalg.norm(X[:3, 3] - ws["left"].shoulder) == pytest.approx(ws["left"].r_max)
+    np.testing.assert_array_equal(fm.GetOutputPort("workspace_clipped").Eval(ctx), [1.0, 0.0])

@@ -258,21 +258,3 @@ def test_rotation_angle_is_accurate_for_small_and_large_angles():
         assert F.rotation_angle(F.rotation_y(a)) == pytest.approx(a, rel=1e-9, abs=1e-15)
 
 
-def test_smooth_torso_follows_a_turn_with_its_time_constant():
-    import math
-
-    from akc_drake.core.frames import rotation_angle, rotation_z, smooth_torso
-
-    R0, o0 = np.eye(3), np.zeros(3)
-    R1, o1 = rotation_z(math.radians(30.0)), np.array([0.1, 0.0, 0.0])
-    R, o = smooth_torso((R0, o0), (R1, o1), dt=0.5, tau_s=0.5)
-    frac = 1.0 - math.exp(-1.0)
-    # The relative rotation keeps the turn's axis, with 63 % of its angle.
-    assert rotation_angle(R0.T @ R) == pytest.approx(frac * math.radians(30.0), rel=1e-12)
-    assert rotation_angle(R.T @ R1) == pytest.approx((1 - frac) * math.radians(30.0), rel=1e-12)
-    np.testing.assert_allclose(o, frac * o1, atol=1e-15)
-    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
-    # No smoothing, no history, or nothing new: pass-through.
-    assert smooth_torso((R0, o0), (R1, o1), 0.1, 0.0)[0] is R1
-    assert smooth_torso(None, (R1, o1), 0.1, 0.5)[0] is R1
-    assert smooth_torso((R0, o0), None, 0.1, 0.5)[0] is R0

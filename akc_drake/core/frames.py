@@ -147,9 +147,7 @@ def torso_frame(ps_l, ps_r, ph_l, ph_r) -> tuple[np.ndarray, np.ndarray] | None:
         shoulders coincide, the trunk (ph_m - ps_m) is degenerate or parallel to the shoulder line, or an
         input is not finite.
     """
-    ps_l, ps_r, ph_l, ph_r = (
-        _vec(v, n) for v, n in ((ps_l, "ps_l"), (ps_r, "ps_r"), (ph_l, "ph_l"), (ph_r, "ph_r"))
-    )
+    ps_l, ps_r, ph_l, ph_r = (_vec(v, n) for v, n in ((ps_l, "ps_l"), (ps_r, "ps_r"), (ph_l, "ph_l"), (ph_r, "ph_r")))
     ps_m = 0.5 * (ps_l + ps_r)
     ph_m = 0.5 * (ph_l + ph_r)
     # Eq. (17): f_t,y = p_s,l - p_s,r
@@ -168,46 +166,6 @@ def torso_frame(ps_l, ps_r, ph_l, ph_r) -> tuple[np.ndarray, np.ndarray] | None:
 
 def _landmark(pose: np.ndarray, name: str) -> np.ndarray:
     return pose[INDEX[name]]
-
-
-def smooth_torso(previous, current, dt: float, tau_s: float):
-    """First-order low-pass of the torso frame: ``previous`` moved toward ``current`` by ``1 - exp(-dt/tau)``.
-
-    Why: the torso frame (eq. 17) is built from the shoulders, whose depths AKC reconstructs; when AKC picks a
-    different mirror candidate for one shoulder the frame yaws by several degrees in one frame, and with a
-    0.5 m lever arm every wrist target jumps. A standing operator's torso turns slowly, so a low-pass with a
-    time constant of a fraction of a second removes those jumps and keeps real turns (after ``3 tau`` the
-    frame has followed 95 % of a turn). Rotation is interpolated on SO(3) (axis-angle of the relative
-    rotation), the origin linearly.
-
-    Args:
-        previous: ``(R, origin)`` or None (then ``current`` is returned).
-        current: ``(R, origin)`` or None (then ``previous`` is returned).
-        dt: time since ``previous``, seconds; tau_s: time constant, seconds (<= 0: no smoothing).
-    """
-    if previous is None or tau_s <= 0.0:
-        return current
-    if current is None:
-        return previous
-    a = 1.0 - math.exp(-max(dt, 0.0) / tau_s)
-    R0, o0 = previous
-    R1, o1 = current
-    R_rel = R0.T @ R1
-    angle = math.acos(max(-1.0, min(1.0, 0.5 * (np.trace(R_rel) - 1.0))))
-    if angle < 1e-12:
-        R = R1 if a >= 1.0 else R0
-    else:
-        axis = np.array([R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0], R_rel[1, 0] - R_rel[0, 1]])
-        n = np.linalg.norm(axis)
-        if n < 1e-12:  # a half turn: no unique interpolation; take the new frame
-            return current
-        R = R0 @ _axis_angle(axis / n, a * angle)
-    return R, o0 + a * (np.asarray(o1) - np.asarray(o0))
-
-
-def _axis_angle(u: np.ndarray, theta: float) -> np.ndarray:
-    K = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
-    return np.eye(3) + math.sin(theta) * K + (1.0 - math.cos(theta)) * (K @ K)
 
 
 def torso_of(pose) -> tuple[np.ndarray, np.ndarray] | None:
@@ -303,9 +261,7 @@ class RobotMapping:
         object.__setattr__(self, "scale", s)
         tool = float(self.tool_offset_m)
         if not math.isfinite(tool) or tool < 0.0:
-            raise ValueError(
-                f"RobotMapping.tool_offset_m must be a length >= 0 in metres, got {self.tool_offset_m!r}"
-            )
+            raise ValueError(f"RobotMapping.tool_offset_m must be a length >= 0 in metres, got {self.tool_offset_m!r}")
         object.__setattr__(self, "tool_offset_m", tool)
         for name in ("offset_left", "offset_right"):
             object.__setattr__(self, name, _check_point(getattr(self, name), f"RobotMapping.{name}"))
@@ -510,3 +466,194 @@ def frame_jitter(X_seq, dt: float) -> tuple[float, float]:
     if not ang:
         return float("nan"), float("nan")
     return float(np.sqrt(np.mean(np.square(ang)))), float(np.sqrt(np.mean(np.square(lin))))
+
+
+# ------------------------------------------------------------------------------------------------------------
+# The torso from the hips (calibrated) and the robot's workspace
+
+
+def _hip_frame(ph_l: np.ndarray, ph_r: np.ndarray, up: np.ndarray) -> np.ndarray | None:
+    """Rotation (columns x forward, y left, z up) of the hip line ``ph_l - ph_r`` with ``up`` as the vertical
+    (orthogonalised); None when degenerate."""
+    y = _unit(ph_l - ph_r)
+    if y is None:
+        return None
+    x = _unit_cross(y, up)  # y x up = forward for a person facing the camera
+    if x is None:
+        return None
+    z = _cross(x, y)
+    return np.column_stack([x, y, z])
+
+
+@dataclass(frozen=True)
+class TorsoModel:
+    """The operator's torso as a rigid body carried by the hips, calibrated from a held pose (the T-pose).
+
+    Why: eq. (17) builds the torso frame from the shoulders, the landmarks most often occluded in teleoperation
+    (the arms reach toward the camera and hide them), and a corrector may put a hidden shoulder at the wrong
+    depth (its mirror candidate), which yaws the frame and moves every wrist target. The hips stay in view. At
+    calibration the whole torso is seen: the torso frame {0} of eq. (17) is stored relative to a hip frame
+    (hip line + the camera-frame vertical ``up_C`` of the calibrated torso). During teleoperation the torso is
+    the hip frame times that fixed transform: it follows the operator stepping and turning (translation, yaw)
+    but not bending at the waist or twisting the shoulders against the hips (the limitation of the model).
+
+    Attributes:
+        R_hip_torso: ``(3, 3)`` rotation of {0} in the hip frame.
+        p_hip_torso: ``(3,)`` position of {0}'s origin (the shoulder midpoint) in the hip frame, metres.
+        up_C: ``(3,)`` unit vertical of the calibrated torso ({0}'s z) in the camera frame.
+    """
+
+    R_hip_torso: np.ndarray
+    p_hip_torso: np.ndarray
+    up_C: np.ndarray
+
+    @classmethod
+    def calibrate(cls, poses) -> TorsoModel:
+        """Calibrate from ``(T, 12, 3)`` camera-frame poses of a held pose (frames with missing torso landmarks
+        are skipped; the landmarks are averaged first).
+
+        Raises:
+            ValueError: no frame with all four torso landmarks, or a degenerate mean torso.
+        """
+        P = np.asarray(poses, dtype=float).reshape(-1, 12, 3)
+        idx = [INDEX[n] for n in ("left_shoulder", "right_shoulder", "left_hip", "right_hip")]
+        ok = np.all(np.isfinite(P[:, idx]), axis=(1, 2))
+        if not ok.any():
+            raise ValueError("TorsoModel.calibrate: no frame shows both shoulders and both hips")
+        mean = np.mean(P[ok], axis=0)
+        torso = torso_of(np.where(np.isfinite(mean), mean, 0.0))
+        if torso is None:
+            raise ValueError("TorsoModel.calibrate: the mean torso is degenerate")
+        R_C0, o_C = torso
+        up = R_C0[:, 2]
+        ph_l, ph_r = mean[INDEX["left_hip"]], mean[INDEX["right_hip"]]
+        R_Ch = _hip_frame(ph_l, ph_r, up)
+        if R_Ch is None:
+            raise ValueError("TorsoModel.calibrate: the hips are degenerate")
+        hip_o = 0.5 * (ph_l + ph_r)
+        return cls(R_hip_torso=R_Ch.T @ R_C0, p_hip_torso=R_Ch.T @ (o_C - hip_o), up_C=up)
+
+    def torso(self, pose) -> tuple[np.ndarray, np.ndarray] | None:
+        """The torso frame ``(R, origin)`` of a ``(12, 3)`` pose from its hips; None when they are missing."""
+        pose = np.asarray(pose, dtype=float)
+        ph_l, ph_r = pose[INDEX["left_hip"]], pose[INDEX["right_hip"]]
+        if not (np.all(np.isfinite(ph_l)) and np.all(np.isfinite(ph_r))):
+            return None
+        R_Ch = _hip_frame(ph_l, ph_r, self.up_C)
+        if R_Ch is None:
+            return None
+        return R_Ch @ self.R_hip_torso, 0.5 * (ph_l + ph_r) + R_Ch @ self.p_hip_torso
+
+
+#: The robot's reachable shell per arm, around its shoulder (metres, tool point E): the arm reaches 0.885 m
+#: (0.34 + 0.35 + 0.195) fully stretched; targets are kept within 0.80 m (away from the stretched-arm
+#: singularity) and beyond 0.25 m (the gripper folded onto the shoulder).
+WORKSPACE_MAX_M = 0.80
+WORKSPACE_MIN_M = 0.25
+#: Targets are kept at least this far in front of the torso plane (x in T), so the gripper never aims into
+#: the robot's own body.
+WORKSPACE_MIN_X_M = 0.25
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """The reachable region of one arm's tool point in T: a spherical shell around the shoulder, cut by a
+    plane in front of the torso. :meth:`clip` projects a target position into it.
+
+    Attributes:
+        shoulder: ``(3,)`` the arm's shoulder in T.
+        r_min, r_max: the shell's radii, metres.
+        x_min: the cutting plane (x in T), metres.
+    """
+
+    shoulder: np.ndarray
+    r_min: float = WORKSPACE_MIN_M
+    r_max: float = WORKSPACE_MAX_M
+    x_min: float = WORKSPACE_MIN_X_M
+
+    @classmethod
+    def for_side(cls, side: str) -> Workspace:
+        sign = 1.0 if _side(side) == "left" else -1.0
+        return cls(
+            shoulder=np.array(
+                [DEFAULT_ROBOT_SHOULDER_X_M, sign * DEFAULT_ROBOT_SHOULDER_Y_M, DEFAULT_ROBOT_SHOULDER_Z_M]
+            )
+        )
+
+    def contains(self, p, tol: float = 1e-9) -> bool:
+        p = np.asarray(p, dtype=float)
+        r = float(np.linalg.norm(p - self.shoulder))
+        return self.r_min - tol <= r <= self.r_max + tol and p[0] >= self.x_min - tol
+
+    def clip(self, p) -> tuple[np.ndarray, bool]:
+        """``(p_clipped, clipped)``: ``p`` projected into the workspace (unchanged when inside)."""
+        p = np.asarray(p, dtype=float).copy()
+        if self.contains(p):
+            return p, False
+        p[0] = max(p[0], self.x_min)  # onto the half-space in front of the torso
+        d = p - self.shoulder
+        r = float(np.linalg.norm(d))
+        if r > self.r_max:
+            q = self.shoulder + d * (self.r_max / r)
+            if q[0] < self.x_min:
+                # The radial point leaves the half-space: the closest point is on the circle where the sphere
+                # meets the plane x = x_min, toward p.
+                rho = math.sqrt(max(self.r_max**2 - (self.x_min - self.shoulder[0]) ** 2, 0.0))
+                yz = d[1:]
+                n = float(np.linalg.norm(yz))
+                u = yz / n if n > 1e-12 else np.array([0.0, 1.0])
+                q = np.concatenate([[self.x_min], self.shoulder[1:] + rho * u])
+            p = q
+        elif r < self.r_min:
+            # Outward from the shoulder: x only grows (d_x >= x_min - shoulder_x > 0), so p stays in front.
+            u = d / r if r > 1e-9 else np.array([1.0, 0.0, 0.0])
+            p = self.shoulder + u * self.r_min
+        return p, True
+
+
+def calibrated_mapping(dims, **kwargs) -> RobotMapping:
+    """The operator-to-robot mapping calibrated from the operator's T-pose dimensions.
+
+    ``scale = robot reach / operator reach`` where the operator reach is the mean of the two calibrated arms
+    (upper + lower arm, so both robot arms move alike and the mapping stays a mirror image), and the operator's
+    shoulders (calibrated width ``SW``) are put on the robot's. Further keyword arguments go to
+    :meth:`RobotMapping.from_shoulders`.
+
+    Args:
+        dims: the calibrated :class:`~akc_drake.core.skeleton.BodyDimensions`.
+    """
+    reach = 0.5 * (dims.LUA + dims.LLA + dims.RUA + dims.RLA)
+    return RobotMapping.from_shoulders(human_reach_m=float(reach), human_shoulder_width_m=float(dims.SW), **kwargs)
+
+
+#: A hand vector ``p_i - p_p`` whose image-plane (x, y of C) share of its length is at least this is trusted
+#: as measured; below it, it points mostly along the camera ray and its sign rests on two noisy depths.
+HAND_VECTOR_RELIABLE_SHARE = 0.6
+#: Rotation about the wrist frame's y axis by pi: the mirror configuration of eq. (17) (z and x negated).
+R_FLIP_Y: np.ndarray = np.diag([-1.0, 1.0, -1.0])
+
+
+def resolve_wrist_flip(R_C, hand_vector_C, R_previous_C) -> np.ndarray:
+    """Keep a camera-frame wrist frame of eq. (17) on the same side as the previous one when its hand vector
+    is unreliable.
+
+    When ``p_i - p_p`` points mostly along the camera ray (the palm seen edge-on, e.g. palms down in a T-pose),
+    its sign comes from two noisy (and self-occluded) depths and the frame flips by pi about its y axis from one
+    frame to the next. Then, of the measured frame and its mirror (``R_C @ R_FLIP_Y``), the one closer to the
+    previous frame is taken. A reliable hand vector (image-plane share >= :data:`HAND_VECTOR_RELIABLE_SHARE`)
+    is taken as measured, which also re-seeds the branch.
+
+    Args:
+        R_C: ``(3, 3)`` the measured wrist frame in C; hand_vector_C: ``(3,)`` ``p_i - p_p`` in C;
+        R_previous_C: the previous frame in C, or None.
+    """
+    if R_previous_C is None:
+        return R_C
+    h = np.asarray(hand_vector_C, dtype=float)
+    n = float(np.linalg.norm(h))
+    if n > MIN_NORM_M and float(np.linalg.norm(h[:2])) >= HAND_VECTOR_RELIABLE_SHARE * n:
+        return R_C
+    mirror = R_C @ R_FLIP_Y
+    if rotation_angle(R_previous_C.T @ mirror) < rotation_angle(R_previous_C.T @ R_C):
+        return mirror
+    return R_C

@@ -66,6 +66,10 @@ DEFAULT_VELOCITY_LIMIT_SCALE = 0.98
 DEFAULT_POSITION_LIMIT_MARGIN = 0.02
 #: OSQP iteration cap for the IK's QP.
 OSQP_MAX_ITER = 20000
+#: The IK keeps the elbow (joint 4) at or below this angle (rad; negative bends it): one elbow branch, away
+#: from the straight-arm singularity at 0 and the hyperextension the joint's limit (+1.10 rad) would allow, from
+#: which the QP cannot move straight toward a target beside the robot (it reports "stuck").
+DEFAULT_ELBOW_MAX = -0.15
 #: Targets are kept within this shell around the shoulder centre (metres); the straight arm reaches 0.885 m.
 DEFAULT_WORKSPACE_RADII = (0.15, 0.85)
 
@@ -301,6 +305,7 @@ def arm_ik_parameters(
     ee_angular_speed_limit: float = DEFAULT_EE_ANGULAR_SPEED_LIMIT,
     velocity_limit_scale: float = DEFAULT_VELOCITY_LIMIT_SCALE,
     position_limit_margin: float = DEFAULT_POSITION_LIMIT_MARGIN,
+    elbow_max: float = DEFAULT_ELBOW_MAX,
 ) -> DifferentialInverseKinematicsParameters:
     """Differential-IK parameters for one arm on an IK plant from :func:`make_arm_ik_plant`.
 
@@ -317,6 +322,7 @@ def arm_ik_parameters(
         ee_angular_speed_limit: end-effector angular speed limit (rad/s).
         velocity_limit_scale: factor (0, 1] applied to the joint velocity limits.
         position_limit_margin: distance (rad) kept from the joint position limits.
+        elbow_max: upper bound (rad) of the elbow joint (joint 4) for the IK (:data:`DEFAULT_ELBOW_MAX`).
 
     Returns:
         The parameters.
@@ -345,6 +351,7 @@ def arm_ik_parameters(
     lower, upper, vel = arm_joint_limits(side)
     q_lo, q_hi = q0 - 1.0, q0 + 1.0
     q_lo[idx], q_hi[idx] = lower + position_limit_margin, upper - position_limit_margin
+    q_hi[idx[3]] = min(q_hi[idx[3]], float(elbow_max))
     v_lim = np.zeros(nv)
     v_lim[idx] = vel * velocity_limit_scale
     K = np.zeros((nq, nq))

@@ -1,4 +1,11 @@
-"""Draws the operator's skeleton in Meshcat: raw measurements in red, the corrected pose in blue (paper Fig. 1)."""
+"""Draws the operator's skeleton in Meshcat: raw measurements in red, the corrected pose in blue (paper Fig. 1).
+
+The skeletons stand beside the robot, facing the way it faces, mirrored as the teleop mapping is (the operator's
+left arm, which drives the robot's left arm, is on the robot's left): the camera frame C is turned so that the
+operator's forward (-z_C) is world +x, left (+x_C) world +y and up (-y_C) world +z, and placed so that the hip
+midpoint of the first frame that shows both hips stands at :data:`SKELETON_HIPS_W` (to the robot's left, at a
+person's hip height). Later frames move with the operator.
+"""
 
 from __future__ import annotations
 
@@ -25,6 +32,11 @@ BONES: tuple[tuple[str, str], ...] = (
     ("left_hip", "right_hip"),
 )
 _BONE_IDX = np.array([[INDEX[a], INDEX[b]] for a, b in BONES])
+
+#: Where the skeletons' hip midpoint is placed (world, metres): 1.1 m to the robot's left, 0.95 m up.
+SKELETON_HIPS_W = (0.0, 1.1, 0.95)
+#: Rotation of the camera frame C in the world for the skeletons (operator facing world +x, upright).
+R_WC_FACING_X = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 RED = Rgba(0.85, 0.15, 0.15, 1.0)
 BLUE = Rgba(0.15, 0.35, 0.9, 1.0)
@@ -71,7 +83,8 @@ class SkeletonVisualizer(LeafSystem):
 
     Args:
         meshcat: the Meshcat instance.
-        X_WC: pose of the camera frame C in the Meshcat world.
+        X_WC: pose of the camera frame C in the Meshcat world; None (the default): turned as
+            :data:`R_WC_FACING_X` and placed on the first frame with both hips (see the module docstring).
         period_s: publish period (the camera period).
         offset_s: publish offset after the camera's sample time.
         prefix: Meshcat path under which the skeletons are drawn.
@@ -88,7 +101,7 @@ class SkeletonVisualizer(LeafSystem):
     ):
         super().__init__()
         self._meshcat = meshcat
-        self._X_WC = X_WC if X_WC is not None else default_X_WC()
+        self._X_WC = X_WC  # None until the first frame with both hips, when it is not given
         self._prefix = prefix
         self._names = ("raw", "corrected")
         colors = (RED, BLUE)
@@ -99,8 +112,24 @@ class SkeletonVisualizer(LeafSystem):
                 meshcat.SetObject(f"{prefix}/{name}/bone{k}", Cylinder(radius, 1.0), rgba)
             for j in range(NUM_LANDMARKS):
                 meshcat.SetObject(f"{prefix}/{name}/joint{j}", Sphere(1.6 * radius), rgba)
-        meshcat.SetTransform(prefix, self._X_WC)
+        if self._X_WC is not None:
+            meshcat.SetTransform(prefix, self._X_WC)
+        else:
+            meshcat.SetProperty(prefix, "visible", False)
         self.DeclarePeriodicPublishEvent(period_s, offset_s, self._publish)
+
+    def _anchor(self, P: np.ndarray, t: float) -> bool:
+        """Place the skeletons on the first pose with both hips; False while there is none yet."""
+        if self._X_WC is not None:
+            return True
+        hips = P[[INDEX["left_hip"], INDEX["right_hip"]]]
+        if not np.all(np.isfinite(hips)):
+            return False
+        p_C = hips.mean(axis=0)
+        self._X_WC = RigidTransform(RotationMatrix(R_WC_FACING_X), np.asarray(SKELETON_HIPS_W) - R_WC_FACING_X @ p_C)
+        self._meshcat.SetTransform(self._prefix, self._X_WC, t)
+        self._meshcat.SetProperty(self._prefix, "visible", True, t)
+        return True
 
     def _publish(self, context):
         t = context.get_time()
@@ -110,6 +139,8 @@ class SkeletonVisualizer(LeafSystem):
             if not port.HasValue(context):
                 continue
             P = np.asarray(port.Eval(context)).reshape(NUM_LANDMARKS, 3)
+            if not self._anchor(P, t):
+                continue
             base = f"{self._prefix}/{name}"
             for b, (i, j) in enumerate(_BONE_IDX):
                 path = f"{base}/bone{b}"
@@ -120,7 +151,7 @@ class SkeletonVisualizer(LeafSystem):
                 X, L = pose
                 self._meshcat.SetProperty(path, "visible", True, t)
                 self._meshcat.SetTransform(path, X, t)
-                self._meshcat.SetProperty(path, "scale", [1.0, L, 1.0], t)
+                self._meshcat.SetProperty(path, "scale", [1.0, 1.0, L], t)
             for j in range(NUM_LANDMARKS):
                 path = f"{base}/joint{j}"
                 ok = bool(np.isfinite(P[j]).all())

@@ -218,6 +218,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                 run, td = run_teleop(
                     cfg,
                     calib.dims,
+                    torso_model=calib.torso,
                     corrector=corrector,
                     replay=meas,
                     motion=motion,
@@ -240,6 +241,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                 run, td = run_teleop(
                     cfg,
                     calib.dims,
+                    torso_model=calib.torso,
                     corrector=MAIN_CORRECTOR,
                     motion=motion,
                     num_frames=meas.num_frames,

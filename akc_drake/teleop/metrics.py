@@ -61,7 +61,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
     def per_frame(fn, side: str) -> np.ndarray:
         return np.concatenate([fn(r, side)[a] for r, a in zip(runs, after, strict=True)])
 
-    keys = ("err", "err_all", "p95", "reach", "op", "unreach", "jang", "jlin", "oang", "olin")
+    keys = ("err", "err_all", "p95", "reach", "op", "unreach", "jang", "jlin", "oang", "olin", "top", "top95")
+    keys += ("lag", "cross", "clip")
     v: dict[str, dict] = {k: {} for k in keys}
     for side in SIDES:
         e_after = np.concatenate([r.errors[side][r.error_t[side] >= settling_s] for r in runs])
@@ -74,6 +75,13 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         v["op"][side] = _median_cm(
             per_frame(lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.ee[s], axis=1), side)
         )
+        top = per_frame(lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.target[s][:, :3, 3], axis=1), side)
+        v["top"][side] = _median_cm(top)
+        v["top95"][side] = _p95_cm(top)
+        v["lag"][side] = _added_latency_ms(runs, side, after)
+        v["cross"][side] = int(sum(_midline_crossings(r, side, a) for r, a in zip(runs, after, strict=True)))
+        clip = [r.clipped[side][a] for r, a in zip(runs, after, strict=True) if side in r.clipped]
+        v["clip"][side] = float(np.mean(np.concatenate(clip))) if clip and sum(map(len, clip)) else None
         gap = per_frame(lambda r, s: np.linalg.norm(r.reachable_target[s] - r.target[s][:, :3, 3], axis=1), side)
         gap = gap[np.isfinite(gap)]
         v["unreach"][side] = float(np.mean(gap > 1e-6)) if gap.size else None
@@ -94,6 +102,11 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "ee_reachable_error_cm": v["reach"],
         "ee_operator_error_cm": v["op"],
         "target_unreachable_share": v["unreach"],
+        "target_operator_error_cm": v["top"],
+        "target_operator_error_p95_cm": v["top95"],
+        "smoothing_latency_ms": v["lag"],
+        "midline_crossings": v["cross"],
+        "workspace_clipped_share": v["clip"],
         "jitter": {"angular_rad_s": v["jang"], "linear_m_s": v["jlin"]},
         "operator_jitter": {"angular_rad_s": v["oang"], "linear_m_s": v["olin"]},
         "position_limit_hits": int(sum(r.position_limit_hits for r in runs)),
@@ -102,6 +115,9 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "ik_steps": int(sum(sum(r.ik_steps.values()) for r in runs)),
         "ik_failures": int(sum(sum(r.ik_failures.values()) for r in runs)),
         "ik_failure_kinds": _sum_dicts(r.ik_failure_kinds for r in runs),
+        "ik_failure_share": _share(
+            sum(sum(r.ik_failures.values()) for r in runs), sum(sum(r.ik_steps.values()) for r in runs)
+        ),
         "nan_commands": int(sum(r.nan_commands for r in runs)),
         "tracking_lost_share": (sum(x * w for x, w in lost) / sum(w for _, w in lost)) if lost else None,
         "dropout_frames": int(sum(int(np.count_nonzero(r.dropout)) for r in runs)),
@@ -109,6 +125,37 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "wall_s": wall,
         "realtime_factor": sim_s / wall if wall > 0 else None,
     }
+
+
+def _share(num: int, den: int) -> float | None:
+    return float(num) / float(den) if den else None
+
+
+def _added_latency_ms(runs, side: str, after) -> float | None:
+    """Delay (ms) the smoothing adds: :func:`~akc_drake.core.smoothing.estimate_lag` of the target positions
+    behind the unsmoothed ones, frames weighted over the runs."""
+    from akc_drake.core.smoothing import estimate_lag
+
+    lags, weights = [], []
+    for r, a in zip(runs, after, strict=True):
+        raw = r.unsmoothed.get(side) if r.unsmoothed else None
+        if raw is None:
+            continue
+        lag = estimate_lag(raw[a], r.target[side][a][:, :3, 3], r.period_s, max_lag_s=0.5)
+        if math.isfinite(lag):
+            lags.append(lag)
+            weights.append(int(np.count_nonzero(a)))
+    return float(np.average(lags, weights=weights) * 1e3) if lags else None
+
+
+def _midline_crossings(run, side: str, after) -> int:
+    """Frames where ``side``'s target is across the robot's midline (y = 0 in T) while the operator's true
+    mapped wrist is not: a crossing the operator did not make."""
+    sign = 1.0 if side == "left" else -1.0
+    y_t = sign * run.target[side][after][:, 1, 3]
+    y_o = sign * run.operator[side][after][:, 1, 3]
+    ok = np.isfinite(y_t) & np.isfinite(y_o)
+    return int(np.count_nonzero(ok & (y_t < 0.0) & (y_o > 0.0)))
 
 
 def _sum_dicts(dicts) -> dict:

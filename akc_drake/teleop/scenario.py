@@ -101,6 +101,7 @@ class Calibration:
     report: object
     frames: int
     wall_s: float
+    torso: object = None
 
 
 def calibrate_from_tpose(
@@ -138,7 +139,10 @@ def calibrate_from_tpose(
     n = min(frames, built.num_frames)
     log, _ = built.simulate(n)
     dims, report = calibrate_report(log.estimated[:n], "tpose")
-    return Calibration(dims, report, n, time.perf_counter() - t0)
+    from akc_drake.core.frames import TorsoModel
+
+    torso = TorsoModel.calibrate(log.estimated[:n])
+    return Calibration(dims, report, n, time.perf_counter() - t0, torso)
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -256,6 +260,8 @@ class TeleopRun:
     ee: dict
     operator: dict
     dropout: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    clipped: dict = field(default_factory=dict)
+    unsmoothed: dict = field(default_factory=dict)
 
     @property
     def realtime_factor(self) -> float:
@@ -292,6 +298,45 @@ def operator_targets(truth_C: np.ndarray | None, n: int, mapping) -> dict[str, n
     return out
 
 
+def _clipped_frames(td, sim, n: int) -> dict[str, np.ndarray]:
+    """Per side ``(n,)`` bool: frames whose target the FrameMapper clipped into the arm's workspace."""
+    data = td.clip_log.FindLog(sim.get_context()).data().T
+    out = {}
+    for k, side in enumerate(SIDES):
+        v = np.zeros(n, dtype=bool)
+        # One sample per camera tick after the mapper's update; the first (t = start) is the initial state.
+        vals = data[1 : n + 1, k] > 0.5 if data.shape[0] > 1 else np.zeros(0, dtype=bool)
+        v[: len(vals)] = vals
+        out[side] = v
+    return out
+
+
+def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_model) -> dict[str, np.ndarray]:
+    """Per side ``(n, 3)``: the target positions the same tracker gives without smoothing and clipping, from
+    the corrected landmarks the diagram logged (for the smoothing's added latency); NaN when unknown."""
+    from akc_drake.core.control_frames import ControlFrameTracker
+
+    out = {s: np.full((n, 3), np.nan) for s in SIDES}
+    log = td.loggers.get("corrected")
+    if log is None:
+        return out
+    data = log.FindLog(sim.get_context())
+    times, values = data.sample_times(), data.data().T
+    tracker = ControlFrameTracker(
+        td.mapper.mapping, torso_model=torso_model, wrist_smoothing=None, torso_smoothing=None
+    )
+    state = tracker.initial_state()
+    for k in range(n):
+        j = int(np.searchsorted(times, start + (k + 1) * period - 1e-9))
+        if j >= len(times):
+            break
+        state, targets, _, _ = tracker.step(state, start + k * period, values[j].reshape(-1, 3))
+        for side, X in zip(SIDES, targets, strict=True):
+            if X is not None:
+                out[side][k] = X[:3, 3]
+    return out
+
+
 @contextlib.contextmanager
 def quiet_drake_warnings():
     """Silence Drake's per-step warnings (e.g. the IK's "stuck" notices) while the demo counts them itself."""
@@ -317,6 +362,8 @@ def run_teleop(
     dropout: np.ndarray | None = None,
     truth_C: np.ndarray | None = None,
     progress: bool = False,
+    torso_model=None,
+    **diagram_kwargs,
 ):
     """Build the teleop diagram for ``corrector`` and run it once.
 
@@ -333,6 +380,8 @@ def run_teleop(
         truth_C: ``(frames, 12, 3)`` the operator's true landmarks in C (default: the replay's), for the
             error to the operator.
         progress: show a progress bar.
+        torso_model: the calibrated :class:`~akc_drake.core.frames.TorsoModel` (None: eq. 17's torso).
+        **diagram_kwargs: passed to :func:`~akc_drake.diagrams.build_teleop_diagram`.
 
     Returns:
         ``(TeleopRun, TeleopDiagram)``.
@@ -350,7 +399,16 @@ def run_teleop(
         raise ValueError("run_teleop: give replay (measurements) or motion (to render)")
     filt, corr = CORRECTORS[corrector]
     cfg = dataclasses.replace(cfg, filter=filt, corrector=corr).validate()
-    td = build_teleop_diagram(cfg, replay=replay, motion=motion, dims=dims, meshcat=meshcat, keep_history=True)
+    td = build_teleop_diagram(
+        cfg,
+        replay=replay,
+        motion=motion,
+        dims=dims,
+        meshcat=meshcat,
+        keep_history=True,
+        torso_model=torso_model,
+        **diagram_kwargs,
+    )
     n = int(num_frames if num_frames is not None else td.num_frames)
     if n < 1:
         raise ValueError(f"run_teleop: need at least one frame, got {n}")
@@ -407,5 +465,7 @@ def run_teleop(
         ee=ee,
         operator=operator_targets(truth, n, td.mapper.mapping),
         dropout=np.zeros(n, dtype=bool) if dropout is None else np.asarray(dropout, dtype=bool)[:n],
+        clipped=_clipped_frames(td, sim, n),
+        unsmoothed=_unsmoothed_targets(td, sim, n, float(start_time), period, torso_model),
     )
     return run, td

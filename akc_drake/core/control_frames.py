@@ -1,0 +1,143 @@
+"""Stage S5 end to end on numpy: a landmark pose in, the two robot targets out, with the state that links frames.
+
+:class:`ControlFrameTracker` is what :class:`~akc_drake.systems.frame_mapper.FrameMapper` runs once per camera
+frame:
+
+1. **Torso**: from the hips through a calibrated :class:`~akc_drake.core.frames.TorsoModel` when one is given
+   (the shoulders are the most occluded landmarks in teleoperation), else eq. (17) from the shoulders and
+   hips; then smoothed on SE(3) (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard).
+   Missing: the last torso is held.
+2. **Wrists** (eq. 17) in the camera frame; a frame whose hand vector is unreliable is kept on the side of the
+   previous one (:func:`~akc_drake.core.frames.resolve_wrist_flip`), then expressed in the torso frame and
+   mapped to the robot (:func:`~akc_drake.core.frames.map_to_robot`).
+3. **Speed gate**: a side whose wrist/hand/hip landmarks would have moved faster than ``max_landmark_speed``
+   since its last accepted frame is treated as lost (:func:`~akc_drake.core.frames.plausible_step`).
+4. **Smoothing** of each target on SE(3) (:data:`~akc_drake.core.smoothing.WRIST_SMOOTHING`).
+5. **Workspace**: the smoothed target's position is projected into the arm's reachable shell
+   (:class:`~akc_drake.core.frames.Workspace`); a clipped target is reported as such (not an IK failure).
+
+The whole state is one flat vector (:attr:`ControlFrameTracker.state_size`), so a Drake system keeps it in
+discrete state.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from akc_drake.core import smoothing
+from akc_drake.core.frames import (
+    DEFAULT_MAX_LANDMARK_SPEED,
+    SPEED_GATED_LANDMARKS,
+    RobotMapping,
+    TorsoModel,
+    map_to_robot,
+    plausible_step,
+    resolve_wrist_flip,
+    torso_of,
+    transform,
+    wrist_frame,
+)
+from akc_drake.core.skeleton import INDEX, SIDES
+
+_S = smoothing.STATE_SIZE
+_GATED = {side: [INDEX[n] for n in SPEED_GATED_LANDMARKS[side]] for side in SIDES}
+_NG = 3 * len(_GATED["left"]) + 1  # gated positions + time
+
+
+class ControlFrameTracker:
+    """Landmarks to smoothed, workspace-clipped robot targets (see the module docstring).
+
+    Args:
+        mapping: the operator-to-robot mapping.
+        torso_model: a calibrated :class:`TorsoModel` (None: eq. 17's torso from the shoulders).
+        wrist_smoothing, torso_smoothing: :class:`~akc_drake.core.smoothing.SE3SmoothingParams`, None: off.
+        workspace: per side a :class:`Workspace` (None: no clipping).
+        max_landmark_speed: the speed gate, m/s (None: off).
+    """
+
+    def __init__(
+        self,
+        mapping: RobotMapping,
+        *,
+        torso_model: TorsoModel | None = None,
+        wrist_smoothing: smoothing.SE3SmoothingParams | None = smoothing.WRIST_SMOOTHING,
+        torso_smoothing: smoothing.SE3SmoothingParams | None = smoothing.TORSO_SMOOTHING,
+        workspace: dict | None = None,
+        max_landmark_speed: float | None = DEFAULT_MAX_LANDMARK_SPEED,
+    ):
+        self.mapping = mapping
+        self.torso_model = torso_model
+        self._torso_f = smoothing.SE3OneEuro(torso_smoothing) if torso_smoothing is not None else None
+        self._wrist_f = smoothing.SE3OneEuro(wrist_smoothing) if wrist_smoothing is not None else None
+        self.workspace = workspace
+        self.max_speed = max_landmark_speed
+        # Layout: torso filter | torso R (9) + origin (3) | per side: wrist filter, previous R_C (9), gate.
+        self._side = _S + 9 + _NG
+        self.state_size = _S + 12 + 2 * self._side
+
+    def initial_state(self) -> np.ndarray:
+        return np.full(self.state_size, np.nan)
+
+    def _torso(self, state: np.ndarray, t: float, pose: np.ndarray):
+        measured = self.torso_model.torso(pose) if self.torso_model is not None else torso_of(pose)
+        if measured is not None:
+            if self._torso_f is not None:
+                state[:_S], R, o, _ = self._torso_f.step(state[:_S], t, *measured)
+            else:
+                R, o = measured
+            state[_S : _S + 9] = R.ravel()
+            state[_S + 9 : _S + 12] = o
+        v = state[_S : _S + 12]
+        if not np.all(np.isfinite(v)):
+            return None
+        return v[:9].reshape(3, 3), v[9:12]
+
+    def step(self, state, t: float, pose) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+        """One camera frame.
+
+        Args:
+            state: the tracker state (:meth:`initial_state` first); t: the frame's time, s; pose: ``(12, 3)``
+                landmarks in the camera frame C (NaN where missing).
+
+        Returns:
+            ``(new_state, targets, lost, clipped)``: per side (left, right) a 4x4 ``X_TE`` or None (lost: hold
+            the previous target), ``lost`` and ``clipped`` as float arrays ``[left, right]``.
+        """
+        state = np.array(state, dtype=float)
+        pose = np.asarray(pose, dtype=float).reshape(-1, 3)
+        torso = self._torso(state, t, pose)
+        targets: list = [None, None]
+        lost = np.ones(2)
+        clipped = np.zeros(2)
+        if torso is None:
+            return state, targets, lost, clipped
+        R0, o0 = torso
+        for k, side in enumerate(SIDES):
+            b = _S + 12 + k * self._side
+            f_sl, prev_sl, gate_sl = slice(b, b + _S), slice(b + _S, b + _S + 9), slice(b + _S + 9, b + self._side)
+            p_e, p_w, p_i, p_p = (pose[INDEX[f"{side}_{n}"]] for n in ("elbow", "wrist", "index", "pinky"))
+            R_w = wrist_frame(p_e, p_w, p_i, p_p) if np.all(np.isfinite([p_e, p_w, p_i, p_p])) else None
+            if R_w is None:
+                continue
+            gate = state[gate_sl]
+            points = pose[_GATED[side]]
+            if self.max_speed is not None and math.isfinite(gate[-1]):
+                if not plausible_step(gate[:-1].reshape(-1, 3), points, t - gate[-1], self.max_speed):
+                    continue  # a jump no person makes: a fault, hold the target
+            prev = state[prev_sl]
+            R_w = resolve_wrist_flip(R_w, p_i - p_p, prev.reshape(3, 3) if np.all(np.isfinite(prev)) else None)
+            state[prev_sl] = R_w.ravel()
+            state[gate_sl] = np.concatenate([points.ravel(), [t]])
+            X = map_to_robot(transform(R0.T @ R_w, R0.T @ (p_w - o0)), side, self.mapping)
+            if self._wrist_f is not None:
+                state[f_sl], R, p, _ = self._wrist_f.step(state[f_sl], t, X[:3, :3], X[:3, 3])
+                X = transform(R, p)
+            if self.workspace is not None:
+                p, was_clipped = self.workspace[side].clip(X[:3, 3])
+                X[:3, 3] = p
+                clipped[k] = float(was_clipped)
+            targets[k] = X
+            lost[k] = 0.0
+        return state, targets, lost, clipped

@@ -1,0 +1,217 @@
+"""Adaptive smoothing of control frames on SE(3): the One Euro filter on position and on rotation.
+
+The One Euro filter (Casiez, Roussel and Vogel, "1 Euro Filter: A Simple Speed-based Low-pass Filter for Noisy
+Input in Interactive Systems", CHI 2012) is a first-order low-pass whose cutoff frequency rises with the
+signal's speed: at rest the cutoff is ``min_cutoff_hz`` (little jitter), when the hand moves fast it becomes
+``min_cutoff_hz + beta * speed`` (little lag). The speed itself is low-passed at ``d_cutoff_hz``. One step with
+sample period ``dt`` and cutoff ``fc`` moves the estimate by ``alpha = 1 / (1 + 1 / (2 pi fc dt))`` of the way
+to the new sample.
+
+On SE(3) the position is filtered as a 3-vector and the rotation on the manifold: the new sample's rotation
+relative to the current estimate is taken to its rotation vector (``Rotation.as_rotvec``, the log map), its
+norm over ``dt`` is the angular speed, and the estimate moves by ``alpha`` of that rotation vector
+(``Rotation.from_rotvec``, the exp map), i.e. along the geodesic. There are no Euler angles, so no gimbal lock
+and no wrap-around at +/-pi.
+
+Before the filter, a **flip guard** rejects a sample whose rotation is further than ``max_angular_speed * dt``
+from the estimate: those are a mirror flip of an
+eq. (17) frame (the hand vector ``p_i - p_p`` or a shoulder depth reconstructed on the wrong side), not a motion
+a person makes in one camera period. A One Euro filter alone would *follow* such an outlier (its speed raises
+the cutoff). A genuine large turn is accepted once it has persisted for ``reacquire_s`` (the estimate is then
+reset to the sample), so the guard cannot lock a track out.
+
+Everything is numpy + scipy; the filter's state is a flat vector (:data:`STATE_SIZE`) so a Drake system can keep
+it in discrete state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+#: Layout of :class:`SE3OneEuro`'s state vector: position (3), linear speed estimate (3), rotation as a
+#: quaternion x, y, z, w (4), angular velocity estimate (3), time of the last accepted sample, time since which
+#: samples have been rejected (NaN: none).
+STATE_SIZE = 15
+
+
+@dataclass(frozen=True)
+class OneEuroParams:
+    """Parameters of one One Euro filter.
+
+    Attributes:
+        min_cutoff_hz: cutoff at rest (Hz): lower = less jitter when still, more lag on slow motion.
+        beta: cutoff increase per unit of speed (Hz per m/s for positions, Hz per rad/s for rotations): higher =
+            less lag when moving fast.
+        d_cutoff_hz: cutoff of the speed estimate (Hz).
+    """
+
+    min_cutoff_hz: float
+    beta: float
+    d_cutoff_hz: float = 1.0
+
+    def __post_init__(self):
+        for name in ("min_cutoff_hz", "beta", "d_cutoff_hz"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"OneEuroParams.{name} must be a number >= 0, got {v!r}")
+        if self.min_cutoff_hz <= 0 or self.d_cutoff_hz <= 0:
+            raise ValueError("OneEuroParams: min_cutoff_hz and d_cutoff_hz must be > 0")
+
+
+def alpha(cutoff_hz: float, dt: float) -> float:
+    """Smoothing factor of a first-order low-pass with cutoff ``cutoff_hz`` sampled every ``dt`` seconds."""
+    tau = 1.0 / (2.0 * math.pi * cutoff_hz)
+    return 1.0 / (1.0 + tau / dt)
+
+
+@dataclass(frozen=True)
+class SE3SmoothingParams:
+    """The SE(3) smoothing of one control frame (position and rotation filters, flip guard).
+
+    Attributes:
+        position: One Euro parameters of the position (speed in m/s).
+        rotation: One Euro parameters of the rotation (speed in rad/s).
+        max_angular_speed: flip guard on rotation, rad/s (None: off).
+        reacquire_s: a rejected change that persists this long is accepted (the estimate jumps to it).
+    """
+
+    position: OneEuroParams
+    rotation: OneEuroParams
+    max_angular_speed: float | None = None
+    reacquire_s: float = 0.5
+
+
+#: Wrist targets (robot frame T): position cutoff 2 Hz at rest rising by 10 Hz per m/s (a hand moving at
+#: 0.5 m/s is followed at 7 Hz: a few ms of lag), rotation 0.3 Hz at rest rising by only 0.02 Hz per rad/s.
+#: The rotation comes from the hand vector ``p_i - p_p`` (index and pinky knuckles ~8 cm apart, their depths
+#: noisy and often self-occluded), whose noise reaches tens of degrees per frame: a One Euro filter with a
+#: larger beta would read that noise as speed and follow it. No rotation guard here: mirror flips of the wrist
+#: frame are resolved before the filter (:func:`akc_drake.core.frames.resolve_wrist_flip`).
+WRIST_SMOOTHING = SE3SmoothingParams(
+    position=OneEuroParams(min_cutoff_hz=2.0, beta=10.0, d_cutoff_hz=1.0),
+    rotation=OneEuroParams(min_cutoff_hz=0.3, beta=0.02, d_cutoff_hz=1.0),
+    max_angular_speed=None,
+)
+#: Torso frame: a standing operator's torso moves slowly, and its shoulders are the most occluded landmarks
+#: (the arms reach toward the camera): 0.3 Hz at rest; a turn faster than 1.5 rad/s is a flip (held for up
+#: to 1 s, then accepted).
+TORSO_SMOOTHING = SE3SmoothingParams(
+    position=OneEuroParams(min_cutoff_hz=0.3, beta=1.0, d_cutoff_hz=1.0),
+    rotation=OneEuroParams(min_cutoff_hz=0.3, beta=0.5, d_cutoff_hz=1.0),
+    max_angular_speed=1.5,
+    reacquire_s=1.0,
+)
+
+
+def initial_state() -> np.ndarray:
+    """The state of a filter that has seen no sample yet."""
+    return np.full(STATE_SIZE, np.nan)
+
+
+def _unpack(state: np.ndarray):
+    s = np.asarray(state, dtype=float)
+    return s[0:3], s[3:6], s[6:10], s[10:13], float(s[13]), float(s[14])
+
+
+def _pack(p, v, q, w, t, rejected_since) -> np.ndarray:
+    return np.concatenate([p, v, q, w, [t, rejected_since]])
+
+
+class SE3OneEuro:
+    """A One Euro filter on SE(3) with a flip guard (see the module docstring).
+
+    Use :meth:`step` with an explicit state vector (what a Drake system keeps), or :meth:`__call__` with the
+    object's own state.
+
+    Args:
+        params: the :class:`SE3SmoothingParams`.
+    """
+
+    def __init__(self, params: SE3SmoothingParams = WRIST_SMOOTHING):
+        self.params = params
+        self.state = initial_state()
+
+    def reset(self) -> None:
+        self.state = initial_state()
+
+    def __call__(self, t: float, R: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        self.state, R_f, p_f, _ = self.step(self.state, t, R, p)
+        return R_f, p_f
+
+    def step(self, state: np.ndarray, t: float, R, p) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """Filter one sample.
+
+        Args:
+            state: the filter state (:func:`initial_state` before the first sample).
+            t: the sample's time, seconds.
+            R: ``(3, 3)`` rotation of the sample; p: ``(3,)`` its position.
+
+        Returns:
+            ``(new_state, R_filtered, p_filtered, accepted)``; ``accepted`` is False when the flip guard
+            rejected the sample (the estimate is then held).
+        """
+        R = np.asarray(R, dtype=float)
+        p = np.asarray(p, dtype=float)
+        prm = self.params
+        p0, v0, q0, w0, t0, rej = _unpack(state)
+        rot = Rotation.from_matrix(R)
+        if not math.isfinite(t0):
+            zero = np.zeros(3)
+            return _pack(p, zero, rot.as_quat(), zero, t, math.nan), R.copy(), p.copy(), True
+        dt = float(t) - t0
+        if dt <= 0.0:
+            return np.asarray(state, dtype=float).copy(), Rotation.from_quat(q0).as_matrix(), p0.copy(), False
+        rot0 = Rotation.from_quat(q0)
+        delta = (rot0.inv() * rot).as_rotvec()  # log map of the relative rotation, in the estimate's frame
+        # Position: One Euro on the 3-vector.
+        step_p = p - p0
+        v = v0 + alpha(prm.position.d_cutoff_hz, dt) * (step_p / dt - v0)
+        fc = prm.position.min_cutoff_hz + prm.position.beta * float(np.linalg.norm(v))
+        p_new = p0 + alpha(fc, dt) * step_p
+        # Rotation: the flip guard, then One Euro on the manifold (log map -> scale -> exp map).
+        accepted = True
+        if prm.max_angular_speed is not None and np.linalg.norm(delta) > prm.max_angular_speed * dt:
+            since = float(t) if not math.isfinite(rej) else rej
+            if float(t) - since < prm.reacquire_s:
+                return _pack(p_new, v, q0, w0, t, since), rot0.as_matrix(), p_new, False
+            # The change has persisted: it is real. Restart the rotation estimate from the sample.
+            return _pack(p_new, v, rot.as_quat(), np.zeros(3), t, math.nan), R.copy(), p_new, True
+        w = w0 + alpha(prm.rotation.d_cutoff_hz, dt) * (delta / dt - w0)
+        fc_r = prm.rotation.min_cutoff_hz + prm.rotation.beta * float(np.linalg.norm(w))
+        rot_new = rot0 * Rotation.from_rotvec(alpha(fc_r, dt) * delta)
+        return _pack(p_new, v, rot_new.as_quat(), w, t, math.nan), rot_new.as_matrix(), p_new, accepted
+
+
+def estimate_lag(x_ref: np.ndarray, x_lagged: np.ndarray, dt: float, max_lag_s: float = 0.5) -> float:
+    """Delay (seconds) of ``x_lagged`` behind ``x_ref``: the shift ``tau`` minimising the mean squared distance
+    between ``x_lagged(t)`` and ``x_ref(t - tau)`` (linear interpolation, 5 ms steps, rows with NaN skipped).
+
+    Args:
+        x_ref, x_lagged: ``(T, d)`` (or ``(T,)``) signals sampled every ``dt`` seconds at the same times.
+        dt: the sample period.
+        max_lag_s: the largest delay searched.
+
+    Returns:
+        The delay in seconds (``>= 0``); NaN when fewer than 3 rows are finite in both.
+    """
+    a = np.asarray(x_ref, dtype=float).reshape(len(x_ref), -1)
+    b = np.asarray(x_lagged, dtype=float).reshape(len(x_lagged), -1)
+    if a.shape != b.shape:
+        raise ValueError(f"estimate_lag: shapes differ: {a.shape} vs {b.shape}")
+    t = np.arange(len(a)) * dt
+    best, best_err = math.nan, math.inf
+    for tau in np.arange(0.0, max_lag_s + 1e-9, 0.005):
+        shifted = np.column_stack(
+            [np.interp(t - tau, t, a[:, j], left=np.nan, right=np.nan) for j in range(a.shape[1])]
+        )
+        ok = np.all(np.isfinite(shifted), axis=1) & np.all(np.isfinite(b), axis=1)
+        if np.count_nonzero(ok) < 3:
+            continue
+        err = float(np.mean(np.sum((shifted[ok] - b[ok]) ** 2, axis=1)))
+        if err < best_err - 1e-15:
+            best, best_err = float(tau), err
+    return best

@@ -1,0 +1,111 @@
+"""ControlFrameTracker (akc_drake.core.control_frames), the hip-borne TorsoModel, the Workspace and the mapping
+calibrated from the T-pose (akc_drake.core.frames)."""
+
+import numpy as np
+import pytest
+
+from akc_drake.core import frames as F
+from akc_drake.core import smoothing as sm
+from akc_drake.core.control_frames import ControlFrameTracker
+from akc_drake.core.skeleton import INDEX, BodyDimensions
+
+R_C_TORSO = np.column_stack([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+def camera_pose(shift=(0.0, 0.0, 0.0)) -> np.ndarray:
+    return F.rest_operator_pose() @ R_C_TORSO.T + np.array([0.0, -0.2, 2.0]) + np.asarray(shift)
+
+
+def test_torso_model_reproduces_the_calibrated_torso_and_ignores_the_shoulders():
+    pose = camera_pose()
+    model = F.TorsoModel.calibrate(np.stack([pose] * 3))
+    R, o = model.torso(pose)
+    R_ref, o_ref = F.torso_of(pose)
+    np.testing.assert_allclose(R, R_ref, atol=1e-12)
+    np.testing.assert_allclose(o, o_ref, atol=1e-12)
+    moved = pose.copy()
+    moved[INDEX["left_shoulder"], 2] += 0.2  # a shoulder put at a wrong depth
+    np.testing.assert_allclose(model.torso(moved)[0], R_ref, atol=1e-12)
+    # The operator steps 0.3 m to the side: the torso follows the hips.
+    R2, o2 = model.torso(camera_pose(shift=(0.3, 0.0, 0.0)))
+    np.testing.assert_allclose(o2, o_ref + [0.3, 0.0, 0.0], atol=1e-12)
+    gone = pose.copy()
+    gone[INDEX["left_hip"]] = np.nan
+    assert model.torso(gone) is None
+    with pytest.raises(ValueError, match="shoulders and both hips"):
+        F.TorsoModel.calibrate(np.full((2, 12, 3), np.nan))
+
+
+def test_workspace_clip_keeps_targets_inside():
+    ws = F.Workspace.for_side("right")
+    rng = np.random.default_rng(1)
+    for p in rng.uniform(-1.5, 1.5, (500, 3)):
+        q, clipped = ws.clip(p)
+        assert ws.contains(q, tol=1e-6)
+        assert clipped == (not ws.contains(p))
+        if not clipped:
+            np.testing.assert_array_equal(q, p)
+    inside = ws.shoulder + [0.5, 0.0, -0.2]
+    assert ws.clip(inside) == (pytest.approx(inside), False) or not ws.clip(inside)[1]
+
+
+def test_calibrated_mapping_scales_the_operator_reach_to_the_robot():
+    dims = BodyDimensions(LUA=0.30, LLA=0.27, RUA=0.30, RLA=0.27, SW=0.36)
+    m = F.calibrated_mapping(dims)
+    assert m.scale == pytest.approx(F.DEFAULT_ROBOT_REACH_M / 0.57)
+    # The operator's left shoulder (0, SW/2, 0) in {0} lands on the robot's left shoulder.
+    X = np.eye(4)
+    X[:3, 3] = [0.0, 0.18, 0.0]
+    np.testing.assert_allclose(F.map_to_robot(X, "left", m)[:3, 3], [0.0, F.DEFAULT_ROBOT_SHOULDER_Y_M, 0.0])
+
+
+def test_tracker_without_smoothing_is_the_plain_mapping_and_with_it_converges():
+    pose = camera_pose()
+    m = F.RobotMapping.default()
+    plain = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None)
+    _, targets, lost, clipped = plain.step(plain.initial_state(), 0.0, pose)
+    expected = F.robot_targets(pose, m)
+    for X, E in zip(targets, expected, strict=True):
+        np.testing.assert_allclose(X, E, atol=1e-12)
+    np.testing.assert_array_equal(lost, [0.0, 0.0])
+    np.testing.assert_array_equal(clipped, [0.0, 0.0])
+    smooth = ControlFrameTracker(m, wrist_smoothing=sm.WRIST_SMOOTHING, torso_smoothing=sm.TORSO_SMOOTHING)
+    s = smooth.initial_state()
+    moved = camera_pose()
+    moved[INDEX["left_wrist"]] += [0.0, -0.05, 0.0]
+    moved[INDEX["left_index"]] += [0.0, -0.05, 0.0]
+    moved[INDEX["left_pinky"]] += [0.0, -0.05, 0.0]
+    s, first, _, _ = smooth.step(s, 0.0, pose)
+    s, second, _, _ = smooth.step(s, 0.1, moved)
+    target = F.robot_targets(moved, m)[0]
+    # Part of the way after one frame, all of it after a while (a step response, no overshoot).
+    d1 = np.linalg.norm(second[0][:3, 3] - first[0][:3, 3])
+    assert 0.2 * 0.0605 < d1 < 0.0605
+    for k in range(2, 40):
+        s, last, _, _ = smooth.step(s, 0.1 * k, moved)
+    np.testing.assert_allclose(last[0][:3, 3], target[:3, 3], atol=1e-4)
+
+
+def test_tracker_keeps_the_wrist_frame_off_its_mirror_when_the_hand_vector_is_unreliable():
+    """Palms down with the forearm sideways (a T-pose): the hand vector points along the camera ray; when the
+    index and pinky depths swap, the eq. (17) frame flips by pi about y, and the tracker keeps the previous side."""
+    pose = camera_pose()
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        w = pose[INDEX[f"{side}_wrist"]]
+        pose[INDEX[f"{side}_elbow"]] = w + [-sign * 0.28, 0.0, 0.0]  # forearm along x_C (sideways)
+        pose[INDEX[f"{side}_index"]] = w + [sign * 0.08, 0.0, -0.02]  # index nearer the camera
+        pose[INDEX[f"{side}_pinky"]] = w + [sign * 0.08, 0.0, 0.02]
+    swapped = pose.copy()
+    for side in ("left", "right"):
+        swapped[INDEX[f"{side}_index"], 2], swapped[INDEX[f"{side}_pinky"], 2] = (
+            pose[INDEX[f"{side}_pinky"], 2],
+            pose[INDEX[f"{side}_index"], 2],
+        )
+    m = F.RobotMapping.default()
+    t = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None)
+    s, a, _, _ = t.step(t.initial_state(), 0.0, pose)
+    s, b, _, _ = t.step(s, 0.1, swapped)
+    raw = F.robot_targets(swapped, m)
+    for k in range(2):
+        assert F.rotation_angle(raw[k][:3, :3].T @ a[k][:3, :3]) > 2.5  # the raw frame flipped
+        assert F.rotation_angle(b[k][:3, :3].T @ a[k][:3, :3]) < 0.3  # the tracked one did not
