@@ -17,10 +17,12 @@ Backward pass (Rauch, Tung, Striebel 1965)::
     x_{k|N} = x_{k|k} + C_k (x_{k+1|N} - x_{k+1|k})
     P_{k|N} = P_{k|k} + C_k (P_{k+1|N} - P_{k+1|k}) C_k^T
 
-Gaps: an axis is (re)initialised at its first measurement and after a gap longer than ``max_predict_s`` (as the
-KF re-initialises a held axis); each such run is smoothed on its own. Inside a run a missing measurement is a
-prediction (smoothed from both sides: the RTS pass interpolates it). Frames more than ``max_predict_s`` from
-every measurement of the axis are NaN (the KF holds or reports LOST there).
+Gaps: a missing measurement is a prediction, and the backward pass smooths it from both sides: the RTS pass
+interpolates every gap between two measurements of an axis, however long (the prediction variance grows as
+``q t^3``, so the measurement after the gap dominates: no run-away). This is where the smoother differs from the
+real-time KF, which cannot see the end of a gap: beyond ``max_predict_s`` it holds the axis and re-initialises it
+at the next measurement (:func:`kf_forward` with ``reinit_after_gap=True`` reproduces that exactly). Before an
+axis's first measurement, and more than ``max_predict_s`` after its last one (extrapolation), it is NaN.
 """
 
 from __future__ import annotations
@@ -37,13 +39,15 @@ def _check(z) -> np.ndarray:
     return Z
 
 
-def kf_forward(z, dt: float, config: KFConfig | None = None):
+def kf_forward(z, dt: float, config: KFConfig | None = None, *, reinit_after_gap: bool = True):
     """The forward constant-velocity KF over a whole recording, keeping what the backward pass needs.
 
     Args:
         z: ``(T, J, 3)`` measurements, NaN where missing.
         dt: the frame period, seconds.
         config: the KF's parameters (default :class:`KFConfig`).
+        reinit_after_gap: re-initialise an axis at a measurement after a gap longer than ``max_predict_s`` (the
+            real-time KF's behaviour); False bridges every gap (the smoother's forward pass).
 
     Returns:
         dict of ``(T, 3J)`` arrays ``p, v, Ppp, Ppv, Pvv`` (filtered), ``pp, vp, Pppp, Pppv, Ppvv`` (predicted,
@@ -76,7 +80,8 @@ def kf_forward(z, dt: float, config: KFConfig | None = None):
         Pp_pv = Ppv + dt * Pvv + Qpv
         Pp_vv = Pvv + Qvv
         age = age + dt
-        init = m & (age > limit)  # never measured (age inf) or a gap longer than max_predict_s
+        # never measured (age inf), or (real-time KF) a gap longer than max_predict_s
+        init = m & (age > limit) if reinit_after_gap else m & ~np.isfinite(age)
         use = m & ~init
         out["pp"][k], out["vp"][k] = pp, v
         out["Pppp"][k], out["Pppv"][k], out["Ppvv"][k] = Pp_pp, Pp_pv, Pp_vv
@@ -113,13 +118,13 @@ def rts_smooth(z, dt: float, config: KFConfig | None = None) -> np.ndarray:
         ``(T, J, 3)`` smoothed positions, NaN where the axis has no estimate.
     """
     Z = _check(z)
-    f = kf_forward(Z, dt, config)
+    f = kf_forward(Z, dt, config, reinit_after_gap=False)
     T, J, _ = Z.shape
     ps, vs = f["p"].copy(), f["v"].copy()
     Pss, Psv, Pvs = f["Ppp"].copy(), f["Ppv"].copy(), f["Pvv"].copy()
     for k in range(T - 2, -1, -1):
-        # Smooth k from k+1 only where k+1 continues the same run (not a re-initialisation).
-        cont = ~f["start"][k + 1] & f["valid"][k]
+        # Smooth k from k+1 only where k+1 continues the same track (not its first measurement).
+        cont = ~f["start"][k + 1]
         # P_{k+1|k} inverse (2x2): [[a, b], [b, c]]^-1 = [[c, -b], [-b, a]] / det.
         a, b, c = f["Pppp"][k + 1], f["Pppv"][k + 1], f["Ppvv"][k + 1]
         det = a * c - b * b
@@ -146,7 +151,9 @@ def rts_smooth(z, dt: float, config: KFConfig | None = None) -> np.ndarray:
         Pss[k], Psv[k], Pvs[k] = np.where(cont, n11, Pss[k]), np.where(cont, n12, Psv[k]), np.where(cont, n22, Pvs[k])
     # No estimate before an axis's first measurement, nor beyond max_predict_s after its last one.
     seen = np.maximum.accumulate(f["start"], axis=0)
-    ok = seen & f["valid"]
+    measured = np.isfinite(Z.reshape(T, -1))
+    ahead = np.maximum.accumulate(measured[::-1], axis=0)[::-1]  # a measurement at or after k
+    ok = seen & (f["valid"] | ahead)
     out = np.where(ok, ps, np.nan)
     return out.reshape(T, J, 3)
 

@@ -290,7 +290,7 @@ def _file_stem(method: str) -> str:
 
 def export_evaluation(ev, formats, out_dir, *, frame: str = "world") -> dict:
     """``evaluate --export FMT[,FMT]``: each method's skeleton per motion as ``out_dir/<motion>/<method>.<ext>``
-    (plus ``raw`` and ``truth``), and the RTS smoother's accuracy gain over the forward KF.
+    (plus ``Raw`` and ``truth``), and the RTS smoother's accuracy gain over the forward KF.
 
     Args:
         ev: the :class:`~akc_drake.evaluation.experiment.Evaluation`.
@@ -321,7 +321,8 @@ def export_evaluation(ev, formats, out_dir, *, frame: str = "world") -> dict:
                                         proximity=opts.proximity)[0]) for k in range(s.num_frames)])
         base = PoseSet(t=np.asarray(s.t, dtype=float), stages={"accepted": accepted}, dims=ev.dims, source=motion)
         world = world_frame_for(base, frame=frame)
-        outputs = {"raw": s.raw, "truth": s.truth, **{m: r.estimates for m, r in run.methods.items()}}
+        outputs = {"truth": s.truth, **{m: r.estimates for m, r in run.methods.items()}}
+        outputs.setdefault("Raw", s.raw)
         for fmt in fmts:
             for name, P in outputs.items():
                 path = Path(out_dir) / str(motion) / f"{_file_stem(name)}{FORMATS[fmt]}"
