@@ -120,7 +120,7 @@ def _export(ev, args) -> None:
     for motion, gain in exp["rts_gain"].items():
         for stage, g in gain.items():
             print(f"  motion {motion}, {stage}: RMSE forward {g['forward_rmse_cm']:.2f} cm, "
-                  f"RTS {g['rts_rmse_cm']:.2f} cm")
+                  f"RTS {g['rts_rmse_cm']:.2f} cm (coverage {g['coverage']:.0%})")
 
 
 def main(args) -> int:

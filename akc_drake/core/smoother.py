@@ -182,31 +182,50 @@ def smoothed_stages(accepted, dt: float, dims=None, config: KFConfig | None = No
 
 
 def rts_gain(truth, forward: dict, smoothed: dict, joints=None) -> dict:
-    """RMSE (cm, mean over the joints' three axes) of the forward and the smoothed stages against the truth.
+    """RMSE (cm) of the forward and the smoothed stages against the truth, on the frames where both have an estimate.
 
     Args:
-        truth: ``(T, 12, 3)`` ground truth.
+        truth: ``(T, 12, 3)`` ground truth (NaN on frames to leave out).
         forward: stage -> ``(T, 12, 3)`` from the forward KF (``filtered``, ``corrected``).
         smoothed: the same stages from :func:`smoothed_stages`.
         joints: landmark names (default: the six arm joints).
 
     Returns:
-        per stage ``{"forward_rmse_cm", "rts_rmse_cm", "gain_percent"}`` (frames where both are defined).
+        per stage ``{"forward_rmse_cm", "rts_rmse_cm", "gain_percent", "coverage", "joints"}``: the RMSEs are the
+        mean over the joints (and axes) of each joint's RMSE on the frames where truth, forward and smoothed all
+        have the joint; ``coverage`` is the share of the forward estimates the smoother also has (it has none more
+        than ``max_predict_s`` after an axis's last measurement, where the KF holds a stale value); ``joints``
+        lists the joints that had such frames.
     """
     from akc_drake.core.metrics import rmse_per_axis
     from akc_drake.core.skeleton import ARM_JOINTS, INDEX
 
     joints = ARM_JOINTS if joints is None else joints
-    J = [INDEX[j] for j in joints]
+    tr_all = np.asarray(truth, dtype=float)
     out = {}
     for stage in smoothed:
         if stage not in forward:
             continue
-        f, s, tr = (np.asarray(a, dtype=float)[:, J] for a in (forward[stage], smoothed[stage], truth))
-        both = np.isfinite(f) & np.isfinite(s)
-        f, s = np.where(both, f, np.nan), np.where(both, s, np.nan)
-        rf = float(np.mean([np.nanmean(rmse_per_axis(f[:, i], tr[:, i])[0]) for i in range(len(J))])) * 100
-        rs = float(np.mean([np.nanmean(rmse_per_axis(s[:, i], tr[:, i])[0]) for i in range(len(J))])) * 100
-        gain = 100.0 * (rf - rs) / rf if rf > 0 else None
-        out[stage] = {"forward_rmse_cm": rf, "rts_rmse_cm": rs, "gain_percent": gain}
+        f_all, s_all = np.asarray(forward[stage], dtype=float), np.asarray(smoothed[stage], dtype=float)
+        rf, rs, used, have_f, have_both = [], [], [], 0, 0
+        for name in joints:
+            j = INDEX[name]
+            tr = tr_all[:, j]
+            okf = np.isfinite(f_all[:, j]).all(axis=1) & np.isfinite(tr).all(axis=1)
+            both = okf & np.isfinite(s_all[:, j]).all(axis=1)
+            have_f, have_both = have_f + int(okf.sum()), have_both + int(both.sum())
+            if not both.any():
+                continue
+            rf.append(np.mean(rmse_per_axis(f_all[both, j], tr[both])[0]))
+            rs.append(np.mean(rmse_per_axis(s_all[both, j], tr[both])[0]))
+            used.append(name)
+        f_cm = 100.0 * float(np.mean(rf)) if rf else float("nan")
+        s_cm = 100.0 * float(np.mean(rs)) if rs else float("nan")
+        out[stage] = {
+            "forward_rmse_cm": f_cm,
+            "rts_rmse_cm": s_cm,
+            "gain_percent": 100.0 * (f_cm - s_cm) / f_cm if f_cm > 0 else None,
+            "coverage": have_both / have_f if have_f else None,
+            "joints": used,
+        }
     return out
