@@ -15,7 +15,9 @@ def model_path(name: str) -> Path:
     """Path of ``models/<name>``; ``FileNotFoundError`` naming it when absent."""
     p = MODELS_DIR / name
     if not p.exists():
-        raise FileNotFoundError(f"model file {p} not found (the package installation is incomplete: reinstall akc-drake)")
+        raise FileNotFoundError(
+            f"model file {p} not found (the package installation is incomplete: reinstall akc-drake)"
+        )
     return p
 
 
