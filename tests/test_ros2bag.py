@@ -97,3 +97,34 @@ def test_failed_write_leaves_nothing(tmp_path):
         write_ros2_bag(out, np.arange(3) * 0.1, {"raw": np.zeros((2, 12, 3))}, start_ns=START)
     assert out.read_bytes() == b"earlier result"
     assert [p.name for p in tmp_path.iterdir()] == ["x.mcap"]
+
+
+def test_foxglove_layout_shows_what_the_bag_holds(tmp_path):
+    import json
+    from importlib import resources
+
+    layout = json.loads(resources.files("akc_drake.data").joinpath("foxglove_layout.json").read_text())
+    assert {"configById", "layout", "globalVariables", "userNodes", "playbackConfig"} <= set(layout)
+    panels = layout["configById"]
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(node["second"])
+
+    assert sorted(leaves(layout["layout"])) == sorted(panels)  # every panel is placed, every placed panel exists
+    topics = set(panels["3D!akcskeleton"]["topics"])
+    topics |= {panels["Image!akccamera"]["cameraTopic"], panels["RawMessages!akcstate"]["topicPath"]}
+    topics |= {p["value"].split(".", 1)[0] for k, v in panels.items() if k.startswith("Plot!") for p in v["paths"]}
+    frames = {k.split(":", 1)[1] for k in panels["3D!akcskeleton"]["transforms"]}
+    s = synthetic_session(T=4)
+    stages = {k: s[k] for k in ("raw", "accepted", "filtered", "corrected", "truth")}
+    names = [f"arm_left_{i}_joint" for i in range(1, 8)]
+    series = JointSeries(np.arange(4) * 0.1, names, np.zeros((4, 7)))
+    X = np.broadcast_to(np.eye(4), (4, 4, 4))
+    write_ros2_bag(tmp_path / "all.mcap", s["t"], stages, joint_commands=series,
+                   robot_frames={"left_wrist_target": (s["t"], X)},
+                   intrinsics=CameraIntrinsics(width=8, height=6, fx=5.0, fy=5.0, cx=4.0, cy=3.0),
+                   images=[np.zeros((6, 8, 3), np.uint8)] * 4, start_ns=START)
+    bag = read_ros2_bag(tmp_path / "all.mcap")
+    assert topics <= set(bag), topics - set(bag)
+    tf_frames = {x.child_frame_id for _, m in bag["/tf"] + bag["/tf_static"] for x in m.transforms}
+    assert frames - {"robot_torso"} <= tf_frames and "left_wrist_target" in tf_frames
