@@ -77,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="FILE", help="write the summary as JSON")
     p.add_argument("--meshcat", action="store_true", help="serve Meshcat on localhost while running")
     p.add_argument("--html", metavar="FILE", help="save the Meshcat recording as a standalone HTML page")
+    p.add_argument("--ros2-bag", metavar="FILE.mcap", help="write the AKC(KF) replays as a ROS 2 MCAP bag")
     p.add_argument("--seed", type=int, default=0)
     _body_detector(p)
 

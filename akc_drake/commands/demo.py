@@ -48,6 +48,7 @@ def options_from_args(args):
         html=Path(args.html) if args.html else None,
         record=True,
         max_frames=_max_frames_from_env(),
+        ros2_bag=Path(args.ros2_bag) if getattr(args, "ros2_bag", None) else None,
         progress=sys.stderr.isatty(),
     ).validate()
 

@@ -241,8 +241,13 @@ def teleop_recording(td, log=None, num_frames: int | None = None) -> TeleopRecor
         raise ValueError("the teleop monitor kept no history (keep_history=False)")
     names = arm_joint_names("left") + arm_joint_names("right")
     q = np.concatenate([np.asarray(hist["q_left"]), np.asarray(hist["q_right"])], axis=1)
+    # The run may start at any simulation time (the demo puts its Meshcat-recorded runs one after the other): the
+    # recording starts at 0 at its first frame.
+    t_frames = np.asarray(log.t, dtype=float)
+    t0 = min(float(t_frames[0]) if len(t_frames) else 0.0, float(t[0]))
+    t_frames, t = t_frames - t0, t - t0
     targets = {f"{s}_wrist_target": (t, np.asarray(hist[f"target_{s}"])) for s in ("left", "right")}
-    return TeleopRecording(np.asarray(log.t, dtype=float), skeletons, JointSeries(t, names, q), targets)
+    return TeleopRecording(t_frames, skeletons, JointSeries(t, names, q), targets)
 
 
 def write_teleop_bag(path, recordings, *, world: WorldFrame | None = None, gap_s: float = 1.0,

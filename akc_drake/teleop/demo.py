@@ -56,6 +56,8 @@ class DemoOptions:
         correctors: which of :data:`CORRECTORS` to compare.
         config: the base :class:`~akc_drake.config.PipelineConfig` (camera, weights, ...).
         progress: progress bars on stderr.
+        ros2_bag: write the AKC(KF) replays (skeletons, wrist targets, joint commands) to this ROS 2 MCAP bag
+            (:func:`akc_drake.pipeline.export.write_teleop_bag`).
     """
 
     quick: bool = False
@@ -73,6 +75,7 @@ class DemoOptions:
     correctors: tuple[str, ...] = tuple(CORRECTORS)
     config: object = None
     progress: bool = False
+    ros2_bag: str | Path | None = None
 
     def validate(self) -> DemoOptions:
         """Check the options; raises UserError naming the option."""
@@ -178,6 +181,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
     dropout_info: dict[str, dict] = {}
     graph_diagram = None
     rec_time = 0.0
+    bag_runs = []  # --ros2-bag: the main corrector's replays
     if meshcat is not None:
         # Draw live only when the user watches (--meshcat); the recording is what the HTML page shows.
         meshcat.StartRecording(set_visualizations_while_recording=opts.meshcat is not None)
@@ -229,6 +233,10 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                 )
                 if record:
                     rec_time = math.ceil(rec_time + run.sim_s + RECORDING_GAP_S)
+                if opts.ros2_bag is not None and corrector == MAIN_CORRECTOR:
+                    from akc_drake.pipeline.export import teleop_recording
+
+                    bag_runs.append(teleop_recording(td, num_frames=run.frames))
                 runs[name].append(run)
                 m = run_metrics([run])
                 log(
@@ -276,6 +284,12 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
         outputs["graph_svg"] = str(paths["svg"]) if paths["svg"] is not None else None
         if paths["svg"] is None:
             log("note: graphviz's 'dot' is not installed, so the diagram was written as .dot only")
+    if bag_runs:
+        from akc_drake.pipeline.export import write_teleop_bag
+
+        counts = write_teleop_bag(opts.ros2_bag, bag_runs)
+        outputs["ros2_bag"] = str(opts.ros2_bag)
+        log(f"ROS 2 bag: {opts.ros2_bag} ({sum(counts.values())} messages on {len(counts)} topics)")
     if opts.plots:
         figs = []
         for name, rs in runs.items():
