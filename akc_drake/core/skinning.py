@@ -6,11 +6,11 @@ pose to the current pose; a point ``v`` with bone weights ``w_b`` (summing to 1)
 matrix product ``W @ M`` (``W`` the ``(N, B)`` weights, ``M`` the ``(B, 12)`` bone maps), and only for the
 points some moving bone touches: the rest of the body keeps its rest position.
 
-SceneGraph renders a deformable geometry from a tetrahedral mesh. :func:`tet_shell` turns a closed surface
-into a "shell": one tetrahedron per surface triangle, its fourth vertex a little inside the surface, so
-that the boundary the renderer draws is the surface itself (the small inner faces are hidden inside the
-body). The inner vertices are skinned like the surface ones, with the mean weights of their triangle
-(:func:`shell_weights`).
+SceneGraph renders a deformable geometry from a tetrahedral mesh (the boundary of its tetrahedra).
+:func:`prism_shell` turns a surface into a thin tetrahedral layer under it (each triangle's prism down to an
+inner copy of the surface), so that the renderer draws the surface itself, shaded with normals from the
+surface's own triangles; the inner copy is hidden inside the body. Each inner vertex is skinned with the
+weights of its surface vertex.
 """
 
 from __future__ import annotations
@@ -117,43 +117,6 @@ def blend_affine(points: np.ndarray, weights: np.ndarray, maps: np.ndarray) -> n
     return np.einsum("nij,nj->ni", A[:, :, :3], points) + A[:, :, 3]
 
 
-def triangle_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Unit normals ``(T, 3)`` of the triangles (right-hand rule on the vertex order)."""
-    P = points[triangles]
-    n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    return n / (np.linalg.norm(n, axis=1, keepdims=True) + 1e-15)
-
-
-def tet_shell(points: np.ndarray, triangles: np.ndarray, depth: float = SHELL_DEPTH_M):
-    """A tetrahedral shell under a surface: one tetrahedron per triangle.
-
-    Args:
-        points: ``(V, 3)`` surface vertices.
-        triangles: ``(T, 3)`` triangles, counter-clockwise seen from outside (outward normals).
-        depth: how far inside the surface each inner vertex lies (metres).
-
-    Returns:
-        ``(shell_points, tets)``: ``(V + T, 3)`` the surface vertices followed by one inner vertex per
-        triangle (its centroid moved ``depth`` against the normal), and ``(T, 4)`` tetrahedra with a positive
-        volume (the order Drake's volume meshes use).
-    """
-    points = np.asarray(points, float)
-    triangles = np.asarray(triangles, dtype=np.int64)
-    inner = points[triangles].mean(axis=1) - depth * triangle_normals(points, triangles)
-    pts = np.vstack([points, inner])
-    tets = np.column_stack([triangles, len(points) + np.arange(len(triangles))])
-    a, b, c, d = (pts[tets[:, i]] for i in range(4))
-    flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) < 0
-    tets[flip] = tets[flip][:, [0, 2, 1, 3]]
-    return pts, tets
-
-
-def shell_weights(weights: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Bone weights ``(V + T, B)`` of a shell's points: the surface's, then each triangle's mean."""
-    W = np.asarray(weights, float)
-    return np.vstack([W, W[np.asarray(triangles)].mean(axis=1)])
-
-
 def vtk_tetra_text(points: np.ndarray, tets: np.ndarray, title: str = "shell") -> str:
     """A legacy ASCII VTK unstructured grid of tetrahedra (what ``RegisterDeformableGeometry`` reads)."""
     lines = [
@@ -171,41 +134,44 @@ def vtk_tetra_text(points: np.ndarray, tets: np.ndarray, title: str = "shell") -
     return "\n".join(lines) + "\n"
 
 
-def obj_surface_text(points: np.ndarray, triangles: np.ndarray) -> str:
-    """A Wavefront OBJ of the triangles that use ``points`` (unused points are kept, so indices match).
-
-    A shell's outer surface: given to SceneGraph as the deformable geometry's embedded render mesh, so that
-    the renderer shades the surface with its own smooth normals (the shell's inner faces share the surface
-    vertices and would otherwise bend their normals).
-    """
+def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Unit area-weighted vertex normals ``(V, 3)`` (zero for a vertex no triangle uses)."""
     points = np.asarray(points, float)
-    triangles = np.asarray(triangles, int)
+    triangles = np.asarray(triangles, dtype=np.int64)
     P = points[triangles]
-    face_n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])  # area-weighted
-    normals = np.zeros_like(points)
+    face_n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    n = np.zeros_like(points)
     for k in range(3):
-        np.add.at(normals, triangles[:, k], face_n)
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True) + 1e-15
-    lines = [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in points]
-    lines += [f"vn {x:.6f} {y:.6f} {z:.6f}" for x, y, z in normals]
-    lines += [f"f {a}//{a} {b}//{b} {c}//{c}" for a, b, c in triangles + 1]
-    return "\n".join(lines) + "\n"
+        np.add.at(n, triangles[:, k], face_n)
+    return n / (np.linalg.norm(n, axis=1, keepdims=True) + 1e-15)
 
 
-def embed_inside(points: np.ndarray, tets: np.ndarray, triangles: np.ndarray, nudge_m: float = 1e-6):
-    """The surface vertices of a shell, each moved ``nudge_m`` toward the centroid of a tetrahedron that has it.
+def prism_shell(points: np.ndarray, triangles: np.ndarray, depth: float = SHELL_DEPTH_M):
+    """A tetrahedral layer under a surface: each triangle's prism down to an inner copy of the surface.
 
-    SceneGraph locates every vertex of an embedded render mesh inside one tetrahedron of the control mesh; a
-    vertex exactly on a shell corner may fall just outside all of them by rounding. A micrometre inward
-    puts it strictly inside one, without visibly moving the surface.
+    The inner copy of vertex ``i`` is vertex ``V + i``, ``depth`` inside along the vertex normal. Each prism
+    is cut into three tetrahedra, every quadrilateral side cut along the diagonal from its lowest-numbered
+    vertex, so neighbouring prisms share whole faces: the boundary of the layer is the surface, its inner
+    copy and, only where the surface itself has a border, the narrow side walls. Rendered, the surface
+    vertices' normals therefore come from the surface's own triangles (no speckle), unlike
+    :func:`tet_shell`, whose inner faces touch every surface vertex.
 
     Returns:
-        ``(n, 3)`` for the ``n = triangles.max() + 1`` surface vertices.
+        ``(shell_points, tets)``: ``(2 V, 3)`` surface then inner vertices, ``(3 T, 4)`` positive tetrahedra.
     """
     points = np.asarray(points, float)
-    n = int(np.max(triangles)) + 1
-    owner = np.full(n, -1)
-    owner[np.asarray(tets)[:, :3].ravel()] = np.repeat(np.arange(len(tets)), 3)
-    centre = points[np.asarray(tets)[owner]].mean(axis=1)
-    d = centre - points[:n]
-    return points[:n] + nudge_m * d / (np.linalg.norm(d, axis=1, keepdims=True) + 1e-15)
+    tri = np.sort(np.asarray(triangles, dtype=np.int64), axis=1)  # a < b < c
+    V = len(points)
+    pts = np.vstack([points, points - depth * vertex_normals(points, triangles)])
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    tets = np.concatenate(
+        [
+            np.column_stack([a, b, c, c + V]),
+            np.column_stack([a, b, b + V, c + V]),
+            np.column_stack([a, a + V, b + V, c + V]),
+        ]
+    )
+    p0, p1, p2, p3 = (pts[tets[:, i]] for i in range(4))
+    flip = np.einsum("ij,ij->i", np.cross(p1 - p0, p2 - p0), p3 - p0) < 0
+    tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+    return pts, tets

@@ -262,8 +262,10 @@ class SkinnedOperator:
     Attributes:
         points_rest: ``(P, 3)`` every skinned point at rest (surface vertices, then one shell vertex per
             triangle), reshaped to the operator.
-        regions: ``{name: (point_indices, tets, triangles)}`` per clothing region: which of the skinned
+        regions: ``{piece: (point_indices, tets, triangles)}`` per piece of a clothing region (each region is
+            cut into pieces of at most a few thousand triangles along the bones): which of the skinned
             points form its shell, its tetrahedra and its outer triangles in those local indices.
+        piece_region: ``{piece: region}``; colors: ``{piece: rgba}``.
     """
 
     def __init__(
@@ -302,8 +304,8 @@ class SkinnedOperator:
         self.reshape_maps = maps
         verts = skinning.blend_affine(a.vertices, a.weights, maps)
         tris = np.concatenate([a.quads[:, [0, 1, 2]], a.quads[:, [0, 2, 3]]])
-        points, tets = skinning.tet_shell(verts, tris, shell_depth_m)
-        W = skinning.shell_weights(a.weights, tris)
+        points, tets = skinning.prism_shell(verts, tris, shell_depth_m)
+        W = np.vstack([a.weights, a.weights])  # an inner vertex moves with its surface vertex
         self.num_vertices = len(verts)
         self.triangles = tris
         self.points_rest = points
@@ -327,13 +329,18 @@ class SkinnedOperator:
             moving += [a.bone(upper), a.bone(fore), *[a.bone(n) for n in hand]]
         self.lbs = skinning.LinearBlendSkinning(points, W, moving_bones=moving)
         self.regions = self._split_regions(verts, tris, tets, W, heads)
-        self.colors = {"skin": p.skin_rgba, "shirt": p.shirt_rgba, "trousers": p.trousers_rgba}
+        rgba = {"skin": p.skin_rgba, "shirt": p.shirt_rgba, "trousers": p.trousers_rgba}
+        self.colors = {name: rgba[region] for name, region in self.piece_region.items()}
 
     # ------------------------------------------------------------------ clothing
     def _split_regions(self, verts, tris, tets, W, heads):
         a, p = self.assets, self.params
         names = a.bones
-        group = lambda *bs: W[: self.num_vertices][:, [names.index(b) for b in bs if b in names]].sum(axis=1)  # noqa: E731
+        quads = a.quads
+        # Classify each quad by its centre and its corners' mean weights (clean, straight borders).
+        Wq = W[: self.num_vertices][quads].mean(axis=1)
+        verts = verts[quads].mean(axis=1)
+        group = lambda *bs: Wq[:, [names.index(b) for b in bs if b in names]].sum(axis=1)  # noqa: E731
         torso = group("Hips", "LowerBack", "Spine", "Spine1", "LeftShoulder", "RightShoulder")
         legs = group(
             "LHipJoint",
@@ -348,7 +355,7 @@ class SkinnedOperator:
             "RightToeBase",
         )
         head = group("Neck", "Neck1", "Head")
-        region = np.zeros(self.num_vertices, dtype=int)  # 0 skin, 1 shirt, 2 trousers
+        region = np.zeros(len(quads), dtype=int)  # 0 skin, 1 shirt, 2 trousers
         waist = _WAIST_SHARE * p.torso_height
         # A round neckline: lower at the front (x forward) than at the back.
         collar = p.torso_height + _COLLAR_ABOVE_SHOULDERS_M - _COLLAR_DROP * np.maximum(verts[:, 0], 0.0)
@@ -363,20 +370,20 @@ class SkinnedOperator:
             arm = group(upper, fore, *_ARM_BONES[side][3]) > 0.5
             region[arm] = 0
             region[arm & on_arm & (u < _SLEEVE_SHARE)] = 1
-        # A quad's region: the most common among its corners (ties: the lower region index).
-        quad_region = np.array([np.bincount(r, minlength=3).argmax() for r in region[self.assets.quads]])
+        quad_region = region
         tri_region = np.concatenate([quad_region, quad_region])
-        out = {}
+        out, self.piece_region = {}, {}
+        V = self.num_vertices
         for k, name in enumerate(REGIONS):
+            self.piece_region[name] = name
             ti = np.flatnonzero(tri_region == k)
             surf = np.unique(tris[ti])
-            local = np.full(self.num_vertices, -1)
+            local = np.full(2 * V, -1)
             local[surf] = np.arange(len(surf))
-            idx = np.concatenate([surf, self.num_vertices + ti])
-            t = tets[ti].copy()  # columns 0-2 surface (possibly swapped), column 3 the inner vertex
-            t[:, :3] = local[t[:, :3]]
-            t[:, 3] = len(surf) + np.arange(len(ti))
-            out[name] = (idx, t, local[tris[ti]])
+            local[V + surf] = len(surf) + np.arange(len(surf))
+            # The region's prisms: the three tetrahedra of each of its triangles.
+            t = tets[np.concatenate([ti, len(tris) + ti, 2 * len(tris) + ti])]
+            out[name] = (np.concatenate([surf, V + surf]), local[t], local[tris[ti]])
         return out
 
     # ------------------------------------------------------------------ posing
@@ -450,23 +457,18 @@ class SkinnedOperator:
         return out
 
     # ------------------------------------------------------------------ files
-    def shell_files(self) -> dict[str, tuple[Path, Path]]:
-        """Per region, the tetrahedral shell (``.vtk``) and its outer surface (``.obj``, the render mesh
-        embedded in the shell), at the reshaped rest pose (cached in the temp folder)."""
+    def shell_files(self) -> dict[str, Path]:
+        """One tetrahedral ``.vtk`` (the region's prism layer) per region at the reshaped rest pose, cached in
+        the temp folder."""
         digest = hashlib.sha256(self.points_rest.round(9).tobytes()).hexdigest()[:12]
         folder = Path(tempfile.gettempdir()) / f"akc_drake_skinned_{os.getuid()}_{digest}"
         folder.mkdir(parents=True, exist_ok=True)
         files = {}
-        for name, (idx, tets, faces) in self.regions.items():
+        for name, (idx, tets, _) in self.regions.items():
             path = folder / f"{name}.vtk"
-            obj = folder / f"{name}.obj"
             if not path.is_file():
                 atomic_write_text(path, skinning.vtk_tetra_text(self.points_rest[idx], tets, f"akc_drake {name}"))
-            if not obj.is_file():
-                atomic_write_text(
-                    obj, skinning.obj_surface_text(skinning.embed_inside(self.points_rest[idx], tets, faces), faces)
-                )
-            files[name] = (path, obj)
+            files[name] = path
         return files
 
 

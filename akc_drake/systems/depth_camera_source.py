@@ -430,7 +430,9 @@ class DepthCameraSource(Diagram):
         if self.skinned is not None:
             from akc_drake.systems.skinned_body import REGION_LABEL_BASE
 
-            return {REGION_LABEL_BASE + k: f"skinned_{n}" for k, n in enumerate(self.skinned.regions)}
+            from akc_drake.operator.skinned import REGIONS
+
+            return {REGION_LABEL_BASE + k: f"skinned_{n}" for k, n in enumerate(REGIONS)}
         return {int(i): self.plant.get_body(i).name() for i in self.plant.GetBodyIndices(self.instance)}
 
 

@@ -25,7 +25,7 @@ from pydrake.systems.framework import LeafSystem
 
 from akc_drake.core.skeleton import NUM_LANDMARKS
 from akc_drake.operator.model import NUM_ARM_DOF
-from akc_drake.operator.skinned import SkinnedOperator
+from akc_drake.operator.skinned import REGIONS, SkinnedOperator
 
 #: Render labels of the regions (the primitive operator's bodies use the plant's body indices, < 100).
 REGION_LABEL_BASE = 100
@@ -51,14 +51,13 @@ def register_skinned_body(
     source_id = scene_graph.RegisterSource(source_name)
     files = body.shell_files()
     ids = {}
-    for k, (name, (path, obj)) in enumerate(files.items()):
+    for name, path in files.items():
         instance = GeometryInstance(RigidTransform(), Mesh(str(path)), f"skinned_{name}")
         rgba = Rgba(*body.colors[name])
         props = PerceptionProperties()
         props.AddProperty("phong", "diffuse", rgba)
-        # Render the outer surface only (its own smooth normals), embedded in the shell.
-        props.AddProperty("deformable", "embedded_mesh", str(obj))
-        props.AddProperty("label", "id", RenderLabel(REGION_LABEL_BASE + k))
+        region = body.piece_region[name]
+        props.AddProperty("label", "id", RenderLabel(REGION_LABEL_BASE + REGIONS.index(region)))
         instance.set_perception_properties(props)
         illus = IllustrationProperties()
         illus.AddProperty("phong", "diffuse", rgba)
