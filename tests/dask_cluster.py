@@ -35,7 +35,7 @@ def _wait(pred, timeout: float, what: str, procs=()):
 class Cluster:
     """The running cluster: ``address``, ``workers`` (Popen, one per worker)."""
 
-    def __init__(self, folder: Path):
+    def __init__(self, folder: Path, extra_env: dict | None = None):
         self.folder = folder
         self.scheduler_file = folder / "scheduler.json"
         self.scheduler: subprocess.Popen | None = None
@@ -44,6 +44,7 @@ class Cluster:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([str(TESTS_DIR), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
         env["DASK_DISTRIBUTED__WORKER__DAEMON"] = "False"
+        env.update(extra_env or {})
         self.env = env
 
     def _popen(self, args, log: str) -> subprocess.Popen:
@@ -136,11 +137,14 @@ class Cluster:
 
 
 @contextmanager
-def dask_cluster(folder: Path, n_workers: int):
-    """A scheduler and ``n_workers`` single-threaded workers on 127.0.0.1, torn down on exit."""
+def dask_cluster(folder: Path, n_workers: int, extra_env: dict | None = None):
+    """A scheduler and ``n_workers`` single-threaded workers on 127.0.0.1, torn down on exit.
+
+    ``extra_env`` sets environment variables of the processes (e.g. Dask settings as ``DASK_...``).
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    c = Cluster(folder)
+    c = Cluster(folder, extra_env)
     try:
         c.start_scheduler()
         for _ in range(n_workers):

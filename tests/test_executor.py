@@ -7,6 +7,7 @@ The functions the workers run are module-level here; Dask's spawned workers impo
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -113,43 +114,69 @@ def test_unreachable_scheduler_is_one_line(monkeypatch):
         run_tasks(square_root, [1.0], scheduler=f"tcp://127.0.0.1:{port}", progress=False)
 
 
-def test_scheduler_address_and_a_killed_worker(tmp_path):
-    """A real `dask scheduler` + 2 `dask worker` processes: same results as in-process; killing the worker
-    running a task mid-way reschedules it on the other worker and the run completes."""
+def run_killing_one_worker(cluster, markers: Path, n: int = 6, **kw):
+    """``run_tasks(slow_marked, ...)`` on ``cluster`` while a thread SIGKILLs the first live worker that starts a
+    task; returns (results, (task index, killed pid), pids of the workers alive before)."""
     import os
     import signal
     import threading
     import time
 
+    markers.mkdir()
+    alive = {p.pid for p in cluster.workers if p.poll() is None}
+    killed: list[tuple[int, int]] = []
+
+    def killer():
+        end = time.monotonic() + 60
+        while time.monotonic() < end and not killed:
+            for m in sorted(markers.iterdir()):
+                x, pid = (int(v) for v in m.name.split("-"))
+                if pid in alive:
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append((x, pid))
+                    return
+            time.sleep(0.02)
+
+    th = threading.Thread(target=killer, daemon=True)
+    th.start()
+    items = [{"x": x, "dir": str(markers), "sleep": 0.6} for x in range(n)]
+    res = run_tasks(slow_marked, items, scheduler=cluster.address, progress=False, timeout_s=90, **kw)
+    th.join(timeout=5)
+    assert killed, "no task started on a worker"
+    return res, killed[0], alive
+
+
+def test_scheduler_address_and_a_killed_worker(tmp_path):
+    """A real `dask scheduler` + 2 `dask worker` processes: killing the worker running a task mid-way
+    reschedules it on the other worker (the scheduler's own retry) and the run completes."""
     from dask_cluster import dask_cluster
 
-    markers = tmp_path / "markers"
-    markers.mkdir()
-    items = [{"x": x, "dir": str(markers), "sleep": 0.6} for x in range(6)]
     with dask_cluster(tmp_path / "cluster", 2) as cluster:
-        worker_pids = {p.pid for p in cluster.workers}
-        killed: list[tuple[int, int]] = []
-
-        def killer():
-            end = time.monotonic() + 60
-            while time.monotonic() < end and not killed:
-                for m in sorted(markers.iterdir()):
-                    x, pid = (int(v) for v in m.name.split("-"))
-                    if pid in worker_pids:
-                        os.kill(pid, signal.SIGKILL)
-                        killed.append((x, pid))
-                        return
-                time.sleep(0.02)
-
-        th = threading.Thread(target=killer, daemon=True)
-        th.start()
-        res = run_tasks(slow_marked, items, scheduler=cluster.address, progress=False, timeout_s=90)
-        th.join(timeout=5)
-        assert killed, "no task started on a worker"
-        x_killed, pid_killed = killed[0]
+        res, (x_killed, pid_killed), pids = run_killing_one_worker(cluster, tmp_path / "markers")
         assert not failures(res), [f.line() for f in failures(res)]
         assert [r["y"] for r in res] == [float(x * x) for x in range(6)]
         # The task that was running on the killed worker finished on the other one.
-        assert res[x_killed]["pid"] != pid_killed and res[x_killed]["pid"] in worker_pids
-        assert (markers / f"{x_killed}-{pid_killed}").exists()
-        assert cluster.workers[0].poll() is not None or cluster.workers[1].poll() is not None
+        assert res[x_killed]["pid"] != pid_killed and res[x_killed]["pid"] in pids
+        assert (tmp_path / "markers" / f"{x_killed}-{pid_killed}").exists()
+        assert sum(p.poll() is None for p in cluster.workers) == 1
+
+
+def test_retries_resubmit_what_the_scheduler_gives_up(tmp_path):
+    """With a scheduler that gives up on a task at its first lost worker (allowed-failures 0): retries=0
+    reports that task as one failure line and completes the rest; retries=2 resubmits it and completes all."""
+    from dask_cluster import dask_cluster
+
+    env = {"DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "0"}
+    with dask_cluster(tmp_path / "cluster", 3, extra_env=env) as cluster:
+        res, (x_killed, _), _ = run_killing_one_worker(cluster, tmp_path / "m0", retries=0)
+        # The task running on the killed worker (and any the scheduler had already queued there) fail, alone.
+        bad = failures(res)
+        assert x_killed in [f.index for f in bad] and len(bad) <= 2
+        for f in bad:
+            assert f.attempts == 1 and f.line().startswith(f"task {f.index}: KilledWorker:")
+        assert all(r["y"] == float(i * i) for i, r in enumerate(res) if not isinstance(r, TaskFailure))
+
+        res, (x_killed, pid_killed), _ = run_killing_one_worker(cluster, tmp_path / "m2", retries=2)
+        assert not failures(res), [f.line() for f in failures(res)]
+        assert [r["y"] for r in res] == [float(x * x) for x in range(6)]
+        assert res[x_killed]["pid"] != pid_killed
