@@ -100,6 +100,46 @@ def test_local_cluster_1_and_2_workers_bit_identical(reference):
     assert not one.failures and not two.failures
 
 
+class _Killer:
+    def __init__(self):
+        import threading
+
+        self.pid = None
+        self.event = threading.Event()
+
+    def wait(self, timeout):
+        return self.event.wait(timeout)
+
+
+def kill_worker_running(address: str, key_prefixes: tuple[str, ...]) -> _Killer:
+    """A thread that SIGKILLs the first worker seen processing a task whose key starts with a prefix."""
+    import os
+    import signal
+    import threading
+    import time
+
+    from distributed import Client
+
+    k = _Killer()
+
+    def run():
+        with Client(address, timeout="20s", set_as_default=False) as c:
+            pids = c.run(os.getpid)
+            end = time.monotonic() + 60
+            while time.monotonic() < end:
+                for worker, keys in c.processing().items():
+                    if any(str(key).startswith(key_prefixes) for key in keys):
+                        time.sleep(0.3)  # well inside the task
+                        k.pid = pids[worker]
+                        os.kill(k.pid, signal.SIGKILL)
+                        k.event.set()
+                        return
+                time.sleep(0.02)
+
+    threading.Thread(target=run, daemon=True).start()
+    return k
+
+
 def test_scheduler_address_bit_identical_and_a_bad_clip_fails_alone(reference, tmp_path):
     from dask_cluster import dask_cluster
 
@@ -118,6 +158,13 @@ def test_scheduler_address_bit_identical_and_a_bad_clip_fails_alone(reference, t
         partial = evaluate_tasks(
             cfg, scheduler=cluster.address, cache=cache, progress=False, clips=clips, log=lines.append
         )
+        # A worker killed while it runs a clip (rendering without the cache, so the task takes a while):
+        # the scheduler reruns the clip on the other worker and the evaluation is the same.
+        killed = kill_worker_running(cluster.address, ("I-", "II-"))
+        survived = evaluate_tasks(cfg, scheduler=cluster.address, cache=False, progress=False)
+        assert killed.wait(60) and killed.pid in {p.pid for p in cluster.workers}
+        assert sum(p.poll() is None for p in cluster.workers) == 1
+        assert not survived.failures and digest(survived) == ref
     assert list(partial.runs) == ["I", "II"]
     assert [f.label for f in partial.failures] == ["broken"]
     assert len(lines) == 1 and lines[0].startswith(f"clip broken: UserError: {bad}: not a session .npz file (")
