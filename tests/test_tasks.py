@@ -158,6 +158,15 @@ def test_scheduler_address_bit_identical_and_a_bad_clip_fails_alone(reference, t
         partial = evaluate_tasks(
             cfg, scheduler=cluster.address, cache=cache, progress=False, clips=clips, log=lines.append
         )
+        # The sweep's grid chunks through the same address: the same objectives as in this process.
+        from akc_drake.evaluation.sweep import SweepGrid, evaluate_points
+
+        s = ev.runs["II"].session
+        data = {"II": (s.raw[:30], s.truth[:30])}
+        pts = SweepGrid(w1=(0.0, 2.0), w2=(4.0, 14.0), w3=(12.0,), s=(0.8, 1.0)).points()
+        local = evaluate_points(pts, data, ev.dims, "inprocess")["II"]
+        remote = evaluate_points(pts, data, ev.dims, cluster.address, chunks=3)["II"]
+        assert remote.tobytes() == local.tobytes()
         # A worker killed while it runs a clip (rendering without the cache, so the task takes a while):
         # the scheduler reruns the clip on the other worker and the evaluation is the same.
         killed = kill_worker_running(cluster.address, ("I-", "II-"))
