@@ -78,6 +78,9 @@ def test_imu_up_overrides_the_body():
     W = estimate_world_frame(P_C_leaning, DIMS, up_C=up, source="imu")
     np.testing.assert_allclose(W.R_CW[:, 2], R_WC.T @ [0, 0, 1], atol=2e-3)
     assert W.source == "imu"
+    # An IMU mounted rotated: its readings are rotated into C first.
+    R_C_imu = Rotation.from_euler("y", 90, degrees=True).as_matrix()
+    np.testing.assert_allclose(up_from_accel(noisy @ R_C_imu, R_C_imu), up, atol=1e-12)
     with pytest.raises(ValueError, match="not at rest"):
         up_from_accel([[0.0, 0.1, 0.2]])
 

@@ -101,7 +101,9 @@ def main(args) -> int:
         )
     summary = run_summary(cfg, inputs, built, result, teleop=bool(args.teleop), depth_m=args.depth)
     out_dir = Path(args.out) if args.out else (Path(args.json).parent if args.json else Path("out/run"))
-    summary["poses_npz"] = str(save_poses(out_dir, result.log, dims=built.dims))
+    from akc_drake.pipeline.export import imu_up_for_source
+
+    summary["poses_npz"] = str(save_poses(out_dir, result.log, dims=built.dims, up_C=imu_up_for_source(cfg.source)))
     _interop_outputs(args, summary, built, result, out_dir)
     if args.json:
         write_json(args.json, summary)

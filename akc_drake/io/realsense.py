@@ -104,6 +104,7 @@ def write_db3(
     *,
     depth_intrinsics: CameraIntrinsics | None = None,
     timeout_s: float = 10.0,
+    accel=None,
 ) -> int:
     """Write frames as a RealSense ``.db3`` recording (colour RGB8 + depth Z16).
 
@@ -119,6 +120,10 @@ def write_db3(
         depth_intrinsics: the depth stream's intrinsics when the depth is *not* registered to colour
             (the extrinsic is always identity); default: the colour intrinsics (depth aligned to colour).
         timeout_s: how long to wait for the recorder to take each frame.
+        accel: optional ``(N, 3)`` accelerometer samples (m/s^2, the D435i's IMU frame), written first on an
+            ``accel`` stream of a "Motion Module" sensor at 100 Hz (a recording of a camera with an IMU). The
+            software device's recorder does not store a motion stream's extrinsics: the IMU reads as aligned
+            with the colour camera (as a D435i's is, up to its offset).
 
     Returns:
         The number of frames written.
@@ -150,6 +155,18 @@ def write_db3(
     extr.rotation = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
     extr.translation = [0.0, 0.0, 0.0]
     depth_profile.register_extrinsics_to(color_profile, extr)
+    motion_sensor = accel_profile = None
+    A = None
+    if accel is not None:
+        A = np.asarray(accel, dtype=float).reshape(-1, 3)
+        motion_sensor = dev.add_sensor("Motion Module")
+        ms = rs.motion_stream()
+        ms.type, ms.fmt, ms.index, ms.uid, ms.fps = rs.stream.accel, rs.format.motion_xyz32f, 0, 2, 100
+        mi = rs.motion_device_intrinsic()
+        mi.data = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]]
+        mi.noise_variances, mi.bias_variances = [0.0] * 3, [0.0] * 3
+        ms.intrinsics = mi
+        accel_profile = motion_sensor.add_motion_stream(ms)
 
     try:
         rec = rs.recorder(str(path), dev)
@@ -167,8 +184,26 @@ def write_db3(
     by_name = {s.get_info(rs.camera_info.name): s for s in rec_sensors}
     by_name["Stereo Module"].open(depth_profile)
     by_name["RGB Camera"].open(color_profile)
+    if motion_sensor is not None:
+        by_name["Motion Module"].open(accel_profile)
     for s in rec_sensors:
         s.start(on_frame)
+    base = 0
+    if A is not None:
+        for k, a in enumerate(A):
+            mf = rs.software_motion_frame()
+            v = rs.vector()
+            v.x, v.y, v.z = (float(c) for c in a)
+            mf.data = v  # assign a whole vector: mf.data.x = ... would change a copy
+            mf.timestamp = k * 10.0
+            mf.domain = rs.timestamp_domain.hardware_clock
+            mf.frame_number = k
+            mf.profile = accel_profile.as_motion_stream_profile()
+            motion_sensor.on_motion_frame(mf)
+        base = len(A)
+        with cond:
+            if not cond.wait_for(lambda: delivered[0] >= base, timeout=timeout_s):
+                raise UserError(f"{path}: the RealSense recorder did not take the accelerometer samples")
 
     n = 0
     last_t = -math.inf
@@ -207,7 +242,7 @@ def write_db3(
                 sensor.on_video_frame(f)
             n += 1
             with cond:
-                want = 2 * n
+                want = base + 2 * n
                 if not cond.wait_for(lambda want=want: delivered[0] >= want, timeout=timeout_s):
                     raise UserError(f"{path}: the RealSense recorder stopped taking frames at frame {n - 1}")
     finally:
@@ -221,6 +256,78 @@ def write_db3(
         del rec_sensors, by_name, rec
         gc.collect()
     return n
+
+
+def read_bag_accel(path, *, max_samples: int = 400, timeout_s: float = 10.0):
+    """The accelerometer samples of a RealSense recording (a D435i's IMU), for the gravity direction.
+
+    Plays only the ``accel`` stream (non-real-time) and collects up to ``max_samples`` samples.
+
+    Args:
+        path: the ``.bag``/``.db3`` recording.
+        max_samples: stop after this many samples (4 s of a D435i at 100 Hz: the operator's calibration).
+        timeout_s: give up when the playback makes no progress for this long.
+
+    Returns:
+        ``(samples (N, 3) m/s^2 in the IMU frame, R_color_accel (3, 3))``, or None when the recording has no
+        accelerometer stream (a D435 without IMU, or a recording without it).
+    """
+    import time
+
+    rs = import_pyrealsense2()
+    ctx = rs.context()
+    try:
+        pb = ctx.load_device(str(path))
+    except RuntimeError as e:
+        raise UserError(f"{path}: not a readable RealSense recording ({e})") from None
+    pb.set_real_time(False)
+    sensor = profile = color = None
+    for s in pb.query_sensors():
+        for p in s.get_stream_profiles():
+            if p.stream_type() == rs.stream.accel and profile is None:
+                sensor, profile = s, p
+            elif p.stream_type() == rs.stream.color and color is None:
+                color = p
+    if profile is None:
+        return None
+    R = np.eye(3)
+    if color is not None:
+        try:  # librealsense stores the rotation column-major
+            R = np.asarray(profile.get_extrinsics_to(color).rotation, dtype=float).reshape(3, 3, order="F")
+        except RuntimeError:
+            pass  # no extrinsics recorded: the IMU is taken as aligned with the colour camera (a D435i's is)
+    samples: list[tuple[float, float, float]] = []
+    lock = threading.Lock()
+
+    def on_sample(f) -> None:
+        d = f.as_motion_frame().get_motion_data()
+        with lock:
+            if len(samples) < max_samples:
+                samples.append((d.x, d.y, d.z))
+
+    sensor.open(profile)
+    sensor.start(on_sample)
+    try:
+        last, since, playing = 0, time.monotonic(), False
+        while True:
+            status = pb.current_status()
+            playing = playing or status == rs.playback_status.playing
+            with lock:
+                n = len(samples)
+            if n >= max_samples or (playing and status == rs.playback_status.stopped):
+                break
+            if n != last:
+                last, since = n, time.monotonic()
+            elif time.monotonic() - since > timeout_s:
+                break
+            time.sleep(0.01)
+    finally:
+        sensor.stop()
+        sensor.close()
+        del sensor, pb, ctx
+        gc.collect()
+    with lock:
+        return np.asarray(samples, dtype=float).reshape(-1, 3), R
 
 
 @dataclass

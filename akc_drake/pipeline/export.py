@@ -346,6 +346,26 @@ def export_evaluation(ev, formats, out_dir, *, frame: str = "world") -> dict:
     return {"files": files, "rts_gain": gains}
 
 
+def imu_up_for_source(spec: str):
+    """The up direction in the camera frame from the accelerometer of a ``bag:FILE`` source (a D435i recording),
+    or None (another source, no accelerometer stream, or samples not at rest). Stored in ``poses.npz`` as
+    ``up_C``, where the world frame of the exports takes it instead of the trunk direction."""
+    from akc_drake.core.world_frame import up_from_accel
+
+    kind, _, path = str(spec).strip().partition(":")
+    if kind.lower() != "bag" or not path:
+        return None
+    from akc_drake.io.realsense import read_bag_accel
+
+    got = read_bag_accel(path)
+    if got is None or len(got[0]) == 0:
+        return None
+    try:
+        return up_from_accel(*got)
+    except ValueError:
+        return None
+
+
 __all__ = ["FORMATS", "PoseSet", "TeleopRecording", "check_format", "export_bag", "export_evaluation", "export_poses",
-           "export_run",
+           "export_run", "imu_up_for_source",
            "load_poses", "rts_report", "stage_points", "teleop_recording", "write_points", "write_teleop_bag"]

@@ -112,12 +112,15 @@ def run_summary(cfg, inputs, built, result, *, teleop: bool = False, depth_m: fl
     return summary
 
 
-def save_poses(out_dir: str | Path, log, dims=None) -> Path:
+def save_poses(out_dir: str | Path, log, dims=None, up_C=None) -> Path:
     """Write ``out_dir/poses.npz`` atomically: ``t``, ``raw``, ``accepted``, ``filtered``, ``corrected``,
     ``truth``, ``visibility``, ``names`` (NaN where missing) and, given the run's ``BodyDimensions``, ``dims``
-    (``[LUA, LLA, RUA, RLA, SW]``, what ``akc-drake export`` builds a BVH and RTS corrections on). Called after a
+    (``[LUA, LLA, RUA, RLA, SW]``, what ``akc-drake export`` builds a BVH and RTS corrections on) and ``up_C`` (the
+    up direction in the camera frame from an IMU, when the source has one). Called after a
     partial run too."""
     extra = {} if dims is None else {"dims": dims.as_array()}
+    if up_C is not None:
+        extra["up_C"] = np.asarray(up_C, dtype=float)
     return atomic_save_npz(
         Path(out_dir) / "poses.npz",
         t=log.t,
