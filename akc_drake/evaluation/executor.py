@@ -51,7 +51,7 @@ from akc_drake.errors import UserError
 SCHEDULERS = ("local", "inprocess")
 
 #: Seconds to wait for a cluster's scheduler to answer, and for its first worker.
-CONNECT_TIMEOUT_S = 30.0
+CONNECT_TIMEOUT_S = 15.0
 
 
 @dataclass(frozen=True)
@@ -94,7 +94,7 @@ def check_scheduler(scheduler: str) -> str:
     s = str(scheduler).strip()
     if s in SCHEDULERS:
         return s
-    if s.startswith(("tcp://", "tls://")):
+    if s.startswith("tcp://"):
         hostport = s.split("://", 1)[1]
         host, _, port = hostport.rpartition(":")
         if host and port.isdigit() and 0 < int(port) < 65536:
