@@ -50,3 +50,16 @@ def test_no_accelerometer_stream(tmp_path):
     path = tmp_path / "plain.db3"
     realsense.write_db3(path, _frames(2), K)
     assert realsense.read_bag_accel(path) is None
+
+
+def test_run_stores_the_imu_up_for_a_bag_source(tmp_path):
+    from akc_drake.pipeline.export import imu_up_for_source
+
+    up = np.array([0.0, -0.98, -0.2])
+    up /= np.linalg.norm(up)
+    path = tmp_path / "imu.db3"
+    realsense.write_db3(path, _frames(2), K, accel=np.tile(9.81 * up, (50, 1)))
+    np.testing.assert_allclose(imu_up_for_source(f"bag:{path}"), up, atol=1e-6)
+    assert imu_up_for_source("sim") is None
+    realsense.write_db3(tmp_path / "plain.db3", _frames(2), K)
+    assert imu_up_for_source(f"bag:{tmp_path / 'plain.db3'}") is None
