@@ -73,6 +73,19 @@ def test_quick_bench_prints_the_report(quick_run, capsys):
     data = json.loads(out.read_text(encoding="utf-8"))
     text = bench.format_report(data)
     assert "core: AKC" in text and "Table III" in text and "teleop" in text
+    assert "skinned operator: skinning" in text
+
+
+def test_quick_bench_measures_the_skinned_operator(quick_run):
+    _, out = quick_run
+    data = json.loads(out.read_text(encoding="utf-8"))
+    sk = data["skinned"]
+    assert sk["available"] is True and sk["points"] > 10000
+    assert _finite(data["skinning_ms_per_frame"]) and data["skinning_ms_per_frame"] > 0
+    assert data["targets"]["skinning_ms_per_frame"]["target"] == "<= 2"
+    if sk.get("mediapipe", {}).get("available", True):
+        assert _finite(data["skinned_mediapipe_fps"]) and sk["frames"] >= 3
+        assert 0.0 <= sk["person_found_share"] <= 1.0
 
 
 def test_summarize_median_max_and_nan_handling():

@@ -30,7 +30,12 @@ def main(args) -> int:
 
     if args.json:
         _check_json_path(args.json)
+    import dataclasses
+
     settings = BenchSettings.quick_run() if args.quick else BenchSettings.full()
+    settings = dataclasses.replace(
+        settings, body=getattr(args, "body", "primitive"), detector=getattr(args, "detector", "sim")
+    )
     with tqdm(desc="bench", unit="step", file=sys.stderr, dynamic_ncols=True, leave=False,
               disable=not sys.stderr.isatty()) as bar:
 

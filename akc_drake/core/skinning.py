@@ -3,7 +3,7 @@
 Linear blend skinning (LBS): each bone ``b`` has an affine map ``M_b = [A_b | t_b]`` (3 x 4) from the rest
 pose to the current pose; a point ``v`` with bone weights ``w_b`` (summing to 1) goes to
 ``sum_b w_b (A_b v + t_b)``. :class:`LinearBlendSkinning` evaluates that for every point at once with one
-matrix product ``W @ M`` (``W`` the ``(N, B)`` weights, ``M`` the ``(B, 12)`` bone maps), and only for the
+matrix product ``W @ M`` (``W`` the ``(N, B)`` weights, sparse, ``M`` the ``(B, 12)`` bone maps), and only for the
 points some moving bone touches: the rest of the body keeps its rest position.
 
 SceneGraph renders a deformable geometry from a tetrahedral mesh (the boundary of its tetrahedra).
@@ -16,6 +16,7 @@ weights of its surface vertex.
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 
 #: Default depth of a shell tetrahedron's inner vertex below its triangle (metres).
 SHELL_DEPTH_M = 0.002
@@ -81,7 +82,9 @@ class LinearBlendSkinning:
         self.moving_bones = moving
         self._static = np.setdiff1d(np.arange(self.num_bones), moving)
         self.rows = np.flatnonzero(W[:, moving].sum(axis=1) > 0.0)
-        self._W = np.ascontiguousarray(W[np.ix_(self.rows, moving)])
+        # Sparse (a point hangs on a few bones): the product stays single-threaded, as fast as BLAS on an idle
+        # machine and without its thread wake-ups on a busy one.
+        self._W = sparse.csr_matrix(W[np.ix_(self.rows, moving)])
         self._x = np.ascontiguousarray(rest[self.rows])
         self._identity = np.hstack([np.eye(3), np.zeros((3, 1))])
 
