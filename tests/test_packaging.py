@@ -122,6 +122,13 @@ def test_the_wheel_carries_the_models_and_the_paper_figures(wheel):
     ):
         assert f in names, f
     assert not any(n.startswith(("tests/", "build/")) for n in names)
+    # every data file the repository tracks under models/ and data/ (a new asset must be listed in
+    # pyproject's [tool.setuptools.package-data])
+    tracked = subprocess.run(["git", "ls-files", "akc_drake/models", "akc_drake/data"], cwd=ROOT,
+                             capture_output=True, text=True)
+    if tracked.returncode == 0:
+        missing = [f for f in tracked.stdout.split() if f not in names]
+        assert not missing, f"not in the wheel: {missing}"
 
 
 def test_the_wheel_runs_in_a_fresh_venv_without_the_extras(wheel, tmp_path):
