@@ -15,7 +15,7 @@ import sys
 from akc_drake import __version__
 from akc_drake.errors import UserError
 
-METHODS = ("Raw", "KF", "EKF", "COIK(KF)", "AKC(KF)", "AKC(EKF)", "COIK(EKF)")
+METHODS = ("Raw", "KF", "EKF", "COIK(KF)", "AKC(KF)", "AKC(EKF)", "AKC+(KF)", "AKC+(EKF)", "COIK(EKF)")
 
 # Subcommand -> the issue that builds it (for the "not available yet" message).
 _PENDING_ISSUE = {
@@ -87,8 +87,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
     p.add_argument("--cycles", type=int, default=30, metavar="N")
     p.add_argument("--seed", type=int, default=0, metavar="S")
-    p.add_argument("--methods", default=",".join(METHODS), help="comma-separated, from: " + ", ".join(METHODS))
+    p.add_argument("--methods", default=None, help="comma-separated, from: " + ", ".join(METHODS)
+                   + " (default: all; with --motion-dir: KF, EKF and the AKC/AKC+ variants)")
     p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"))
+    p.add_argument("--protocol", default="paper", choices=("paper", "ours"),
+                   help="paper: the stages and table definitions as the paper describes them; ours: our "
+                   "improvements (default: paper)")
+    p.add_argument("--motion-dir", metavar="DIR", help="evaluate on every real mocap clip of DIR (e.g. data/mocap "
+                   "from 'make mocap-data'): per-clip and pooled tables, a plot per clip and method")
     p.add_argument("--export", metavar="FMT[,FMT]", help="also write every method's skeleton to --out/exports as "
                    "bvh | trc | c3d | csv, and the RTS smoother's gain (rts_gain.json)")
     p.add_argument("--export-frame", default="world", choices=("world", "camera"), help="frame of --export files")

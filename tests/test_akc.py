@@ -409,3 +409,55 @@ def test_speed_is_in_the_microsecond_range():
     n = 2000
     per_frame = timeit.timeit(lambda: akc.correct(p), number=n) / n
     assert per_frame < 1e-3  # generous; the benchmark reports ~23 us on the reference machine
+
+
+# ---------------------------------------------------------------- the paper's equations, worked by hand
+def _hand_pose(e_hat, s_hat):
+    p = true_pose()
+    p[LW] = [0.0, 0.0, 2.0]
+    p[LE] = e_hat
+    p[LS] = s_hat
+    return p
+
+
+def test_paper_akc_matches_a_hand_worked_example():
+    # l_f = 0.5, l_u = 0.4, s = 0.8: search lengths 0.4 and 0.32.
+    # eq. (7): d_xy(e, w) = 0.3 <= 0.4 -> p_e,z = 2 ± sqrt(0.5^2 - 0.3^2) = 2 ± 0.4 (x, y kept)
+    # eq. (8): d_xy(s, e) = 0.25 <= 0.32 -> p_s,z = p_e,z ± sqrt(0.4^2 - 0.25^2) = p_e,z ± 0.3122499
+    # m2 = |p_s - p̂_s| with p̂_s,z = 1.95: candidate 2 (e 1.6, s 1.9122499) is nearest (0.0377501).
+    dims = BodyDimensions(LUA=0.4, LLA=0.5, RUA=0.3, RLA=0.3, SW=0.34)
+    c = akc_arm_candidates([0, 0, 2.0], [0.3, 0.0, 2.05], [0.3, -0.25, 1.95], 0.5, 0.4, shrink=0.8)
+    q = math.sqrt(0.4**2 - 0.25**2)
+    np.testing.assert_allclose(c.elbow[:, 2], [2.4, 2.4, 1.6, 1.6], atol=1e-12)
+    np.testing.assert_allclose(c.shoulder[:, 2], [2.4 + q, 2.4 - q, 1.6 + q, 1.6 - q], atol=1e-12)
+    np.testing.assert_allclose(c.elbow[:, :2], [[0.3, 0.0]] * 4, atol=1e-15)
+    np.testing.assert_allclose(c.shoulder[:, :2], [[0.3, -0.25]] * 4, atol=1e-15)
+    w = AKCWeights(w1=0, w2=1, w3=0, w4=0, w5=0, s=0.8)
+    r = ArmKinematicCorrector(dims, w).correct(_hand_pose([0.3, 0.0, 2.05], [0.3, -0.25, 1.95]))
+    assert r.chosen[0] == 2
+    np.testing.assert_allclose(r.pose[LE], [0.3, 0.0, 1.6], atol=1e-12)
+    np.testing.assert_allclose(r.pose[LS], [0.3, -0.25, 1.6 + q], atol=1e-12)
+    assert r.cost[0] == pytest.approx(abs(1.6 + q - 1.95), abs=1e-12)
+    assert np.linalg.norm(r.pose[LE] - r.pose[LW]) == pytest.approx(0.5, abs=1e-12)
+    assert np.linalg.norm(r.pose[LS] - r.pose[LE]) == pytest.approx(0.4, abs=1e-12)
+
+
+def test_shrink_factor_only_decides_the_eq9_fallback_which_uses_the_full_length():
+    # s = 0.5: search length 0.25 < d_xy = 0.3 -> eq. (9) with l_f = 0.5 along p̂_e - p_w = (0.3, 0, 0.05).
+    c = akc_arm_candidates([0, 0, 2.0], [0.3, 0.0, 2.05], [0.3, -0.25, 1.95], 0.5, 0.4, shrink=0.5)
+    f = 0.5 / math.sqrt(0.3**2 + 0.05**2)
+    assert c.elbow_fallback
+    np.testing.assert_allclose(c.elbow[0], [0.3 * f, 0.0, 2.0 + 0.05 * f], atol=1e-12)
+    assert np.linalg.norm(c.elbow[0] - [0, 0, 2.0]) == pytest.approx(0.5, abs=1e-12)
+
+
+def test_m3_of_a_still_arm_is_zero_at_the_calibrated_lengths():
+    # The candidates are compared with the previous output at the same (full) lengths: a still arm
+    # whose configuration is exact scores m3 = 0 for its own candidate (not ~0.17 m as with shrunk ones).
+    dims = BodyDimensions(LUA=0.4, LLA=0.5, RUA=0.4, RLA=0.5, SW=0.34)
+    p = _hand_pose([0.3, 0.0, 2.4], [0.3, -0.25, 2.4 + math.sqrt(0.4**2 - 0.25**2)])
+    p[RW], p[RE], p[RS] = p[LW] * [-1, 1, 1], p[LE] * [-1, 1, 1], p[LS] * [-1, 1, 1]
+    akc = ArmKinematicCorrector(dims, AKCWeights(w1=0, w2=0, w3=1, w4=0, w5=0, s=0.8))
+    akc.correct(p)
+    r = akc.correct(p)
+    np.testing.assert_allclose(r.cost, [0.0, 0.0], atol=1e-12)

@@ -173,3 +173,23 @@ def test_output_is_input_with_entries_removed(points, pixels, vis, proximity):
     # with zero proximity nothing is dropped
     if proximity == 0.0:
         assert not info.depth_dropped.any()
+
+
+def test_paper_rules_use_only_the_wrist_pairs_and_any_detected_distal_joint():
+    from akc_drake.core.occlusion import PAPER_RULES
+
+    points, pixels, vis = scene()
+    s, e, w = INDEX["left_shoulder"], INDEX["left_elbow"], INDEX["left_wrist"]
+    # The elbow sits on the shoulder's pixel: our shoulder-elbow pair drops the shoulder depth, the paper's not.
+    pixels[e] = pixels[s] + [5.0, 0.0]
+    ours, info = occlusion_filter(points, pixels, vis, W)
+    paper, pinfo = occlusion_filter(points, pixels, vis, W, **PAPER_RULES)
+    assert info.depth_dropped[s] and np.isnan(ours[s, 2])
+    assert not pinfo.depth_dropped[s] and paper[s, 2] == points[s, 2]
+    # A wrist rejected for low visibility still occludes the elbow under the paper's rules (not under ours).
+    pixels[w] = pixels[e] + [3.0, 0.0]
+    vis[w] = 0.2
+    _, info = occlusion_filter(points, pixels, vis, W)
+    _, pinfo = occlusion_filter(points, pixels, vis, W, **PAPER_RULES)
+    assert pinfo.depth_dropped[e] and pinfo.depth_dropped[s]
+    assert not info.depth_dropped[e]

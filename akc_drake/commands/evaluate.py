@@ -46,12 +46,12 @@ def build_config(args):
         UserError: naming the option and its value.
     """
     from akc_drake.evaluation.experiment import ExperimentConfig
-    from akc_drake.evaluation.methods import parse_methods
+    from akc_drake.evaluation.methods import METHODS, parse_methods
 
     if args.cycles < 1:
         raise UserError(f"--cycles must be at least 1, got {args.cycles}")
     try:
-        methods = parse_methods(args.methods)
+        methods = parse_methods(args.methods if args.methods is not None else METHODS)
     except ValueError as e:
         raise UserError(
             str(e) if str(e).startswith("--methods") else f"--methods {args.methods!r}: {e}"
@@ -71,6 +71,7 @@ def build_config(args):
             skeleton=skeleton,
             body=getattr(args, "body", "primitive"),
             detector=getattr(args, "detector", "sim"),
+            protocol=getattr(args, "protocol", "paper"),
         )
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -123,9 +124,53 @@ def _export(ev, args) -> None:
                   f"RTS {g['rts_rmse_cm']:.2f} cm (coverage {g['coverage']:.0%})")
 
 
+def run_motion_dir(args) -> int:
+    """``evaluate --motion-dir DIR``: every method on every real mocap clip; per-clip and pooled tables."""
+    from akc_drake.evaluation.executor import check_scheduler
+    from akc_drake.evaluation.methods import parse_methods
+    from akc_drake.evaluation.motion_set import (
+        DEFAULT_METHODS,
+        evaluate_motion_dir,
+        find_clips,
+        motion_dir_tables,
+        plot_errors_per_clip,
+    )
+    from akc_drake.evaluation.report import format_table, write_json, write_tables
+
+    for opt in ("motion_file", "skeleton"):
+        if getattr(args, opt, None):
+            raise UserError(f"--{opt.replace('_', '-')}: not used with --motion-dir")
+    try:
+        methods = DEFAULT_METHODS if args.methods is None else parse_methods(args.methods)
+    except ValueError as e:
+        raise UserError(f"--methods {args.methods!r}: {e}") from None
+    _check_outputs(args)
+    find_clips(args.motion_dir)
+    scheduler = check_scheduler(getattr(args, "scheduler", "local"))
+    result = evaluate_motion_dir(args.motion_dir, methods=methods, seed=args.seed, protocol=args.protocol,
+                                 weights=args.weights, scheduler=scheduler)
+    tables = motion_dir_tables(result)
+    for t in tables:
+        print(format_table(t))
+        print()
+    for f in result["failures"]:
+        print(f"failed: {f}")
+    if args.json:
+        write_json(args.json, result)
+        print(f"wrote {args.json}")
+    if args.out:
+        write_tables(tables, args.out)
+        plot_errors_per_clip(result, Path(args.out) / "figures" / "error_per_clip.png")
+        print(f"wrote {args.out}/tables/*.csv and {args.out}/figures/error_per_clip.png")
+    print(f"{len(result['clips'])} clips, {result['elapsed_s']:.1f} s")
+    return 0
+
+
 def main(args) -> int:
     from akc_drake.evaluation.report import format_table, write_evaluation, write_json
 
+    if getattr(args, "motion_dir", None):
+        return run_motion_dir(args)
     config = build_config(args)
     _check_outputs(args)
     if getattr(args, "export", None):

@@ -187,6 +187,7 @@ class ArmKinematicCorrectorPlus:
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
         self._inv_t2 = 1.0 / config.sigma_temporal_m**2
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
+        self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
         self.reset()
 
@@ -236,17 +237,12 @@ class ArmKinematicCorrectorPlus:
         self._lost = lost.tolist()
 
     # ------------------------------------------------------------------ hot path (plain floats)
-    def _trusted(self, m, o, fz, ax, ay, az, length):
-        """Whether measured row ``m[o:o+3]`` gives a trusted depth (see the module docstring)."""
+    def _measured(self, m, o, fz):
+        """Whether row ``m[o:o+3]`` was measured this frame and agrees with the filtered depth ``fz``."""
         if m is None:
             return False
         mx, my, mz = m[o], m[o + 1], m[o + 2]
-        if not _isfinite(mx + my + mz):
-            return False
-        cfg = self.config
-        if abs(mz - fz) > cfg.consistency_m:
-            return False
-        return abs(_hypot(mx - ax, my - ay, mz - az) - length) <= cfg.length_tol_m
+        return _isfinite(mx + my + mz) and abs(mz - fz) <= self.config.consistency_m
 
     def _choose(self, cands, fx, fy, fz, prev_p, k_lost, extra=None):
         """The candidate with the smallest Gaussian cost (filter prior, temporal prior, extra terms)."""
@@ -297,21 +293,28 @@ class ArmKinematicCorrectorPlus:
             sz = prev[2] if prev is not None else ez
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
-        te = self._trusted(m, o_e, ez, wx, wy, wz, lf)
-        # A trusted shoulder must also fit the (trusted) elbow, or be within reach of the wrist.
-        if te:
-            ts = self._trusted(m, o_s, sz, ex, ey, ez, lu)
-        else:
-            ts = self._trusted(m, o_s, sz, sx, sy, sz, 0.0) and _hypot(sx - wx, sy - wy, sz - wz) <= lf + lu
+        tol = self.config.length_tol_m
+        # Measured this frame and consistent with the filter (the filter is then a good prior) ...
+        me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
+        self._lost[ke] = 0.0 if me else self._lost[ke] + 1.0
+        self._lost[ks] = 0.0 if ms else self._lost[ks] + 1.0
+        geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
+        geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         w = (wx, wy, wz)
         s = e = None
+        te = me and geo_f  # elbow seen and at the forearm length from the wrist
+        # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
+        # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
+        ts = ms and not (te and not geo_u)
         if ts:
+            # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
+            # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
             s = (sx, sy, sz)
             if te:
                 e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
-            else:
+            elif not me:
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf)
                 if pair is not None:
                     cands = []
@@ -321,12 +324,23 @@ class ArmKinematicCorrectorPlus:
                     extra = [self._penalty(s, c, w, lu, lf, axes) for c in cands]
                     e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
                     e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, e[0], e[1], e[2])
-                else:
-                    e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *_in_plane(wx, wy, wz, ex, ey, lf))
-            # A shoulder depth that forces the elbow off its (reliable) image position is wrong, e.g. the depth
-            # of an occluding upper arm; so is a shoulder out of reach of the wrist. Then: the chain below.
             if e is None or _hypot(e[0] - ex, e[1] - ey) > self.config.xy_tol_m:
-                ts = False
+                # ... unless that moves the elbow off its image position (the filtered wrist lags, is off, or
+                # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen,
+                # else the shoulder's Pythagorean candidate, x, y kept, that best fits the filter, the previous
+                # output and the wrist) and the wrist at l_f from it along its own direction.
+                if me:
+                    e = _radial(sx, sy, sz, ex, ey, ez, lu)
+                else:
+                    pair = _pythagoras(sx, sy, sz, ex, ey, lu)
+                    cands = pair if pair is not None else (_in_plane(sx, sy, sz, ex, ey, lu),)
+                    extra = []
+                    for c in cands:
+                        dw = _hypot(c[0] - wx, c[1] - wy, c[2] - wz) - lf
+                        extra.append(dw * dw * self._inv_wrist2 + self._penalty(s, c, w, lu, lf, axes))
+                    e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
+                w = _radial(e[0], e[1], e[2], wx, wy, wz, lf)
+            return (*s, *e, *w)
         if not ts:
             if te:
                 e = _radial(wx, wy, wz, ex, ey, ez, lf)
@@ -360,9 +374,7 @@ class ArmKinematicCorrectorPlus:
                     if je + js < best_j:
                         best_j, best = je + js, (sc, ec)
                 s, e = best
-        self._lost[ke] = 0.0 if te else self._lost[ke] + 1.0
-        self._lost[ks] = 0.0 if ts else self._lost[ks] + 1.0
-        return (*s, *e, wx, wy, wz)
+        return (*s, *e, *w)
 
     def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
         cfg = self.config

@@ -464,10 +464,11 @@ class PerJointEKF:
         arm = np.where(self._init, np.diagonal(self._P, axis1=1, axis2=2)[:, :3], np.nan)
         return np.concatenate((arm, self._side.position_variance))
 
+    @property
     def status(self) -> np.ndarray:
         """``(12,)`` per-landmark status (see :func:`~akc_drake.core.kalman.status_from`)."""
         arm = status_from(self._init, self._age, self.config.max_predict_s)
-        return np.concatenate((arm, self._side.status()))
+        return np.concatenate((arm, self._side.status))
 
     def step(self, z, dt: float) -> np.ndarray:
         """Advance by ``dt``, fuse ``z`` ``(12, 3)`` (NaN where missing), then the bone-length constraints.

@@ -237,7 +237,7 @@ def calibrations_from(sessions: dict[str, Session], config) -> tuple[BodyDimensi
     """The T-pose dims and every calibration of Tables VIII-IX, as :func:`run_experiment` computes them."""
     from akc_drake.evaluation.experiment import calibrate_session, manual_dimensions, true_dimensions
 
-    opts = config.options
+    opts = config.run_options() if hasattr(config, "run_options") else config.options
     tpose_dims = calibrate_session(sessions["tpose"], "tpose", opts)
     truth_dims = true_dimensions(sessions["tpose"])
     calibrations = {"Manual": manual_dimensions(truth_dims), "Truth": truth_dims, "T-pose": tpose_dims}

@@ -1,0 +1,66 @@
+import math
+
+import numpy as np
+import pytest
+
+from akc_drake.core.ekf import ExtendedKalmanFilterCV, PerJointEKF
+from akc_drake.core.kalman import ConstantVelocityKF, EKFConfig, KFConfig
+from akc_drake.core.skeleton import INDEX, BodyDimensions
+
+DIMS = BodyDimensions(LUA=0.29, LLA=0.26, RUA=0.29, RLA=0.26, SW=0.36)
+
+
+def _pose():
+    p = np.zeros((12, 3))
+    p[INDEX["left_shoulder"]] = [0.18, 0.0, 2.0]
+    p[INDEX["right_shoulder"]] = [-0.18, 0.0, 2.0]
+    p[INDEX["left_elbow"]] = [0.18, 0.29, 2.0]
+    p[INDEX["right_elbow"]] = [-0.18, 0.29, 2.0]
+    p[INDEX["left_wrist"]] = [0.18, 0.29, 1.74]
+    p[INDEX["right_wrist"]] = [-0.18, 0.29, 1.74]
+    for i in range(6, 12):
+        p[i] = [0.0, 0.5, 2.0]
+    return p
+
+
+def test_per_joint_ekf_pulls_a_lost_elbow_depth_to_the_forearm_length():
+    truth = _pose()
+    ekf = PerJointEKF(DIMS, EKFConfig(max_predict_s=math.inf, sigma_c=0.01))
+    for _ in range(10):
+        ekf.step(truth, 0.1)
+    e = INDEX["left_elbow"]
+    z = truth.copy()
+    z[e, 2] = np.nan
+    for k in range(30):  # the wrist moves towards the camera; the elbow depth is lost
+        z[INDEX["left_wrist"], 2] = truth[INDEX["left_wrist"], 2] - 0.002 * k
+        est = ekf.step(z, 0.1)
+    forearm = np.linalg.norm(est[e] - est[INDEX["left_wrist"]])
+    assert forearm == pytest.approx(DIMS.LLA, abs=0.02)
+    assert ekf.position.shape == (12, 3) and ekf.position_variance.shape == (12, 3)
+    assert ekf.status.shape == (12,)
+
+
+def test_per_joint_ekf_equals_the_kf_without_constraint_violations():
+    # On an exact, fully measured pose the constraint residuals are zero: the EKF is the KF.
+    truth = _pose()
+    kf, ekf = ConstantVelocityKF(config=KFConfig()), PerJointEKF(DIMS, EKFConfig())
+    for _ in range(5):
+        a, b = kf.step(truth, 0.1), ekf.step(truth, 0.1)
+    np.testing.assert_allclose(a, b, atol=1e-12)
+    with pytest.raises(ValueError, match="dims"):
+        PerJointEKF(None)
+
+
+def test_kf_without_hold_drifts_and_with_hold_stops():
+    # The paper's KF (max_predict_s = inf) extrapolates a lost depth at its last velocity; ours holds it.
+    paper, ours = ConstantVelocityKF(1, KFConfig(max_predict_s=math.inf)), ConstantVelocityKF(1, KFConfig())
+    for k in range(20):
+        z = np.array([[0.0, 0.0, 2.0 - 0.01 * k]])
+        paper.step(z, 0.1)
+        ours.step(z, 0.1)
+    lost = np.array([[0.0, 0.0, np.nan]])
+    for _ in range(100):
+        zp, zo = paper.step(lost, 0.1)[0, 2], ours.step(lost, 0.1)[0, 2]
+    assert zp < 1.70 - 0.05  # kept moving at ~0.1 m/s for 10 s
+    assert zo > 1.70  # held after 1 s
+    assert ExtendedKalmanFilterCV is not None
