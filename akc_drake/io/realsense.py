@@ -258,7 +258,7 @@ def write_db3(
     return n
 
 
-def read_bag_accel(path, *, max_samples: int = 400, timeout_s: float = 10.0):
+def read_bag_accel(path, *, max_samples: int = 400, timeout_s: float = 5.0):
     """The accelerometer samples of a RealSense recording (a D435i's IMU), for the gravity direction.
 
     Plays only the ``accel`` stream (non-real-time) and collects up to ``max_samples`` samples.
@@ -314,7 +314,8 @@ def read_bag_accel(path, *, max_samples: int = 400, timeout_s: float = 10.0):
             playing = playing or status == rs.playback_status.playing
             with lock:
                 n = len(samples)
-            if n >= max_samples or (playing and status == rs.playback_status.stopped):
+            # "stopped" is also the status before playback starts: it means the end once we saw it play or got data
+            if n >= max_samples or ((playing or n > 0) and status == rs.playback_status.stopped):
                 break
             if n != last:
                 last, since = n, time.monotonic()
