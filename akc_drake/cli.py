@@ -158,6 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pose", default="tpose", choices=("tpose", "lpose"))
     p.add_argument("--frames", type=int, default=100, metavar="N")
     p.add_argument("--out", required=True, metavar="FILE.json")
+    _body_detector(p)
 
     p = sub.add_parser("soak", help="a long simulated teleop session with random tracking loss (robustness)")
     p.add_argument("--minutes", type=float, default=30.0, metavar="M", help="simulated minutes (default: 30)")

@@ -28,6 +28,10 @@ def _config(args):
 
     cfg = load_config(args.config) if args.config else PipelineConfig()
     cfg.source = args.source
+    for name, default in (("body", "primitive"), ("detector", "sim")):
+        value = getattr(args, name, default)
+        if not args.config or value != default:
+            setattr(cfg, name, value)
     return cfg
 
 
