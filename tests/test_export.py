@@ -194,3 +194,18 @@ def test_wrong_shape_and_unwritable(tmp_path, capsys):
     finally:
         ro.chmod(0o700)
     assert not (ro / "x.csv").exists()
+
+
+def test_world_frame_from_a_tpose_calibration(npz, tmp_path):
+    # A calibration session seen by a camera rolled by 90 degrees: the world frame follows the calibration file.
+    s = synthetic_session(T=10)
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # C_rolled = R^T C
+    calib = {k: (v @ R if k in ("raw", "accepted", "filtered", "corrected", "truth") else v) for k, v in s.items()}
+    cal = atomic_save_npz(tmp_path / "tpose.npz", **calib)
+    out = tmp_path / "c.csv"
+    assert cli(["export", "--poses", str(npz), "--format", "csv", "--out", str(out), "--calibration", str(cal),
+                "--json", str(tmp_path / "c.json")]) == 0
+    w = json.loads((tmp_path / "c.json").read_text())["world_frame"]
+    own = export_poses(load_poses(npz), "csv", tmp_path / "own.csv")["world_frame"]
+    # (both estimated from noisy landmarks: 2 cm noise, 10 vs 40 frames)
+    np.testing.assert_allclose(np.array(w["R_CW"])[:, 2], R.T @ np.array(own["R_CW"])[:, 2], atol=0.05)
