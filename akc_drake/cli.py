@@ -54,12 +54,14 @@ def _add_scheduler_args(p: argparse.ArgumentParser, workers: bool = True) -> Non
         p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
 
 
-def _body_detector(p) -> None:
-    """``--body`` and ``--detector``: the simulated operator and the detector that looks at it."""
+def _body_detector(p, both: bool = False) -> None:
+    """``--body`` and ``--detector``: the simulated operator and the detector that looks at it (``both``:
+    also offer ``--detector both``, the simulated detector and MediaPipe side by side)."""
     p.add_argument("--body", default="primitive", choices=("primitive", "skinned"),
                    help="simulated operator: primitive (fast) or skinned (MakeHuman body; default: primitive)")
-    p.add_argument("--detector", default="sim", choices=("sim", "mediapipe"),
-                   help="2D detector on the renders: sim (simulated) or mediapipe (default: sim)")
+    p.add_argument("--detector", default="sim", choices=("sim", "mediapipe", "both") if both else ("sim", "mediapipe"),
+                   help="2D detector on the renders: sim (simulated) or mediapipe (default: sim)"
+                   + ("; both: the tables with each, side by side" if both else ""))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -102,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="FILE")
     p.add_argument("--width", type=int, default=640, help=argparse.SUPPRESS)
     p.add_argument("--height", type=int, default=480, help=argparse.SUPPRESS)
-    _body_detector(p)
+    _body_detector(p, both=True)
     _add_scheduler_args(p)
 
     p = sub.add_parser("sweep", help="AKC weight and shrink-factor sensitivity study (paper Fig. 5, Table VII)")

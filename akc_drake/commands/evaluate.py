@@ -70,7 +70,7 @@ def build_config(args):
             motion_file=motion_file,
             skeleton=skeleton,
             body=getattr(args, "body", "primitive"),
-            detector=getattr(args, "detector", "sim"),
+            detector="mediapipe" if getattr(args, "detector", "sim") == "both" else getattr(args, "detector", "sim"),
             protocol=getattr(args, "protocol", "paper"),
         )
     except ValueError as e:
@@ -192,25 +192,37 @@ def main(args) -> int:
     workers = getattr(args, "workers", None)
     if workers is not None and workers < 1:
         raise UserError(f"--workers must be at least 1, got {workers}")
+    ev_sim = None
+    if getattr(args, "detector", "sim") == "both":  # the simulated detector first, then MediaPipe (reported)
+        import dataclasses
+
+        ev_sim = run(dataclasses.replace(config, detector="sim"), scheduler=scheduler, n_workers=workers)
     ev = run(config, scheduler=scheduler, n_workers=workers)
     for table in ev.tables:
         print(format_table(table))
         print()
-    from akc_drake.evaluation.detector_metrics import detector_report, format_report
+    from akc_drake.evaluation.detector_metrics import detector_report, format_report, side_by_side
 
     det = {name: detector_report(run.session) for name, run in ev.runs.items()}
     det_md = "".join(format_report(f"motion {name}", rep) + "\n" for name, rep in det.items())
     print(det_md)
+    sections = [f"## The 2D detector ({config.detector}) on the {config.body} operator\n\n" + det_md]
+    if ev_sim is not None:
+        sections.append(side_by_side(ev_sim.tables, ev.tables, "simulated detector", config.detector))
+        print(sections[-1])
     # JSON first (small, what scripts read), then the folder.
     if args.json:
         data = ev.to_json()
         data["detector_metrics"] = {"body": config.body, "detector": config.detector, "motions": det}
+        if ev_sim is not None:
+            sim = ev_sim.to_json()
+            data["sim_detector"] = {k: sim[k] for k in ("results", "arm_length_range_cm") if k in sim}
         write_json(args.json, data)
         print(f"wrote {args.json}")
     if args.out:
         from akc_drake.fileio import atomic_write_text
 
-        files = write_evaluation(ev, args.out)
+        files = write_evaluation(ev, args.out, sections)
         head = f"# The 2D detector ({config.detector}) on the {config.body} operator, against ground truth\n\n"
         atomic_write_text(Path(args.out) / "detector.md", head + det_md)
         print(f"wrote {args.out}/report.md, detector.md and {len(files) - 1} more files")

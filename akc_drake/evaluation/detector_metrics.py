@@ -139,3 +139,31 @@ def format_report(name: str, rep: dict) -> str:
             f"{f(o['flag_any'], '{:.0%}')} | {f(v['flag_any'], '{:.0%}')} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def side_by_side(tables_a: list, tables_b: list, label_a: str, label_b: str) -> str:
+    """Markdown: every table present in both evaluations, each cell ``a / b (paper)``.
+
+    Args:
+        tables_a, tables_b: the :class:`~akc_drake.evaluation.report.Table` lists of two evaluations of the
+            same experiment (e.g. the simulated detector and MediaPipe).
+        label_a, label_b: their names, in the cells' order.
+    """
+    by_key = {t.key: t for t in tables_b}
+    out = [f"## The tables with both detectors: {label_a} / {label_b} (paper)\n"]
+    for ta in tables_a:
+        tb = by_key.get(ta.key)
+        if tb is None or tb.rows != ta.rows or tb.columns != ta.columns:
+            continue
+        d = ta.decimals
+        out += [f"### {ta.title}\n", "| | " + " | ".join(ta.columns) + " |", "|---" * (len(ta.columns) + 1) + "|"]
+        for i, row in enumerate(ta.rows):
+            cells = []
+            for j in range(len(ta.columns)):
+                a, b = float(ta.ours[i, j]), float(tb.ours[i, j])
+                p = float(ta.paper[i, j]) if ta.paper is not None else float("nan")
+                txt = " / ".join("-" if not np.isfinite(v) else f"{v:.{d}f}" for v in (a, b))
+                cells.append(txt + (f" ({p:.{d}f})" if np.isfinite(p) else ""))
+            out.append(f"| {row} | " + " | ".join(cells) + " |")
+        out.append("")
+    return "\n".join(out) + "\n"

@@ -436,8 +436,11 @@ def evaluation_figures(ev, out_dir) -> list[Path]:
     return paths
 
 
-def write_evaluation(ev, out_dir) -> list[Path]:
+def write_evaluation(ev, out_dir, sections: list[str] | None = None) -> list[Path]:
     """Write ``report.md``, ``tables/*.csv`` and ``figures/*.png`` of an evaluation into ``out_dir``.
+
+    ``sections``: more Markdown appended to ``report.md`` (e.g. the detector's own figures, or the tables
+    with another detector side by side).
 
     Returns:
         Every file written.
@@ -454,5 +457,6 @@ def write_evaluation(ev, out_dir) -> list[Path]:
         "first (the paper's protocol); each cell shows our value with the paper's in brackets.",
     ]
     md = report_markdown("akc-drake evaluation", cfg, ev.tables, figures, out_dir, extra)
+    md += "".join("\n" + s for s in sections or [])
     written.append(atomic_write_text(out_dir / "report.md", md))
     return written + figures
