@@ -81,7 +81,7 @@ class AKCPlusConfig:
     consistency_m: float = 0.05
     length_tol_m: float = 0.10
     sigma_filter_m: float = 0.05
-    drift_m_per_frame: float = 0.02
+    drift_m_per_frame: float = 0.005
     sigma_temporal_m: float = 0.10
     sigma_width_m: float = 0.05
     elbow_min_deg: float = 40.0
@@ -135,6 +135,17 @@ def _pythagoras(ax, ay, az, px, py, length):
         return None
     r = _sqrt(r2)
     return (px, py, az + r), (px, py, az - r)
+
+
+def _candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
+    """The joint's candidates at ``length`` from anchor ``a``: the Pythagorean pair (eq. 7-8) when its x, y
+    were detected this frame; when they were not (the filter holds them, less reliable 2D) and ``p`` is
+    already within ``tol`` of the length, ``p`` moved radially (a small correction).
+    """
+    if not xy_seen and abs(_hypot(px - ax, py - ay, pz - az) - length) <= tol:
+        return (_radial(ax, ay, az, px, py, pz, length),)
+    pair = _pythagoras(ax, ay, az, px, py, length)
+    return pair if pair is not None else (_in_plane(ax, ay, az, px, py, length),)
 
 
 def _in_plane(ax, ay, az, px, py, length):
@@ -296,6 +307,9 @@ class ArmKinematicCorrectorPlus:
         tol = self.config.length_tol_m
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
         me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
+        # x, y detected this frame (else the filter holds them: no reliable 2D for eq. 7-8)
+        exy = m is None or _isfinite(m[o_e] + m[o_e + 1])
+        sxy = m is None or _isfinite(m[o_s] + m[o_s + 1])
         self._lost[ke] = 0.0 if me else self._lost[ke] + 1.0
         self._lost[ks] = 0.0 if ms else self._lost[ks] + 1.0
         geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
@@ -307,7 +321,9 @@ class ArmKinematicCorrectorPlus:
         te = me and geo_f  # elbow seen and at the forearm length from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
         # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
-        ts = ms and not (te and not geo_u)
+        # A shoulder the detector lost altogether (no x, y either) has no better estimate than the filter's:
+        # it is kept too (eq. 7-8 need its 2D position).
+        ts = (ms or not sxy) and not (te and not geo_u)
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
@@ -315,7 +331,7 @@ class ArmKinematicCorrectorPlus:
             if te:
                 e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
             elif not me:
-                pair = _pythagoras(wx, wy, wz, ex, ey, lf)
+                pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
                 if pair is not None:
                     cands = []
                     for c in pair:
@@ -332,8 +348,7 @@ class ArmKinematicCorrectorPlus:
                 if me:
                     e = _radial(sx, sy, sz, ex, ey, ez, lu)
                 else:
-                    pair = _pythagoras(sx, sy, sz, ex, ey, lu)
-                    cands = pair if pair is not None else (_in_plane(sx, sy, sz, ex, ey, lu),)
+                    cands = _candidates(sx, sy, sz, ex, ey, ez, lu, exy, tol)
                     extra = []
                     for c in cands:
                         dw = _hypot(c[0] - wx, c[1] - wy, c[2] - wz) - lf
@@ -344,14 +359,13 @@ class ArmKinematicCorrectorPlus:
         if not ts:
             if te:
                 e = _radial(wx, wy, wz, ex, ey, ez, lf)
-                s_pair = _pythagoras(e[0], e[1], e[2], sx, sy, lu)
-                if s_pair is None:
-                    s = _in_plane(e[0], e[1], e[2], sx, sy, lu)
+                s_c = _candidates(e[0], e[1], e[2], sx, sy, sz, lu, sxy, tol)
+                if len(s_c) == 1:
+                    s = s_c[0]
                 else:
-                    s = self._choose_shoulder(s_pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
+                    s = self._choose_shoulder(s_c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
             else:
-                e_pair = _pythagoras(wx, wy, wz, ex, ey, lf)
-                e_cands = e_pair if e_pair is not None else (_in_plane(wx, wy, wz, ex, ey, lf),)
+                e_cands = _candidates(wx, wy, wz, ex, ey, ez, lf, exy, tol)
                 best = None
                 best_j = math.inf
                 cfg = self.config
@@ -361,9 +375,9 @@ class ArmKinematicCorrectorPlus:
                     je = _d2(ec, ex, ey, ez) * inv_fe2
                     if pe is not None:
                         je += _d2(ec, pe[0], pe[1], pe[2]) * self._inv_t2
-                    s_pair = _pythagoras(ec[0], ec[1], ec[2], sx, sy, lu)
-                    if s_pair is None:
-                        sc = _in_plane(ec[0], ec[1], ec[2], sx, sy, lu)
+                    s_pair = _candidates(ec[0], ec[1], ec[2], sx, sy, sz, lu, sxy, tol)
+                    if len(s_pair) == 1:
+                        sc = s_pair[0]
                         js = self._shoulder_cost(sc, ec, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
                     else:
                         sc, js = None, math.inf
