@@ -38,6 +38,8 @@ def test_run_writes_exports_and_bag(teleop_run):
     counts = {k: len(v) for k, v in bag.items()}
     assert counts == summary["ros2_bag"]["messages"]
     assert counts["/akc/skeleton/corrected"] == 15 and counts["/robot/joint_commands"] >= 140  # 100 Hz IK
+    children = {x.child_frame_id for _, m in bag["/tf"] for x in m.transforms}
+    assert {"left_wrist_target", "right_ee", "operator_torso", "operator_left_wrist"} <= children
     _, js = bag["/robot/joint_commands"][-1]
     assert len(js.name) == 14 and np.all(np.isfinite(js.position))
 

@@ -209,8 +209,8 @@ class TeleopRecording:
 
     Attributes:
         t: ``(T,)`` camera frame times (s); skeletons: stage -> ``(T, 12, 3)`` in C;
-        commands: the arm joint commands at the IK rate; targets: ``{frame: (t, (N, 4, 4))}`` wrist targets in
-        the robot's torso frame.
+        commands: the arm joint commands at the IK rate; targets: ``{frame: (t, (N, 4, 4))}`` the wrist targets
+        and the achieved end effectors (``{left,right}_ee``) in the robot's torso frame.
     """
 
     t: np.ndarray
@@ -247,6 +247,8 @@ def teleop_recording(td, log=None, num_frames: int | None = None) -> TeleopRecor
     t0 = min(float(t_frames[0]) if len(t_frames) else 0.0, float(t[0]))
     t_frames, t = t_frames - t0, t - t0
     targets = {f"{s}_wrist_target": (t, np.asarray(hist[f"target_{s}"])) for s in ("left", "right")}
+    # The robot's achieved end effectors (its state, as frames): where the targets were reached.
+    targets.update({f"{s}_ee": (t, np.asarray(hist[f"ee_{s}"])) for s in ("left", "right")})
     return TeleopRecording(t_frames, skeletons, JointSeries(t, names, q), targets)
 
 

@@ -14,7 +14,8 @@ topic                           type                           content
                                                                (the control frames of eq. 17, from the corrected
                                                                skeleton)
 ``/tf``                         tf2_msgs/TFMessage             with a robot: ``robot_torso ->``
-                                                               ``{left,right}_wrist_target`` (the IK's targets)
+                                                               ``{left,right}_wrist_target`` (the IK's targets) and
+                                                               ``{left,right}_ee`` (the achieved end effectors)
 ``/robot/joint_commands``       sensor_msgs/JointState         the robot's commanded joint positions (teleop)
 ``/robot/joint_states``         sensor_msgs/JointState         the robot's measured positions and velocities
 ``/camera/color/camera_info``   sensor_msgs/CameraInfo         per frame, when the intrinsics are known
