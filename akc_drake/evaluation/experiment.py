@@ -95,8 +95,13 @@ class ExperimentConfig:
     options: MethodOptions = field(default_factory=MethodOptions)
     body: str = "primitive"
     detector: str = "sim"
+    protocol: str = "paper"
 
     def __post_init__(self):
+        from akc_drake.evaluation.protocol import PROTOCOLS
+
+        if self.protocol not in PROTOCOLS:
+            raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {self.protocol!r}")
         self.methods = parse_methods(self.methods)
         if isinstance(self.cycles, bool) or not isinstance(self.cycles, (int, np.integer)) or self.cycles < 1:
             raise ValueError(f"cycles must be a positive integer, got {self.cycles!r}")
