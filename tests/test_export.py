@@ -209,3 +209,22 @@ def test_world_frame_from_a_tpose_calibration(npz, tmp_path):
     own = export_poses(load_poses(npz), "csv", tmp_path / "own.csv")["world_frame"]
     # (both estimated from noisy landmarks: 2 cm noise, 10 vs 40 frames)
     np.testing.assert_allclose(np.array(w["R_CW"])[:, 2], R.T @ np.array(own["R_CW"])[:, 2], atol=0.05)
+
+
+def test_bvh_reads_the_same_in_bvhio(npz, tmp_path):
+    """A third-party BVH reader with its own forward kinematics (bvhio, on PyGLM) agrees with the export."""
+    bvhio = pytest.importorskip("bvhio")
+    out = tmp_path / "s.bvh"
+    s = export_poses(load_poses(npz), "bvh", out, stage="corrected")
+    want = _world(s).to_world(load_poses(npz).stage("corrected")) @ BVH_FROM_W.T * 100  # cm
+    root = bvhio.readAsHierarchy(str(out))
+    by_name = {BVH_NAMES[k]: INDEX[k] for k in BVH_NAMES}
+    checked = 0
+    for f in (0, 13, 39):
+        root.loadPose(f)
+        for joint, _, _ in root.layout():
+            if joint.Name in by_name:
+                np.testing.assert_allclose(np.array(joint.PositionWorld), want[f, by_name[joint.Name]],
+                                           atol=0.01)  # cm: 0.1 mm (PyGLM is float32)
+                checked += 1
+    assert checked == 3 * len(BVH_NAMES)
