@@ -118,6 +118,8 @@ def _interop_checks(args):
     for f in (args.export or "").split(","):
         if f.strip():
             check_format(f)
+    if args.smooth != "none" and not args.export:
+        raise UserError("--smooth applies to the --export files: give --export FMT")
     if args.ros2_bag:
         check_writable(args.ros2_bag)
     if not args.lcm:
