@@ -16,10 +16,9 @@ def test_poses_quaternions_and_lost_mask():
     enc.GetInputPort("X_TE_desired_left").FixValue(ctx, X_l)
     enc.GetInputPort("X_TE_desired_right").FixValue(ctx, X_r)
     enc.GetInputPort("tracking_lost").FixValue(ctx, [0.0, 1.0])
-    msg = enc.get_output_port().Eval(ctx)
+    msg = enc.GetOutputPort("lcmt_viewer_draw").Eval(ctx)
     assert msg.timestamp == 2500 and msg.num_links == 2
     assert list(msg.link_name) == ["left_wrist_target", "right_wrist_target"]
-    assert list(msg.robot_num) == [2, 2]  # bit 1: the right side is lost
     for i, X in enumerate((X_l, X_r)):
         np.testing.assert_allclose(msg.position[i], X.translation(), atol=1e-12)
         w, x, y, z = msg.quaternion[i]
@@ -27,5 +26,9 @@ def test_poses_quaternions_and_lost_mask():
         np.testing.assert_allclose(R, X.rotation().matrix(), atol=1e-12)
     back = type(msg).decode(msg.encode())
     np.testing.assert_allclose(back.position, msg.position, rtol=1e-6)
-    enc.GetInputPort("tracking_lost").FixValue(ctx, [1.0, 1.0])
-    assert list(enc.get_output_port().Eval(ctx).robot_num) == [3, 3]
+    status = enc.GetOutputPort("lcmt_drake_signal").Eval(ctx)
+    assert status.timestamp == 2_500_000 and status.dim == 2
+    assert list(status.coord) == ["left_tracking_lost", "right_tracking_lost"] and list(status.val) == [0.0, 1.0]
+    enc.GetInputPort("tracking_lost").FixValue(ctx, [1.0, 0.0])
+    assert list(enc.GetOutputPort("lcmt_drake_signal").Eval(ctx).val) == [1.0, 0.0]
+    assert type(status).decode(status.encode()).coord == status.coord

@@ -6,7 +6,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from drake import lcmt_robot_state, lcmt_viewer_draw
+from drake import lcmt_drake_signal, lcmt_robot_state, lcmt_viewer_draw
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
@@ -14,7 +14,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
 from akc_drake.robot.model import arm_joint_names
-from akc_drake.systems.lcm_publishers import COMMAND, FRAMES, STATE, AddLcmPublishers, open_lcm
+from akc_drake.systems.lcm_publishers import COMMAND, FRAMES, STATE, TRACKING, AddLcmPublishers, open_lcm
 
 
 def _diagram(lcm, prefix=""):
@@ -33,17 +33,19 @@ def _diagram(lcm, prefix=""):
 
 def test_in_process_memq():
     lcm = open_lcm("memq://")
-    got = {COMMAND: [], STATE: [], FRAMES: []}
+    got = {COMMAND: [], STATE: [], FRAMES: [], TRACKING: []}
     lcm.Subscribe(COMMAND, lambda m: got[COMMAND].append(lcmt_robot_state.decode(m)))
     lcm.Subscribe(STATE, lambda m: got[STATE].append(lcmt_robot_state.decode(m)))
     lcm.Subscribe(FRAMES, lambda m: got[FRAMES].append(lcmt_viewer_draw.decode(m)))
+    lcm.Subscribe(TRACKING, lambda m: got[TRACKING].append(lcmt_drake_signal.decode(m)))
     diagram, pubs = _diagram(lcm)
-    assert set(pubs.channels) == {COMMAND, STATE, FRAMES}
+    assert set(pubs.channels) == {COMMAND, STATE, FRAMES, TRACKING}
     Simulator(diagram).AdvanceTo(0.295)
     while lcm.HandleSubscriptions(0) > 0:
         pass
     assert len(got[COMMAND]) == len(got[STATE]) == 30  # t = 0, 0.01, ..., 0.29
-    assert len(got[FRAMES]) == 3  # t = 0, 0.1, 0.2
+    assert len(got[FRAMES]) == len(got[TRACKING]) == 3  # t = 0, 0.1, 0.2
+    assert list(got[TRACKING][2].val) == [0.0, 0.0] and got[TRACKING][2].timestamp == 200000
     cmd = got[COMMAND][-1]
     assert cmd.utime == 290000
     assert list(cmd.joint_name) == arm_joint_names("left") + arm_joint_names("right")

@@ -2,24 +2,26 @@
 
 Channels (the defaults; a prefix can be given):
 
-===================== ==================== ============= =====================================================
-channel               type                 rate          content
-===================== ==================== ============= =====================================================
-``AKC_ROBOT_COMMAND`` ``lcmt_robot_state`` IK rate       commanded arm joint positions (14, by joint name)
-``AKC_ROBOT_STATE``   ``lcmt_robot_state`` IK rate       measured arm joint positions of the simulated robot
-``AKC_CONTROL_FRAMES`` ``lcmt_viewer_draw`` camera rate  wrist targets in the robot torso frame + lost mask
-===================== ==================== ============= =====================================================
+====================== ===================== =========== ===================================================
+channel                type                  rate        content
+====================== ===================== =========== ===================================================
+``AKC_ROBOT_COMMAND``  ``lcmt_robot_state``  IK rate     commanded arm joint positions (14, by joint name)
+``AKC_ROBOT_STATE``    ``lcmt_robot_state``  IK rate     measured arm joint positions of the simulated robot
+``AKC_CONTROL_FRAMES`` ``lcmt_viewer_draw``  camera rate wrist targets in the robot torso frame
+``AKC_TRACKING``       ``lcmt_drake_signal`` camera rate ``left_tracking_lost``, ``right_tracking_lost`` (0/1)
+====================== ===================== =========== ===================================================
 
-The types are Drake's (``from drake import lcmt_robot_state, lcmt_viewer_draw``), so a driver needs only the
-``drake`` (or ``lcm``) Python package. Publishing uses :class:`pydrake.systems.lcm.LcmPublisherSystem` on a
-:class:`pydrake.lcm.DrakeLcm` (``memq://`` in process, ``udpm://239.255.76.67:7667?ttl=0`` on this host only).
+The types are Drake's (``from drake import lcmt_drake_signal, lcmt_robot_state, lcmt_viewer_draw``), so a driver
+needs only the ``drake`` (or ``lcm``) Python package. Publishing uses
+:class:`pydrake.systems.lcm.LcmPublisherSystem` on a :class:`pydrake.lcm.DrakeLcm` (``memq://`` in process,
+``udpm://239.255.76.67:7667?ttl=0`` on this host only).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from drake import lcmt_robot_state, lcmt_viewer_draw
+from drake import lcmt_drake_signal, lcmt_robot_state, lcmt_viewer_draw
 from pydrake.systems.lcm import LcmPublisherSystem
 
 from akc_drake.robot.model import arm_joint_names
@@ -27,7 +29,7 @@ from akc_drake.systems.lcm_control_frame_encoder import ControlFrameEncoder
 from akc_drake.systems.lcm_joint_command_encoder import JointCommandEncoder
 
 SIDES = ("left", "right")
-COMMAND, STATE, FRAMES = "AKC_ROBOT_COMMAND", "AKC_ROBOT_STATE", "AKC_CONTROL_FRAMES"
+COMMAND, STATE, FRAMES, TRACKING = "AKC_ROBOT_COMMAND", "AKC_ROBOT_STATE", "AKC_CONTROL_FRAMES", "AKC_TRACKING"
 
 
 @dataclass
@@ -112,5 +114,7 @@ def AddLcmPublishers(builder, lcm, *, q_commanded: dict, q_measured: dict | None
         for s in SIDES:
             builder.Connect(X_TE_desired[s], frames.GetInputPort(f"X_TE_desired_{s}"))
         builder.Connect(tracking_lost, frames.GetInputPort("tracking_lost"))
-        publisher(FRAMES, lcmt_viewer_draw, frame_period_s, frames.get_output_port(), frame_offset_s)
+        publisher(FRAMES, lcmt_viewer_draw, frame_period_s, frames.GetOutputPort("lcmt_viewer_draw"), frame_offset_s)
+        publisher(TRACKING, lcmt_drake_signal, frame_period_s, frames.GetOutputPort("lcmt_drake_signal"),
+                  frame_offset_s)
     return LcmPublishers(channels, cmd, state, frames)
