@@ -341,7 +341,7 @@ def test_json_has_every_method_joint_axis(evaluation):
     # AKC keeps the calibrated arm lengths: range below 1e-6 cm.
     ranges = doc["arm_length_range_cm"]
     akc = [r for r in ranges if r["method"].startswith("AKC")]
-    assert len(akc) == 2 * 2 * 4
+    assert len(akc) == 2 * 4 * 4  # 2 motions x AKC(KF), AKC(EKF), AKC+(KF), AKC+(EKF) x 4 segments
     assert all(r["range_cm"] < 1e-6 for r in akc)
     raw = [r["range_cm"] for r in ranges if r["method"] == "Raw"]
     assert max(raw) > 5.0
@@ -390,16 +390,16 @@ def test_tables_in_paper_layout(evaluation):
     tables = {t.key: t for t in evaluation.tables}
     t1 = tables["table1"]
     assert t1.rows == ["x", "y", "z"]
-    assert t1.columns == ["Raw", "KF", "COIK", "AKC"] * 2
-    assert t1.groups == [("Motion I", 4), ("Motion II", 4)]
-    assert t1.paper[2, 0] == 34.86 and t1.paper[2, 7] == 5.23
+    assert t1.columns == ["Raw", "KF", "COIK", "AKC", "AKC+"] * 2
+    assert t1.groups == [("Motion I", 5), ("Motion II", 5)]
+    assert t1.paper[2, 0] == 34.86 and t1.paper[2, 8] == 5.23 and np.isnan(t1.paper[2, 9])
     assert np.isfinite(t1.ours).all()
     row = next(
         r
         for r in evaluation.results
         if r["motion"] == "II" and r["method"] == "AKC(KF)" and r["joint"] == "left_shoulder"
     )
-    assert t1.ours[2, 7] == pytest.approx(row["rmse_cm"]["z"])
+    assert t1.ours[2, 8] == pytest.approx(row["rmse_cm"]["z"])
     t3 = tables["table3"]
     assert t3.ours[0, 0] == pytest.approx(20.0)  # the session's source time
     assert np.isfinite(t3.ours[2, 2:]).all()  # max total of COIK and AKC
