@@ -458,6 +458,7 @@ class TeleopDiagram(MocapDiagram):
     meshcat: object = None
     ik_time_step: float = 0.01
     clip_log: object = None
+    gripper: object = None
 
     def simulate(self, num_frames: int | None = None, *, duration: float | None = None, progress: bool = False,
                  simulator: Simulator | None = None):
@@ -478,11 +479,18 @@ class TeleopDiagram(MocapDiagram):
         return log, wall
 
 
+#: The Meshcat camera of the teleop view (world, metres): front left of the robot, looking at the robot, the
+#: table and the operator's skeletons standing at the robot's left.
+TELEOP_CAMERA_W = (2.3, 2.1, 1.9)
+TELEOP_CAMERA_TARGET_W = (0.35, 0.45, 0.85)
+
+
 def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measurements | None = None,
                          frame_source=None, detector=None, dims: BodyDimensions | None = None, motion=None,
                          meshcat=None, lcm=None, time_step: float = 0.005, ik_time_step: float = 0.01,
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
-                         torso_model=None, smoothing: bool = True, workspace: bool = True) -> TeleopDiagram:
+                         torso_model=None, smoothing: bool = True, workspace: bool = True,
+                         hand_dropout=None) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
@@ -503,6 +511,13 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         smoothing: One Euro smoothing on SE(3) of the torso and wrist frames
             (:data:`~akc_drake.core.smoothing.WRIST_SMOOTHING`, :data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`).
         workspace: clip each target into its arm's :class:`~akc_drake.core.frames.Workspace`.
+        hand_dropout: ``(frames,)`` bool, frames in which the hand channel is blanked too (``--dropout``).
+
+    When ``motion`` has a hand closure (:attr:`~akc_drake.operator.motions.OperatorMotion.hand_closed`, e.g. the
+    pick-and-place motion), the grippers are commanded from the hands: a
+    :class:`~akc_drake.systems.gripper_command.HandApertureSource` (the thumb-index distance) feeds a
+    :class:`~akc_drake.systems.gripper_command.GripperCommand` (pinch with hysteresis) wired to the station's
+    finger inputs.
     """
     from akc_drake.core import smoothing as sm
     from akc_drake.core.frames import Workspace, calibrated_mapping
@@ -555,7 +570,20 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     builder.Connect(mapper.GetOutputPort("workspace_clipped"), clip_log.get_input_port())
     builder.Connect(station.robot_state_output, monitor.GetInputPort("robot_state"))
 
+    gripper = None
+    if motion is not None and getattr(motion, "hand_closed", None) is not None:
+        from akc_drake.systems.gripper_command import GripperCommand, HandApertureSource
+
+        hands = builder.AddSystem(HandApertureSource(motion, period, seed=cfg.seed, dropout=hand_dropout))
+        hands.set_name("HandApertureSource")
+        gripper = builder.AddSystem(GripperCommand(period, timing.stage_offset("mapper", cfg.stage_offset_s)))
+        gripper.set_name("GripperCommand")
+        builder.Connect(hands.get_output_port(), gripper.GetInputPort("thumb_index_m"))
+        for side in ("left", "right"):
+            builder.Connect(gripper.GetOutputPort(f"{side}_opening"), station.gripper_input[side])
+
     if meshcat is not None:
+        meshcat.SetCameraPose(TELEOP_CAMERA_W, TELEOP_CAMERA_TARGET_W)
         from akc_drake.systems.skeleton_visualizer import SkeletonVisualizer
 
         skel = builder.AddSystem(SkeletonVisualizer(meshcat, period_s=period,
@@ -582,5 +610,5 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     return TeleopDiagram(
         diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"),
         mapper=mapper, station=station, ik=ik, monitor=monitor, meshcat=meshcat, ik_time_step=ik_time_step,
-        clip_log=clip_log,
+        clip_log=clip_log, gripper=gripper,
     )

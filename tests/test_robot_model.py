@@ -326,5 +326,5 @@ def test_scene_loads_with_a_free_object():
     # Resting on the table top (z = 0.72) with half its 5 cm side below its centre.
     assert X_WO.translation()[2] == pytest.approx(0.72 + 0.025)
     table = plant.GetBodyByName("table", scene)
-    assert plant.EvalBodyPoseInWorld(context, table).IsNearlyEqualTo(RigidTransform([0.85, 0, 0.70]), 1e-12)
+    assert plant.EvalBodyPoseInWorld(context, table).IsNearlyEqualTo(RigidTransform([0.75, 0, 0.70]), 1e-12)
     assert obj.default_mass() == pytest.approx(0.1)

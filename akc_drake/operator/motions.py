@@ -38,7 +38,7 @@ SAMPLE_DT = 0.01
 #: (in front of the pelvis at chest height; see ``akc_drake.systems.depth_camera_source.CameraPlacement``).
 DEFAULT_TARGET_O = (DEFAULT_CAMERA_DISTANCE_M, 0.0, DEFAULT_CAMERA_HEIGHT_M)
 
-MOTION_NAMES = ("I", "II", "tpose", "lpose")
+MOTION_NAMES = ("I", "II", "tpose", "lpose", "pick-place")
 
 _DEG = math.pi / 180.0
 
@@ -53,6 +53,8 @@ class OperatorMotion:
         q_right: ``(T, NUM_ARM_DOF)`` right-arm joint angles.
         name: a label ("I", "II", "tpose", "lpose", or a file name).
         cycle_starts: optional start times of the motion's cycles (for cycle-wise evaluation).
+        hand_closed: optional ``(T, 2)`` closure of the left and right hands in [0, 1] (0: open, 1: a closed
+            pinch) at the sample times; None: both hands open throughout.
     """
 
     times: np.ndarray
@@ -60,6 +62,7 @@ class OperatorMotion:
     q_right: np.ndarray
     name: str = "motion"
     cycle_starts: np.ndarray | None = None
+    hand_closed: np.ndarray | None = None
 
     def __post_init__(self):
         self.times = np.asarray(self.times, dtype=float).reshape(-1)
@@ -72,8 +75,7 @@ class OperatorMotion:
             q = np.asarray(getattr(self, attr), dtype=float)
             if q.shape != (T, NUM_ARM_DOF):
                 raise ValueError(
-                    f"OperatorMotion {self.name!r}: {attr} must have shape ({T}, {NUM_ARM_DOF}), "
-                    f"got {q.shape}"
+                    f"OperatorMotion {self.name!r}: {attr} must have shape ({T}, {NUM_ARM_DOF}), got {q.shape}"
                 )
             if not np.all(np.isfinite(q)):
                 k = int(np.flatnonzero(~np.all(np.isfinite(q), axis=1))[0])
@@ -81,6 +83,18 @@ class OperatorMotion:
             setattr(self, attr, q)
         if self.cycle_starts is not None:
             self.cycle_starts = np.asarray(self.cycle_starts, dtype=float).reshape(-1)
+        if self.hand_closed is not None:
+            h = np.asarray(self.hand_closed, dtype=float)
+            if h.shape != (T, 2) or not np.all((h >= 0.0) & (h <= 1.0)):
+                raise ValueError(f"OperatorMotion {self.name!r}: hand_closed must be ({T}, 2) values in [0, 1]")
+            self.hand_closed = h
+
+    def closure(self, t) -> np.ndarray:
+        """``(len(t), 2)`` hand closure (left, right) at times ``t`` (linear interpolation; 0 without any)."""
+        t = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), self.start, self.end)
+        if self.hand_closed is None:
+            return np.zeros((len(t), 2))
+        return np.stack([np.interp(t, self.times, self.hand_closed[:, k]) for k in range(2)], axis=1)
 
     @property
     def start(self) -> float:
@@ -319,6 +333,158 @@ def lpose(seconds: float = HOLD_SECONDS, seed: int = 0, *, sway_deg: float = 0.5
     return _hold(pose, seconds, seed, "lpose", sway_deg)
 
 
+#: The pick-and-place task in the robot torso frame T (metres), matching ``models/teleop_scene.sdf``: the box's
+#: centre where it starts and the centre of the marked target, for the right arm.
+PICK_BOX_T = (0.55, -0.15, -0.355)
+PLACE_TARGET_T = (0.55, -0.40, -0.355)
+#: The gripper's tool axis points forward and this far down (degrees) while grasping, fingers closing across
+#: the box (along y of T).
+GRASP_PITCH_DEG = 60.0
+
+
+#: A person's joint ranges used when solving the operator's posture (radians): adduction, elevation, humeral
+#: rotation, elbow flexion, forearm roll (see :mod:`akc_drake.operator.model`).
+ARM_RANGE = (
+    np.array([-0.5, -1.6, -1.6, 0.0, -0.2]),
+    np.array([2.5, 1.6, 1.6, 2.6, 3.4]),
+)
+
+
+def _mapped_tool_pose(q_left, q_right, side, params, mapping) -> np.ndarray:
+    from akc_drake.core.frames import map_to_robot, wrist_in_torso
+
+    pose = landmarks_from_q(np.atleast_2d(q_left), np.atleast_2d(q_right), params)[0]
+    X_l, X_r = wrist_in_torso(pose)
+    X = X_l if side == "left" else X_r
+    return map_to_robot(X, side, mapping)
+
+
+def solve_arm_for_tool_pose(
+    p_T, R_T, side: str, q_other: np.ndarray, q0: np.ndarray, params: OperatorParams, mapping
+) -> np.ndarray:
+    """The operator's arm angles whose wrist frame, through ``mapping``, puts the robot's tool at ``p_T`` with
+    rotation ``R_T`` (least squares, scipy): what an operator watching the robot does to put it there.
+
+    Args:
+        p_T: ``(3,)`` tool position in T; R_T: ``(3, 3)`` tool rotation in T (rotation error weighted 0.1 m/rad).
+        side: the arm; q_other: the other arm's angles; q0: the starting guess.
+    """
+    from scipy.optimize import least_squares
+
+    from akc_drake.core.frames import rotation_angle
+
+    p_T, R_T = np.asarray(p_T, dtype=float), np.asarray(R_T, dtype=float)
+
+    def residual(q):
+        ql, qr = (q, q_other) if side == "left" else (q_other, q)
+        X = _mapped_tool_pose(ql, qr, side, params, mapping)
+        R_err = R_T.T @ X[:3, :3]
+        axis = np.array([R_err[2, 1] - R_err[1, 2], R_err[0, 2] - R_err[2, 0], R_err[1, 0] - R_err[0, 1]])
+        n = np.linalg.norm(axis)
+        rot = axis / n * rotation_angle(R_err) if n > 1e-12 else np.zeros(3)
+        # A small pull toward the starting guess keeps the solution on the branch the arm is on.
+        return np.concatenate([X[:3, 3] - p_T, 0.05 * rot, 0.01 * (q - q0)])
+
+    q0 = np.clip(np.asarray(q0, dtype=float), ARM_RANGE[0] + 1e-6, ARM_RANGE[1] - 1e-6)
+    return least_squares(residual, q0, bounds=ARM_RANGE, method="trf").x
+
+
+def pick_place(
+    seed: int = 0,
+    *,
+    params: OperatorParams | None = None,
+    mapping=None,
+    box_T=PICK_BOX_T,
+    target_T=PLACE_TARGET_T,
+    variation: float = 1.0,
+) -> OperatorMotion:
+    """Pick and place with the right arm (about 16 s): rest, reach for the box with the arm toward the camera
+    (the hand hides the elbow and shoulder), close the hand, lift, carry, lower onto the target, open, retreat.
+
+    The waypoints are where the operator must hold the wrist so that the robot's tool, through ``mapping``,
+    is at the box, above it, above the target and on the target, with the tool pointing forward and
+    :data:`GRASP_PITCH_DEG` down and the palm down (the gripper closing across the box): the operator places the
+    robot's hand, as a person watching the robot would. The left arm rests (forearm forward). Per seed the
+    timing and the waypoints vary a little (a few mm), as a person's repetitions do.
+
+    Args:
+        seed: seeds the variation.
+        params: the operator.
+        mapping: the operator-to-robot :class:`~akc_drake.core.frames.RobotMapping` the operator works with
+            (default: :func:`~akc_drake.core.frames.calibrated_mapping` of the operator's dimensions).
+        box_T, target_T: the box's start and the target's centre in T.
+        variation: scales the per-seed variation (0: none).
+    """
+    from akc_drake.core.frames import calibrated_mapping
+
+    params = params or OperatorParams()
+    mapping = mapping if mapping is not None else calibrated_mapping(params.dims)
+    rng = np.random.default_rng(seed)
+    v = float(variation)
+    a = math.radians(GRASP_PITCH_DEG)
+    y = np.array([-math.cos(a), 0.0, math.sin(a)])  # tool axis, from the tool back toward the wrist
+    z = np.array([0.0, 1.0, 0.0])  # the fingers close along y of T
+    R_grasp = np.column_stack([np.cross(y, z), y, z])
+    box, target = np.asarray(box_T, float), np.asarray(target_T, float)
+    lift = np.array([0.0, 0.0, 0.15])
+
+    def jitter() -> np.ndarray:
+        return rng.normal(0.0, 0.003 * v, 3)
+
+    # Rest: the robot's tools forward at waist height, palms facing each other (the operator's forearms
+    # forward, upper arms down).
+    R_rest_r = np.column_stack([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    R_rest_l = np.column_stack([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    guess = np.array([0.5 * math.pi, -0.8, 0.0, 1.2, NEUTRAL_FOREARM_ROLL])
+    rest = solve_arm_for_tool_pose([0.45, 0.22, -0.21], R_rest_l, "left", guess, guess, params, mapping)
+    rest_right = solve_arm_for_tool_pose([0.45, -0.22, -0.21], R_rest_r, "right", rest, guess, params, mapping)
+    waypoints = [
+        # (time s, right-arm tool position in T or None for rest, hand closure)
+        (0.0, None, 0.0),
+        (1.5, None, 0.0),
+        (4.0, box + lift + jitter(), 0.0),
+        (5.5, box + jitter(), 0.0),
+        (6.0, "hold", 0.0),
+        (6.6, "hold", 1.0),
+        (8.0, box + lift + jitter(), 1.0),
+        (10.5, target + lift + jitter(), 1.0),
+        (12.0, target + np.array([0.0, 0.0, 0.004]) + jitter(), 1.0),
+        (12.4, "hold", 1.0),
+        (13.0, "hold", 0.0),
+        (14.5, target + lift + jitter(), 0.0),
+        (16.0, None, 0.0),
+    ]
+    q_prev = rest_right
+    knots_t, knots_q, knots_h = [], [], []
+    for k, (t, where, closed) in enumerate(waypoints):
+        t = t + (0.0 if k == 0 else rng.uniform(-0.1, 0.1) * v)
+        if where is None:
+            q = rest_right
+        elif isinstance(where, str):
+            q = knots_q[-1]
+        else:
+            q = solve_arm_for_tool_pose(where, R_grasp, "right", rest, q_prev, params, mapping)
+            q_prev = q
+        knots_t.append(t)
+        knots_q.append(np.asarray(q, dtype=float))
+        knots_h.append(closed)
+    knots_t = np.maximum.accumulate(np.asarray(knots_t))
+    T = int(round(knots_t[-1] / SAMPLE_DT)) + 1
+    times = np.arange(T) * SAMPLE_DT
+    q_right = np.empty((T, NUM_ARM_DOF))
+    closure = np.empty(T)
+    for i, t in enumerate(times):
+        j = min(int(np.searchsorted(knots_t, t, side="right")), len(knots_t) - 1)
+        j0 = max(j - 1, 0)
+        span = knots_t[j] - knots_t[j0]
+        u = float(_smootherstep(np.array((t - knots_t[j0]) / span))) if span > 0 else 1.0
+        q_right[i] = knots_q[j0] + u * (knots_q[j] - knots_q[j0])
+        closure[i] = knots_h[j0] + u * (knots_h[j] - knots_h[j0])
+    q_left = np.tile(rest, (T, 1))
+    hand = np.column_stack([np.zeros(T), np.clip(closure, 0.0, 1.0)])
+    return OperatorMotion(times, q_left, q_right, "pick-place", hand_closed=hand)
+
+
 def make_motion(name: str, cycles: int = 1, seed: int = 0, **kwargs) -> OperatorMotion:
     """A motion by name.
 
@@ -342,4 +508,6 @@ def make_motion(name: str, cycles: int = 1, seed: int = 0, **kwargs) -> Operator
         return tpose(HOLD_SECONDS * cycles, seed, **kwargs)
     if key in ("lpose", "l-pose", "l"):
         return lpose(HOLD_SECONDS * cycles, seed, **kwargs)
+    if key in ("pick-place", "pickplace", "pick_place"):
+        return pick_place(seed, **kwargs)
     raise ValueError(f"unknown motion {name!r}; choose one of {', '.join(MOTION_NAMES)} (or a motion file)")

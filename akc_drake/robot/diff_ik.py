@@ -155,9 +155,7 @@ class PoseTargetGuard(LeafSystem):
         """
         super().__init__()
         if not (0.0 <= r_min < r_max and math.isfinite(r_max)):
-            raise ValueError(
-                f"PoseTargetGuard: need 0 <= r_min < r_max, got r_min={r_min!r}, r_max={r_max!r}"
-            )
+            raise ValueError(f"PoseTargetGuard: need 0 <= r_min < r_max, got r_min={r_min!r}, r_max={r_max!r}")
         self._plant = plant
         self._plant_context = plant.CreateDefaultContext()
         self._frame_T = torso_frame(plant)
@@ -192,9 +190,7 @@ class PoseTargetGuard(LeafSystem):
         if _is_valid_pose(X):
             X = self.project(X)
         else:
-            self._plant.SetPositions(
-                self._plant_context, self._x.Eval(context)[: self._plant.num_positions()]
-            )
+            self._plant.SetPositions(self._plant_context, self._x.Eval(context)[: self._plant.num_positions()])
             X = self._frame_E.CalcPose(self._plant_context, self._frame_T)
         output.set_value(X)
 
@@ -235,9 +231,7 @@ class JointCommandGuard(LeafSystem):
         if not (len(self._upper) == n == len(self._step)) or np.any(self._step <= 0) or period <= 0:
             raise ValueError("JointCommandGuard: limits must have equal lengths, velocities and period > 0")
         if np.any(self._lower > self._upper):
-            raise ValueError(
-                f"JointCommandGuard: lower limits above upper limits: {self._lower}, {self._upper}"
-            )
+            raise ValueError(f"JointCommandGuard: lower limits above upper limits: {self._lower}, {self._upper}")
         self._q_in = self.DeclareVectorInputPort("q", n)
         self._q_init = self.DeclareVectorInputPort("q_initial", n)
         self._last = self.DeclareDiscreteState(n)
@@ -295,6 +289,80 @@ class JointCommandGuard(LeafSystem):
         return int(context.get_discrete_state(self._info).get_value()[0])
 
 
+class IKFallbackSelector(LeafSystem):
+    """Chooses, per IK step, the full-pose IK's command or, when that one is stuck, the position-only IK's.
+
+    Drake's differential IK moves the end effector along the straight line in SE(3) toward the target, scaled
+    down to the limits; when a joint limit blocks that exact direction it cannot move at all ("stuck") and the
+    arm would freeze while the operator moves on. A second integrator solves for the position alone (the
+    orientation left to the joint centering) from the same guarded command. The position-only command is used
+    when the tool point is more than ``min_error_m`` from the target and the full-pose step moved it less than a
+    tenth of what the position-only step would; otherwise (tracking, or converged) the full pose is used, and
+    it takes over again as soon as it can move.
+
+    .. pydrake_system::
+
+        name: IKFallbackSelector
+        input_ports:
+        - q_full
+        - q_position
+        - X_AE_desired
+        output_ports:
+        - q
+
+    ``q_*`` are the IK plant's positions; ``X_AE_desired`` the (guarded) target of the end effector in the torso
+    frame. State: the previous IK step's choice and target position (NaN before the first), updated every
+    ``time_step``.
+    """
+
+    def __init__(self, plant: MultibodyPlant, side: str, time_step: float, min_error_m: float = 0.005):
+        super().__init__()
+        self._plant = plant
+        self._ctx = plant.CreateDefaultContext()
+        self._E, self._T = ee_frame(plant, side), torso_frame(plant)
+        self._min_error = float(min_error_m)
+        nq = plant.num_positions()
+        self._full = self.DeclareVectorInputPort("q_full", nq)
+        self._pos = self.DeclareVectorInputPort("q_position", nq)
+        self._target = self.DeclareAbstractInputPort("X_AE_desired", AbstractValue.Make(RigidTransform()))
+        # [previous choice (nq), target position latched at the previous step (3)]
+        self._prev = self.DeclareDiscreteState(np.full(nq + 3, np.nan))
+        self._nq = nq
+        # The output does not depend on the target input (it is latched), so the loop through the target guard
+        # (which reads the command) is not algebraic.
+        self.DeclareVectorOutputPort(
+            "q",
+            nq,
+            self._calc,
+            {self._full.ticket(), self._pos.ticket(), self.all_state_ticket()},
+        )
+        self.DeclarePeriodicDiscreteUpdateEvent(time_step, 0.0, self._update)
+
+    def _p(self, q: np.ndarray) -> np.ndarray:
+        self._plant.SetPositions(self._ctx, q)
+        return self._E.CalcPose(self._ctx, self._T).translation()
+
+    def _choose(self, context: Context) -> np.ndarray:
+        full, pos = self._full.Eval(context), self._pos.Eval(context)
+        state = context.get_discrete_state(self._prev).get_value()
+        prev, target = state[: self._nq], state[self._nq :]
+        if not (np.all(np.isfinite(prev)) and np.all(np.isfinite(pos)) and np.all(np.isfinite(full))):
+            return full
+        p0 = self._p(prev)
+        if not np.all(np.isfinite(target)) or np.linalg.norm(target - p0) <= self._min_error:
+            return full
+        d_full = float(np.linalg.norm(self._p(full) - p0))
+        d_pos = float(np.linalg.norm(self._p(pos) - p0))
+        return pos if d_full < 0.1 * d_pos else full
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._choose(context))
+
+    def _update(self, context: Context, discrete_state) -> None:
+        target = self._target.Eval(context).translation()
+        discrete_state.get_mutable_vector(self._prev).SetFromVector(np.concatenate([self._choose(context), target]))
+
+
 def arm_ik_parameters(
     plant: MultibodyPlant,
     side: str,
@@ -336,12 +404,8 @@ def arm_ik_parameters(
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0.0):
             raise ValueError(f"arm_ik_parameters: {name} must be a positive number, got {v!r}")
     if velocity_limit_scale > 1.0:
-        raise ValueError(
-            f"arm_ik_parameters: velocity_limit_scale must be <= 1, got {velocity_limit_scale!r}"
-        )
-    if not (
-        isinstance(centering_gain, (int, float)) and math.isfinite(centering_gain) and centering_gain >= 0
-    ):
+        raise ValueError(f"arm_ik_parameters: velocity_limit_scale must be <= 1, got {velocity_limit_scale!r}")
+    if not (isinstance(centering_gain, (int, float)) and math.isfinite(centering_gain) and centering_gain >= 0):
         raise ValueError(f"arm_ik_parameters: centering_gain must be >= 0, got {centering_gain!r}")
     nq, nv = plant.num_positions(), plant.num_velocities()
     if nq != nv:
@@ -363,9 +427,7 @@ def arm_ik_parameters(
     params.set_joint_centering_gain(K)
     params.set_joint_position_limits((q_lo, q_hi))
     params.set_joint_velocity_limits((-v_lim, v_lim))
-    params.set_end_effector_translational_velocity_limits(
-        np.full(3, -ee_speed_limit), np.full(3, ee_speed_limit)
-    )
+    params.set_end_effector_translational_velocity_limits(np.full(3, -ee_speed_limit), np.full(3, ee_speed_limit))
     params.set_end_effector_angular_speed_limit(ee_angular_speed_limit)
     # OSQP's default iteration cap is too low for the QPs near joint limits (it then reports no solution).
     params.get_mutable_solver_options().SetOption(OsqpSolver.id(), "max_iter", OSQP_MAX_ITER)
@@ -380,7 +442,9 @@ class ArmDifferentialIK:
         side: ``"left"`` or ``"right"``.
         time_step: the IK period, seconds.
         plant: the IK plant.
-        integrator: Drake's DifferentialInverseKinematicsIntegrator.
+        integrator: Drake's DifferentialInverseKinematicsIntegrator (the full pose).
+        fallback: the position-only integrator used when the full-pose one is stuck
+            (:class:`IKFallbackSelector`); None without it.
         pose_guard: the :class:`PoseTargetGuard` in front of it.
         command_guard: the :class:`JointCommandGuard` after it.
         X_TE_desired_input: the input port for the desired end-effector pose (AbstractValue RigidTransform,
@@ -399,10 +463,18 @@ class ArmDifferentialIK:
     X_TE_desired_input: InputPort
     q_commanded_output: OutputPort
     v_commanded_output: OutputPort
+    fallback: DifferentialInverseKinematicsIntegrator | None = None
 
     def status(self, root_context: Context) -> DifferentialInverseKinematicsStatus:
-        """The integrator's most recent status (solution found, no solution, stuck)."""
+        """The full-pose integrator's most recent status (solution found, no solution, stuck)."""
         ctx = self.integrator.GetMyContextFromRoot(root_context)
+        return DifferentialInverseKinematicsStatus(int(ctx.get_discrete_state(1).get_value()[0]))
+
+    def fallback_status(self, root_context: Context) -> DifferentialInverseKinematicsStatus | None:
+        """The position-only integrator's most recent status (None without a fallback)."""
+        if self.fallback is None:
+            return None
+        ctx = self.fallback.GetMyContextFromRoot(root_context)
         return DifferentialInverseKinematicsStatus(int(ctx.get_discrete_state(1).get_value()[0]))
 
     def held_count(self, root_context: Context) -> int:
@@ -424,6 +496,7 @@ def AddArmDifferentialIK(
     initial_q: np.ndarray | None = None,
     parameters: DifferentialInverseKinematicsParameters | None = None,
     workspace_radii: tuple[float, float] = DEFAULT_WORKSPACE_RADII,
+    position_fallback: bool = True,
     **parameter_kwargs,
 ) -> ArmDifferentialIK:
     """Add differential IK for one arm: target guard -> Drake's integrator -> command guard.
@@ -446,6 +519,8 @@ def AddArmDifferentialIK(
         parameters: differential-IK parameters (default :func:`arm_ik_parameters` with ``parameter_kwargs``).
         workspace_radii: ``(r_min, r_max)`` of the reachable shell around the shoulder, metres; targets
             outside are moved onto it (see :class:`PoseTargetGuard`).
+        position_fallback: add the position-only integrator used when the full-pose IK is stuck
+            (:class:`IKFallbackSelector`).
         **parameter_kwargs: passed to :func:`arm_ik_parameters`.
 
     Returns:
@@ -453,9 +528,7 @@ def AddArmDifferentialIK(
     """
     _check_side(side)
     if not (isinstance(time_step, (int, float)) and math.isfinite(time_step) and time_step > 0.0):
-        raise ValueError(
-            f"AddArmDifferentialIK: time_step must be a positive number of seconds, got {time_step!r}"
-        )
+        raise ValueError(f"AddArmDifferentialIK: time_step must be a positive number of seconds, got {time_step!r}")
     if parameters is None:
         parameters = arm_ik_parameters(plant_for_ik, side, time_step, **parameter_kwargs)
     elif parameter_kwargs:
@@ -493,9 +566,7 @@ def AddArmDifferentialIK(
     if measured_q_port is None:
         q_init = np.array(NOMINAL_ARM_Q if initial_q is None else initial_q, dtype=float)
         if q_init.shape != (NUM_ARM_JOINTS,) or not np.all(np.isfinite(q_init)):
-            raise ValueError(
-                f"AddArmDifferentialIK: initial_q must be 7 finite joint angles, got {initial_q!r}"
-            )
+            raise ValueError(f"AddArmDifferentialIK: initial_q must be 7 finite joint angles, got {initial_q!r}")
         source = builder.AddSystem(ConstantVectorSource(q_init))
         source.set_name(f"{side}_arm_ik_initial_q")
         measured_q_port = source.get_output_port()
@@ -505,13 +576,35 @@ def AddArmDifferentialIK(
     use_state.set_name(f"{side}_arm_ik_use_command")
 
     builder.Connect(measured_q_port, command_guard.GetInputPort("q_initial"))
-    builder.Connect(integrator.GetOutputPort("joint_positions"), select.get_input_port())
+    fallback = None
+    if position_fallback:
+        fb_params = arm_ik_parameters(plant_for_ik, side, time_step, **parameter_kwargs)
+        # Only the translational rows of the end-effector velocity (frame E: wx wy wz vx vy vz).
+        fb_params.set_end_effector_velocity_flag([False, False, False, True, True, True])
+        fallback = builder.AddSystem(
+            DifferentialInverseKinematicsIntegrator(
+                plant_for_ik, torso_frame(plant_for_ik), ee_frame(plant_for_ik, side), time_step, fb_params
+            )
+        )
+        fallback.set_name(f"{side}_arm_diff_ik_position")
+        chooser = builder.AddSystem(IKFallbackSelector(plant_for_ik, side, time_step))
+        chooser.set_name(f"{side}_arm_ik_fallback")
+        builder.Connect(integrator.GetOutputPort("joint_positions"), chooser.GetInputPort("q_full"))
+        builder.Connect(fallback.GetOutputPort("joint_positions"), chooser.GetInputPort("q_position"))
+        builder.Connect(chooser.get_output_port(), select.get_input_port())
+    else:
+        builder.Connect(integrator.GetOutputPort("joint_positions"), select.get_input_port())
     builder.Connect(select.get_output_port(), command_guard.GetInputPort("q"))
     builder.Connect(command_guard.GetOutputPort("q_commanded"), expand.get_input_port())
     builder.Connect(expand.get_output_port(), integrator.GetInputPort("robot_state"))
     builder.Connect(use_state.get_output_port(), integrator.GetInputPort("use_robot_state"))
     builder.Connect(expand.get_output_port(), pose_guard.GetInputPort("ik_state"))
     builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), integrator.GetInputPort("X_AE_desired"))
+    if fallback is not None:
+        builder.Connect(expand.get_output_port(), fallback.GetInputPort("robot_state"))
+        builder.Connect(use_state.get_output_port(), fallback.GetInputPort("use_robot_state"))
+        builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), fallback.GetInputPort("X_AE_desired"))
+        builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), chooser.GetInputPort("X_AE_desired"))
     return ArmDifferentialIK(
         side=side,
         time_step=float(time_step),
@@ -522,4 +615,5 @@ def AddArmDifferentialIK(
         X_TE_desired_input=pose_guard.GetInputPort("X_TE_desired"),
         q_commanded_output=command_guard.GetOutputPort("q_commanded"),
         v_commanded_output=command_guard.GetOutputPort("v_commanded"),
+        fallback=fallback,
     )

@@ -115,6 +115,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "ik_steps": int(sum(sum(r.ik_steps.values()) for r in runs)),
         "ik_failures": int(sum(sum(r.ik_failures.values()) for r in runs)),
         "ik_failure_kinds": _sum_dicts(r.ik_failure_kinds for r in runs),
+        "ik_orientation_relaxed": int(sum(sum(r.ik_relaxed.values()) for r in runs)),
         "ik_failure_share": _share(
             sum(sum(r.ik_failures.values()) for r in runs), sum(sum(r.ik_steps.values()) for r in runs)
         ),

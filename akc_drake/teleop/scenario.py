@@ -165,7 +165,10 @@ class IKStatusCounter:
 
     Attributes:
         steps: per side, IK updates seen.
-        failures: per side, updates whose status was not "solution found".
+        failures: per side, updates where neither the full-pose IK nor its position-only fallback found a
+            solution (the command is held).
+        relaxed: per side, updates where the full-pose IK was stuck and the position-only fallback moved the
+            arm (the orientation is then left to the joint centering).
         kinds: per status name ("no solution", "stuck"), updates with it (both arms).
     """
 
@@ -184,6 +187,7 @@ class IKStatusCounter:
         self.steps = dict.fromkeys(ik, 0)
         self.failures = dict.fromkeys(ik, 0)
         self.kinds: dict[str, int] = {}
+        self.relaxed = dict.fromkeys(ik, 0)
 
     def __call__(self, root_context):
         from pydrake.systems.framework import EventStatus
@@ -199,10 +203,16 @@ class IKStatusCounter:
             self._last[side] = j
             self.steps[side] += 1
             status = arm.status(root_context)
-            if status != self._ok:
-                self.failures[side] += 1
-                name = self._NAMES.get(int(status), str(status))
-                self.kinds[name] = self.kinds.get(name, 0) + 1
+            if status == self._ok:
+                continue
+            fallback = arm.fallback_status(root_context) if hasattr(arm, "fallback_status") else None
+            if fallback == self._ok:
+                # The full pose was stuck, the position-only IK moved the arm: not a failure, counted apart.
+                self.relaxed[side] += 1
+                continue
+            self.failures[side] += 1
+            name = self._NAMES.get(int(status), str(status))
+            self.kinds[name] = self.kinds.get(name, 0) + 1
         return EventStatus.Succeeded()
 
     @property
@@ -261,6 +271,10 @@ class TeleopRun:
     operator: dict
     dropout: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     clipped: dict = field(default_factory=dict)
+    ik_relaxed: dict = field(default_factory=dict)
+    box_pose: np.ndarray | None = None
+    box_contacts: tuple = ()
+    gripper_closed: np.ndarray | None = None
     unsmoothed: dict = field(default_factory=dict)
 
     @property
@@ -279,9 +293,10 @@ def _frame_sample_indices(hist_t: np.ndarray, start: float, n: int, period: floa
     return np.where(np.abs(hist_t[best] - want) < 0.5 * h, best, -1)
 
 
-def operator_targets(truth_C: np.ndarray | None, n: int, mapping) -> dict[str, np.ndarray]:
-    """Per side ``(n, 4, 4)``: the operator's true wrist frame mapped to the robot, ``X_TE`` (NaN where
-    degenerate or unknown)."""
+def operator_targets(truth_C: np.ndarray | None, n: int, mapping, workspace=None) -> dict[str, np.ndarray]:
+    """Per side ``(n, 4, 4)``: the operator's true wrist frame mapped to the robot, ``X_TE``, through the same
+    mapping as the pipeline's targets, workspace clip included (``workspace``: per side a
+    :class:`~akc_drake.core.frames.Workspace`, None: no clip); NaN where degenerate or unknown."""
     from akc_drake.core.frames import robot_targets
 
     out = {s: np.full((n, 4, 4), np.nan) for s in SIDES}
@@ -294,8 +309,44 @@ def operator_targets(truth_C: np.ndarray | None, n: int, mapping) -> dict[str, n
         X_l, X_r = robot_targets(truth[k], mapping)
         for side, X in zip(SIDES, (X_l, X_r), strict=True):
             if X is not None:
+                if workspace is not None:
+                    X[:3, 3] = workspace[side].clip(X[:3, 3])[0]
                 out[side][k] = X
     return out
+
+
+def _box_pose(td, sim) -> np.ndarray | None:
+    """The box's (``object``) pose in the world at the end of the run, 4x4 (None without a scene)."""
+    st = td.station
+    if st.scene is None:
+        return None
+    plant_ctx = st.plant.GetMyContextFromRoot(sim.get_context())
+    return st.plant.GetBodyByName("object", st.scene).EvalPoseInWorld(plant_ctx).GetAsMatrix4()
+
+
+def _box_contacts(td, sim) -> tuple[str, ...]:
+    """Names of the bodies touching the box at the end of the run (point and hydroelastic contacts)."""
+    st = td.station
+    if st.scene is None:
+        return ()
+    plant = st.plant
+    plant_ctx = plant.GetMyContextFromRoot(sim.get_context())
+    box = plant.GetBodyByName("object", st.scene).index()
+    results = plant.get_contact_results_output_port().Eval(plant_ctx)
+    inspector = st.scene_graph.model_inspector()
+    names = set()
+    for i in range(results.num_point_pair_contacts()):
+        info = results.point_pair_contact_info(i)
+        a, b = info.bodyA_index(), info.bodyB_index()
+        if box in (a, b):
+            names.add(plant.get_body(b if a == box else a).name())
+    for i in range(results.num_hydroelastic_contacts()):
+        surface = results.hydroelastic_contact_info(i).contact_surface()
+        bodies = [plant.GetBodyFromFrameId(inspector.GetFrameId(g)).index() for g in (surface.id_M(), surface.id_N())]
+        if box in bodies:
+            other = bodies[1] if bodies[0] == box else bodies[0]
+            names.add(plant.get_body(other).name())
+    return tuple(sorted(names))
 
 
 def _clipped_frames(td, sim, n: int) -> dict[str, np.ndarray]:
@@ -363,6 +414,7 @@ def run_teleop(
     truth_C: np.ndarray | None = None,
     progress: bool = False,
     torso_model=None,
+    settle_s: float = 0.0,
     **diagram_kwargs,
 ):
     """Build the teleop diagram for ``corrector`` and run it once.
@@ -381,6 +433,8 @@ def run_teleop(
             error to the operator.
         progress: show a progress bar.
         torso_model: the calibrated :class:`~akc_drake.core.frames.TorsoModel` (None: eq. 17's torso).
+        settle_s: simulate this much longer after the last frame (the robot holds the last targets; e.g. for
+            a placed object to come to rest before it is scored).
         **diagram_kwargs: passed to :func:`~akc_drake.diagrams.build_teleop_diagram`.
 
     Returns:
@@ -418,7 +472,7 @@ def run_teleop(
     counter = IKStatusCounter(td.ik, h, start_time)
     sim.set_monitor(counter)
     sim.get_mutable_context().SetTime(float(start_time))
-    t_end = float(start_time) + td.duration(n)
+    t_end = float(start_time) + td.duration(n) + float(settle_s)
     with quiet_drake_warnings():
         _, wall = td.simulate(duration=t_end, simulator=sim, progress=progress)
 
@@ -457,13 +511,19 @@ def run_teleop(
         ik_steps=dict(counter.steps),
         ik_failures=dict(counter.failures),
         ik_failure_kinds=dict(counter.kinds),
+        ik_relaxed=dict(counter.relaxed),
+        box_pose=_box_pose(td, sim),
+        box_contacts=_box_contacts(td, sim),
+        gripper_closed=None
+        if td.gripper is None
+        else np.array(td.gripper.GetOutputPort("closed").Eval(td.gripper.GetMyContextFromRoot(sim.get_context()))),
         error_t={s: mon.ee_error_times(s) - float(start_time) for s in SIDES},
         errors={s: mon.ee_errors(s) for s in SIDES},
         frame_t=(np.arange(n) + 1) * period - h,
         target=target,
         reachable_target=reach,
         ee=ee,
-        operator=operator_targets(truth, n, td.mapper.mapping),
+        operator=operator_targets(truth, n, td.mapper.mapping, td.mapper.tracker.workspace),
         dropout=np.zeros(n, dtype=bool) if dropout is None else np.asarray(dropout, dtype=bool)[:n],
         clipped=_clipped_frames(td, sim, n),
         unsmoothed=_unsmoothed_targets(td, sim, n, float(start_time), period, torso_model),
