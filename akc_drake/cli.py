@@ -139,7 +139,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cycles", type=int, default=1, metavar="N")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--filter", default="KF", choices=("none", "KF", "EKF"))
-    p.add_argument("--corrector", default="AKC", choices=("none", "AKC", "COIK"))
+    p.add_argument("--corrector", default="AKC", choices=("none", "AKC", "AKC+", "COIK"))
     p.add_argument("--teleop", action="store_true", help="drive the simulated robot too")
     p.add_argument("--meshcat", action="store_true")
     p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources)")

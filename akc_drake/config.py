@@ -23,7 +23,7 @@ from pathlib import Path
 from akc_drake.errors import UserError
 
 FILTERS = ("none", "KF", "EKF")
-CORRECTORS = ("none", "AKC", "COIK")
+CORRECTORS = ("none", "AKC", "AKC+", "COIK")
 WEIGHT_NAMES = ("Wa", "Wb", "Wc")
 #: The teleop diagram's default innovation gate (standard deviations). On the clean rendered Motions I and II
 #: it rejects no measurement of an arm joint (tests/test_faults_garbage.py checks the accuracy is unchanged);
@@ -77,7 +77,7 @@ class PipelineConfig:
         seed: seed of the motion variation, detector and depth noise.
         camera: the simulated camera.
         filter: ``none`` | ``KF`` | ``EKF``.
-        corrector: ``none`` | ``AKC`` | ``COIK``.
+        corrector: ``none`` | ``AKC`` (the paper's) | ``AKC+`` (ours: keeps seen depths) | ``COIK``.
         weights: AKC weight preset ``Wa`` | ``Wb`` | ``Wc`` (paper §III-E; default Wb).
         dims: body dimensions in metres (keys LUA LLA RUA RLA SW); empty = the simulated operator's true dimensions.
         coik_solver: ``snopt`` | ``ipopt`` | ``nlopt``.

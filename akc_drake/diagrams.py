@@ -208,7 +208,7 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
     """Add stages S3 and S4 after ``source`` (from :func:`AddMeasurementSource`).
 
     The occlusion filter always runs; the filter is ``cfg.filter`` (none | KF | EKF) and the corrector
-    ``cfg.corrector`` (none | AKC | COIK). A stage set to none passes its input through. The filter's
+    ``cfg.corrector`` (none | AKC | AKC+ | COIK). A stage set to none passes its input through. The filter's
     innovation gate is ``cfg.resolved_gate_sigma(teleop)`` (by default on for teleoperation only) and its
     longest extrapolation ``cfg.resolved_max_predict_s(teleop)``; with ``teleop`` the filter also undoes a
     detector's left/right swap and AKC holds an arm whose chosen configuration is anatomically impossible.
@@ -251,15 +251,18 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
         estimated = kf.GetOutputPort("landmarks_C_estimated")
 
     corrected = estimated
-    if cfg.corrector == "AKC":
+    if cfg.corrector in ("AKC", "AKC+"):
         from akc_drake.systems.arm_kinematic_correction import ArmKinematicCorrection
 
         akc = builder.AddSystem(
             ArmKinematicCorrection(dims, WEIGHT_PRESETS[cfg.weights], rate_hz=cfg.camera.rate_hz,
-                                   stage_offset_s=cfg.stage_offset_s, anatomical_check=teleop)
+                                   stage_offset_s=cfg.stage_offset_s, anatomical_check=teleop,
+                                   corrector=cfg.corrector)
         )
         akc.set_name("ArmKinematicCorrection")
         builder.Connect(estimated, akc.GetInputPort("landmarks_C"))
+        if cfg.corrector == "AKC+":
+            builder.Connect(accepted, akc.GetInputPort("landmarks_C_measured"))
         systems["corrector"] = akc
         corrected = akc.GetOutputPort("landmarks_C_corrected")
     elif cfg.corrector == "COIK":

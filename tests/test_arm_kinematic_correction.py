@@ -91,3 +91,38 @@ def test_two_contexts_do_not_share_state():
     # b has seen one frame only: same as a fresh core on frame 3 (no temporal term from a's history).
     out_b = sys.get_output_port(0).Eval(b.get_context())
     np.testing.assert_array_equal(out_b, ArmKinematicCorrector(dims).correct(frame(3)).pose.reshape(-1))
+
+
+def test_akc_plus_system_keeps_a_seen_arm():
+    """corrector="AKC+": a second input takes the occlusion filter's output; an exact seen arm is unchanged."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from akc_drake.core.skeleton import segment_lengths
+
+    pose = np.zeros((12, 3))
+    pose[:, 2] = 2.0
+    pose[INDEX["left_shoulder"]] = [0.18, 0.0, 2.0]
+    pose[INDEX["right_shoulder"]] = [-0.18, 0.0, 2.0]
+    pose[INDEX["left_elbow"]] = [0.25, 0.2, 1.85]
+    pose[INDEX["right_elbow"]] = [-0.25, 0.2, 1.85]
+    pose[INDEX["left_wrist"]] = [0.3, 0.05, 1.65]
+    pose[INDEX["right_wrist"]] = [-0.3, 0.05, 1.65]
+    lens = segment_lengths(pose[None])
+    dims = BodyDimensions(**{k: float(v[0]) for k, v in lens.items()})
+    builder = DiagramBuilder()
+    sys_ = builder.AddSystem(ArmKinematicCorrection(dims, corrector="AKC+"))
+    builder.ExportInput(sys_.GetInputPort("landmarks_C"), "pose")
+    builder.ExportInput(sys_.GetInputPort("landmarks_C_measured"), "measured")
+    builder.ExportOutput(sys_.GetOutputPort("landmarks_C_corrected"), "out")
+    diagram = builder.Build()
+    from pydrake.systems.analysis import Simulator
+
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    diagram.get_input_port(0).FixValue(ctx, pose.ravel())
+    diagram.get_input_port(1).FixValue(ctx, pose.ravel())
+    sim.AdvanceTo(0.25)
+    out = diagram.get_output_port(0).Eval(ctx).reshape(12, 3)
+    np.testing.assert_allclose(out[:6], pose[:6], atol=1e-9)
+    with pytest.raises(ValueError, match="AKC or AKC\\+"):
+        ArmKinematicCorrection(dims, corrector="XYZ")

@@ -1,4 +1,5 @@
-"""Stage S4: Arm Kinematic Correction (AKC) as a Drake LeafSystem wrapping :mod:`akc_drake.core.akc`."""
+"""Stage S4: Arm Kinematic Correction as a Drake LeafSystem: the paper's AKC (:mod:`akc_drake.core.akc`) or
+our AKC+ (:mod:`akc_drake.core.akc_plus`, which also reads the occlusion filter's output)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from akc_drake.core.akc import AKCWeights, ArmKinematicCorrector
+from akc_drake.core.akc_plus import AKCPlusConfig, ArmKinematicCorrectorPlus
 from akc_drake.core.skeleton import NUM_LANDMARKS, BodyDimensions
 from akc_drake.systems import timing
 
@@ -33,6 +35,7 @@ class ArmKinematicCorrection(LeafSystem):
         name: ArmKinematicCorrection
         input_ports:
         - landmarks_C
+        - landmarks_C_measured (AKC+ only)
         output_ports:
         - landmarks_C_corrected
         - diagnostics
@@ -54,7 +57,10 @@ class ArmKinematicCorrection(LeafSystem):
         rate_hz: the camera rate.
         stage_offset_s: the per-stage offset of :func:`akc_drake.systems.timing.stage_offset`.
         anatomical_check: hold an arm whose chosen configuration has an impossible elbow angle (see
-            :class:`~akc_drake.core.akc.ArmKinematicCorrector`); on in the teleop diagram.
+            :class:`~akc_drake.core.akc.ArmKinematicCorrector`); on in the teleop diagram (paper AKC only).
+        corrector: "AKC" (the paper's) or "AKC+" (ours; then the input ``landmarks_C_measured`` takes the
+            occlusion filter's output of the same frame, whose seen depths AKC+ keeps).
+        plus_config: AKC+ settings (None: the defaults).
     """
 
     def __init__(
@@ -65,15 +71,24 @@ class ArmKinematicCorrection(LeafSystem):
         rate_hz: float = timing.DEFAULT_CAMERA_RATE_HZ,
         stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
         anatomical_check: bool = False,
+        corrector: str = "AKC",
+        plus_config: AKCPlusConfig | None = None,
     ):
         super().__init__()
+        if corrector not in ("AKC", "AKC+"):
+            raise ValueError(f"corrector must be AKC or AKC+, got {corrector!r}")
         if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
         # The core object is created once; each update loads the context's state into it and back out.
-        self._akc = ArmKinematicCorrector(dims, weights, anatomical_check=anatomical_check)
+        if corrector == "AKC+":
+            self._akc = ArmKinematicCorrectorPlus(dims, plus_config)
+        else:
+            self._akc = ArmKinematicCorrector(dims, weights, anatomical_check=anatomical_check)
+        self._plus = corrector == "AKC+"
         self._period = 1.0 / float(rate_hz)
 
         self._u = self.DeclareVectorInputPort("landmarks_C", _POSE_SIZE)
+        self._m = self.DeclareVectorInputPort("landmarks_C_measured", _POSE_SIZE) if self._plus else None
         self._x_akc = self.DeclareDiscreteState(BasicVector(self._akc.get_state_vector()))
         self._x_pose = self.DeclareDiscreteState(BasicVector(np.full(_POSE_SIZE, np.nan)))
         initial_diag = np.array([-1.0, -1.0, 0.0, 0.0, 1.0, 1.0, np.nan, np.nan])
@@ -87,7 +102,7 @@ class ArmKinematicCorrection(LeafSystem):
         )
 
     @property
-    def corrector(self) -> ArmKinematicCorrector:
+    def corrector(self) -> ArmKinematicCorrector | ArmKinematicCorrectorPlus:
         """The wrapped core corrector (its state is whatever the last update left in it)."""
         return self._akc
 
@@ -98,7 +113,10 @@ class ArmKinematicCorrection(LeafSystem):
     def _update(self, context, discrete_state) -> None:
         pose = self._u.Eval(context).reshape(NUM_LANDMARKS, 3)
         self._akc.set_state_vector(context.get_discrete_state(self._x_akc).get_value())
-        r = self._akc.correct(pose)
+        if self._plus:
+            r = self._akc.correct(pose, self._m.Eval(context).reshape(NUM_LANDMARKS, 3))
+        else:
+            r = self._akc.correct(pose)
         discrete_state.get_mutable_vector(self._x_akc).SetFromVector(self._akc.get_state_vector())
         discrete_state.get_mutable_vector(self._x_pose).SetFromVector(r.pose.reshape(-1))
         diag = np.concatenate([r.chosen, r.fallback, r.held, r.cost]).astype(float)
