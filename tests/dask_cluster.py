@@ -69,6 +69,8 @@ class Cluster:
                 "--port",
                 "0",
                 "--no-dashboard",
+                "--dashboard-address",
+                "127.0.0.1:0",
                 "--no-show",
                 "--scheduler-file",
                 str(self.scheduler_file),

@@ -320,6 +320,8 @@ def _start_local(n_workers: int):
         processes=True,
         host="127.0.0.1",
         dashboard_address=None,
+        # No dashboard; the scheduler's own HTTP endpoints on a free port, not 8787 (another cluster may hold it).
+        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
         silence_logs=logging.ERROR,
     )
 
