@@ -57,9 +57,10 @@ system-deps:
 demo: install
 	$(VENV)/bin/akc-drake demo
 
-# Both cores (pytest-xdist), in a random order (pytest-randomly prints its seed; repeat an order with --randomly-seed=N).
+# Both cores (pytest-xdist; one test file per worker at a time, so module fixtures are built once), in a random
+# order (pytest-randomly prints its seed; repeat an order with --randomly-seed=N).
 test: install
-	$(PY) -m pytest -q -p no:cacheprovider -n 2
+	$(PY) -m pytest -q -p no:cacheprovider -n 2 --dist loadfile
 
 bench: install
 	$(VENV)/bin/akc-drake bench
