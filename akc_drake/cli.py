@@ -81,6 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", metavar="FILE", help="save the Meshcat recording as a standalone HTML page")
     p.add_argument("--ros2-bag", metavar="FILE.mcap", help="write the AKC(KF) replays as a ROS 2 MCAP bag")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--task", choices=("pick-place",), help="also run a task and score it per corrector")
+    p.add_argument("--seeds", type=int, default=5, metavar="N", help="seeded runs of --task per corrector (default 5)")
     _body_detector(p)
 
     p = sub.add_parser("evaluate", help="reproduce the paper's tables and figures against ground truth")

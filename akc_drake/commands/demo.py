@@ -49,6 +49,10 @@ def options_from_args(args):
         record=True,
         max_frames=_max_frames_from_env(),
         ros2_bag=Path(args.ros2_bag) if getattr(args, "ros2_bag", None) else None,
+        task=getattr(args, "task", None),
+        seeds=getattr(args, "seeds", 5),
+        body=getattr(args, "body", "primitive"),
+        detector=getattr(args, "detector", "sim"),
         progress=sys.stderr.isatty(),
     ).validate()
 

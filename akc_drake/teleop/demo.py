@@ -76,6 +76,10 @@ class DemoOptions:
     config: object = None
     progress: bool = False
     ros2_bag: str | Path | None = None
+    task: str | None = None
+    seeds: int = 5
+    body: str = "primitive"
+    detector: str = "sim"
 
     def validate(self) -> DemoOptions:
         """Check the options; raises UserError naming the option."""
@@ -95,6 +99,10 @@ class DemoOptions:
             raise UserError(f"correctors must be among {', '.join(CORRECTORS)}, got {list(self.correctors)!r}")
         if not str(self.out_dir).strip():
             raise UserError("--out: empty folder name")
+        if self.task not in (None, "pick-place"):
+            raise UserError(f"--task must be pick-place, got {self.task!r}")
+        if isinstance(self.seeds, bool) or not isinstance(self.seeds, int) or self.seeds < 1:
+            raise UserError(f"--seeds must be a positive integer, got {self.seeds!r}")
         return self
 
     @property
@@ -149,7 +157,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
     t_start = time.perf_counter()
     out = _prepare_out_dir(Path(opts.out_dir))
     cfg = (opts.config if opts.config is not None else PipelineConfig()).validate()
-    cfg = dataclasses.replace(cfg, seed=int(opts.seed))
+    cfg = dataclasses.replace(cfg, seed=int(opts.seed), body=opts.body, detector=opts.detector).validate()
     rate = float(cfg.camera.rate_hz)
     period = camera_period(cfg)
     cycles = opts.num_cycles
@@ -297,7 +305,17 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
         figs.append(str(plot_errors(runs, out / "tracking_error.png")))
         outputs["plots"] = figs
 
+    task = None
+    if opts.task == "pick-place":
+        from akc_drake.teleop.task import run_pick_place
+
+        log(f"Pick and place: {opts.seeds} seeded run(s) per corrector ...")
+        task = run_pick_place(cfg, calib, opts.seeds, correctors=opts.correctors, progress=opts.progress, log=log)
     summary = _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, render_info, dropout_info)
+    if task is not None:
+        summary["task"] = task
+        for c, rate in task["success_rate"].items():
+            summary["correctors"].setdefault(c, {})["success_rate"] = rate
     summary["outputs"] = outputs
     summary["wall_s"] = time.perf_counter() - t_start
     json_path = out / "demo.json"
@@ -320,6 +338,9 @@ def _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, ren
     return {
         "config": {
             "quick": bool(opts.quick),
+            "body": cfg.body,
+            "detector": cfg.detector,
+            "task": opts.task,
             "cycles": cycles,
             "motions": list(runs),
             "seed": int(opts.seed),

@@ -183,4 +183,52 @@ def format_table(summary: dict) -> str:
         f"error L/R {_lr(summary['ee_tracking_error_cm'])} cm; NaN commands {summary['nan_commands']}, "
         f"IK failures {summary['ik_failures']} (all runs)"
     )
+    lines += ["", *control_frame_lines(summary)]
+    task = summary.get("task")
+    if task:
+        lines.append("")
+        lines.append(
+            f"Pick and place ({task['seeds']} seeded runs per corrector; success: box within "
+            f"{task['success_radius_cm']:g} cm of the target, upright, released):"
+        )
+        for c, rate in task["success_rate"].items():
+            runs = [r for r in task["runs"] if r["corrector"] == c]
+            errs = ", ".join(f"{r['box_error_cm']:.1f}" for r in runs)
+            lines.append(f"  {c:10s} {100 * rate:5.0f} %   (box to target, cm: {errs})")
     return "\n".join(lines)
+
+
+def control_frame_lines(summary: dict) -> list[str]:
+    """The control-frame figures per corrector (both motions): the target against the operator's true mapped
+    wrist, jitter relative to the operator's, the smoothing's added latency, workspace clips, IK failures and
+    position-only IK steps, midline crossings."""
+    out = [
+        "Control frames, both motions: target vs the operator's true mapped wrist (median/p95 cm), jitter "
+        "relative to the operator's (angular, linear), smoothing latency (ms), clipped to the workspace (%), "
+        "IK steps failed (%) / position-only, midline crossings"
+    ]
+    for c, m in summary["correctors"].items():
+        if "target_operator_error_cm" not in m:
+            continue
+        med, p95 = m["target_operator_error_cm"], m["target_operator_error_p95_cm"]
+        j, o = m["jitter"], m["operator_jitter"]
+
+        def ratio(key: str, side: str, j=j, o=o) -> str:
+            a, b = j[key].get(side), o[key].get(side)
+            return _fmt(a / b if a is not None and b else None, ".1f")
+
+        lat = m.get("smoothing_latency_ms") or {}
+        clip = m.get("workspace_clipped_share") or {}
+        cross = m.get("midline_crossings") or {}
+        share = m.get("ik_failure_share")
+        pct = {k: None if clip.get(k) is None else 100 * clip[k] for k in ("left", "right")}
+        out.append(
+            f"  {c:10s} L {_fmt(med.get('left'))}/{_fmt(p95.get('left'))}  R {_fmt(med.get('right'))}/"
+            f"{_fmt(p95.get('right'))}   jitter x{ratio('angular_rad_s', 'left')}/"
+            f"x{ratio('angular_rad_s', 'right')}"
+            f" ang, x{ratio('linear_m_s', 'left')}/x{ratio('linear_m_s', 'right')} lin   latency "
+            f"{_lr(lat, '.0f')} ms   clipped {_lr(pct, '.0f')} %   IK failed "
+            f"{_fmt(None if share is None else 100 * share, '.2f')} % / {m.get('ik_orientation_relaxed', 0)} "
+            f"position-only   midline {cross.get('left', 0)}/{cross.get('right', 0)}"
+        )
+    return out

@@ -83,7 +83,16 @@ def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False):
         disable=not progress,
         leave=False,
     ) as bar:
-        return render_session(motion, intrinsics, placement, noise, seed=seed, progress=lambda k, total: bar.update(1))
+        return render_session(
+            motion,
+            intrinsics,
+            placement,
+            noise,
+            seed=seed,
+            detector=getattr(cfg, "detector", None),
+            body=getattr(cfg, "body", "primitive"),
+            progress=lambda k, total: bar.update(1),
+        )
 
 
 @dataclass
