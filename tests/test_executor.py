@@ -72,6 +72,8 @@ def test_argument_checks():
         run_tasks(square_root, [1.0], scheduler="inprocess", retries=-1)
     with pytest.raises(ValueError, match="n_workers"):
         run_tasks(square_root, [1.0], scheduler="local", n_workers=0)
+    with pytest.raises(ValueError, match="not open"):
+        run_tasks(square_root, [1.0], scheduler=open_scheduler("local", 1))
 
 
 def test_local_cluster_same_results_and_failure_line():

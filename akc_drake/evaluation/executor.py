@@ -28,7 +28,12 @@ Faults:
   (``KilledWorker``) or loses it, :func:`run_tasks` submits it again, up to ``retries`` more times, before
   reporting it as a :class:`TaskFailure`.
 
-A progress bar (tqdm, on stderr) counts finished tasks.
+A progress bar (tqdm, on stderr) counts finished tasks. To run several batches on the same workers (a local
+cluster started once, workers that keep their imports), open the scheduler once::
+
+    with open_scheduler("local", n_workers=2) as sched:
+        first = run_tasks(fn, items, scheduler=sched)
+        second = run_tasks(other_fn, more_items, scheduler=sched)
 """
 
 from __future__ import annotations
@@ -209,7 +214,7 @@ def run_tasks(
     if not items:
         return []
     if not isinstance(scheduler, Scheduler):
-        n = None if n_workers is None else n_workers
+        n = n_workers
         if scheduler == "local":
             n = max(1, min(n or os.cpu_count() or 1, len(items)))
         with open_scheduler(scheduler, n) as sched:
@@ -224,6 +229,8 @@ def run_tasks(
                 timeout_s=timeout_s,
                 on_result=on_result,
             )
+    if scheduler.client is None and scheduler.name != "inprocess":
+        raise ValueError(f"the {scheduler.name} scheduler is not open: use it in a 'with open_scheduler(...)' block")
     from tqdm import tqdm
 
     bar = tqdm(total=len(items), desc=desc, unit="task", file=sys.stderr, disable=not progress, dynamic_ncols=True)
