@@ -74,18 +74,26 @@ class AKCPlusConfig:
         sigma_temporal_m: how far a joint may move between two frames (10 Hz: 1 m/s -> 0.1 m).
         sigma_width_m: standard deviation of the shoulder-width term (0 turns it off).
         elbow_min_deg: candidates folded more than this (or hyperextended) are penalised.
-        xy_tol_m: a trusted shoulder that would move the elbow's image position (x, y) by more than this is
-            not trusted after all.
+        xy_tol_m: a seen shoulder that would move the elbow's image position (x, y) by more than this makes
+            the elbow be placed from the shoulder and the wrist follow.
+        jump_m: a seen depth farther than this from the joint's last output is not trusted (an occluder's,
+            e.g. the elbow's surface read at the shoulder's pixel) ...
+        gate_frames: ... unless it has been so for this many frames and fits the arm's lengths.
+        occlusion_radius_m: a shoulder this close (x, y, metres) to its elbow does not count as seen (its
+            depth may be the upper arm's surface; 8 cm ~ 25 px at 2 m).
     """
 
     consistency_m: float = 0.05
     length_tol_m: float = 0.10
     sigma_filter_m: float = 0.05
-    drift_m_per_frame: float = 0.005
+    drift_m_per_frame: float = 0.02
     sigma_temporal_m: float = 0.10
     sigma_width_m: float = 0.05
     elbow_min_deg: float = 40.0
     xy_tol_m: float = 0.03
+    jump_m: float = 0.15
+    occlusion_radius_m: float = 0.08
+    gate_frames: float = 10.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -307,13 +315,36 @@ class ArmKinematicCorrectorPlus:
         tol = self.config.length_tol_m
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
         me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
+        geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
+        geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
+        if prev is not None:
+            # Consistent with the prediction (our last output): a seen depth that jumps by more than jump_m in
+            # one frame is an occluder's until it fits the arm again or has stayed for gate_frames frames.
+            jump, n = self.config.jump_m, self.config.gate_frames
+            if me and abs(m[o_e + 2] - prev[5]) > jump and not (self._lost[ke] >= n and geo_f):
+                me = False
+            if ms and abs(m[o_s + 2] - prev[2]) > jump and not (self._lost[ks] >= n and geo_u):
+                ms = False
         # x, y detected this frame (else the filter holds them: no reliable 2D for eq. 7-8)
         exy = m is None or _isfinite(m[o_e] + m[o_e + 1])
         sxy = m is None or _isfinite(m[o_s] + m[o_s + 1])
+        if prev is not None and m is not None:
+            # A joint the detector lost altogether: a filter without a hold extrapolates it (x, y too) at its
+            # last velocity; our last output is then the better estimate.
+            # (Only when the filter has moved it away from our last output by more than jump_m: a holding
+            # filter's estimate is kept.)
+            jump = self.config.jump_m
+            if not exy and _hypot(ex - prev[3], ey - prev[4], ez - prev[5]) > jump:
+                ex, ey, ez = prev[3], prev[4], prev[5]
+            if not sxy and _hypot(sx - prev[0], sy - prev[1], sz - prev[2]) > jump:
+                sx, sy, sz = prev[0], prev[1], prev[2]
+        # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
+        # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface.
+        r2 = self.config.occlusion_radius_m ** 2
+        if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < r2:
+            ms = False
         self._lost[ke] = 0.0 if me else self._lost[ke] + 1.0
         self._lost[ks] = 0.0 if ms else self._lost[ks] + 1.0
-        geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
-        geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         w = (wx, wy, wz)
@@ -321,9 +352,9 @@ class ArmKinematicCorrectorPlus:
         te = me and geo_f  # elbow seen and at the forearm length from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
         # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
-        # A shoulder the detector lost altogether (no x, y either) has no better estimate than the filter's:
-        # it is kept too (eq. 7-8 need its 2D position).
-        ts = (ms or not sxy) and not (te and not geo_u)
+        # A shoulder the detector lost altogether (no x, y either) is held at its last output (eq. 7-8 need its
+        # 2D position).
+        ts = (ms or (not sxy and prev is not None)) and not (te and not geo_u)
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
