@@ -270,6 +270,21 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                     f"  {MAIN_CORRECTOR} with rendering: {run.frames} frames in {run.wall_s:5.1f} s "
                     f"(x{run.realtime_factor:.2f} realtime)"
                 )
+    task = None
+    if opts.task == "pick-place":
+        from akc_drake.teleop.task import run_pick_place
+
+        log(f"Pick and place: {opts.seeds} seeded run(s) per corrector ...")
+        task = run_pick_place(
+            cfg,
+            calib,
+            opts.seeds,
+            correctors=opts.correctors,
+            progress=opts.progress,
+            log=log,
+            meshcat=meshcat,
+            start_time=rec_time,
+        )
     outputs: dict[str, object] = {}
     if meshcat is not None:
         meshcat.StopRecording()
@@ -305,12 +320,6 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
         figs.append(str(plot_errors(runs, out / "tracking_error.png")))
         outputs["plots"] = figs
 
-    task = None
-    if opts.task == "pick-place":
-        from akc_drake.teleop.task import run_pick_place
-
-        log(f"Pick and place: {opts.seeds} seeded run(s) per corrector ...")
-        task = run_pick_place(cfg, calib, opts.seeds, correctors=opts.correctors, progress=opts.progress, log=log)
     summary = _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, render_info, dropout_info)
     if task is not None:
         summary["task"] = task

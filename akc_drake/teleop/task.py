@@ -18,7 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from akc_drake.teleop.scenario import CORRECTORS, quiet_drake_warnings, render_motion, run_teleop
+from akc_drake.teleop.scenario import (
+    CORRECTORS,
+    MAIN_CORRECTOR,
+    quiet_drake_warnings,
+    render_motion,
+    run_teleop,
+)
 
 #: Task success: the box's centre within this horizontal distance of the target (metres).
 SUCCESS_RADIUS_M = 0.03
@@ -107,12 +113,16 @@ def run_pick_place(
     correctors: tuple[str, ...] = tuple(CORRECTORS),
     progress: bool = False,
     log: Callable[[str], None] = print,
+    meshcat=None,
+    start_time: float = 0.0,
 ) -> dict:
     """Run the task ``seeds`` times per corrector.
 
     Args:
         cfg: the pipeline configuration; calib: the demo's T-pose :class:`~akc_drake.teleop.scenario.Calibration`.
         seeds: number of seeded runs (seeds 0 .. seeds - 1).
+        meshcat, start_time: draw (and record) the first seed's AKC(KF) run in this Meshcat, starting at this
+            simulation time (after the demo's recorded runs).
 
     Returns:
         ``{"runs": [outcome dicts], "success_rate": {corrector: share}, "wall_s": ...}``.
@@ -131,6 +141,7 @@ def run_pick_place(
             session = render_motion(motion, cfg, seed=seed, progress=progress)
             meas = Measurements.from_session(session)
             for corrector in correctors:
+                record = meshcat is not None and seed == 0 and corrector == MAIN_CORRECTOR
                 run, _ = run_teleop(
                     cfg,
                     calib.dims,
@@ -140,6 +151,8 @@ def run_pick_place(
                     torso_model=calib.torso,
                     settle_s=SETTLE_S,
                     progress=progress,
+                    meshcat=meshcat if record else None,
+                    start_time=start_time if record else 0.0,
                 )
                 out = score_box(run.box_pose, target_W, start_W, run.box_contacts, seed=seed, corrector=corrector)
                 outcomes.append(out)
