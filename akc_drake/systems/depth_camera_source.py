@@ -7,9 +7,13 @@ zero-order holds sample everything at the camera rate (a camera takes a frame at
 holds keep it until the next one). Self-occlusion is real: whatever surface is nearest the camera at a
 pixel is what the depth image reads there.
 
-:func:`render_session` renders a whole motion without a simulator (the evaluation's fast path): it reuses
-one DepthCameraSource and its context, renders each frame once, runs the landmark extraction of stage S2
-on it, and returns the raw measurements with the ground truth.
+:func:`~akc_drake.systems.session_render.render_session` (importable from here too) renders a whole motion
+without a simulator (the evaluation's fast path): it reuses one DepthCameraSource and its context, renders
+each frame once, runs the landmark extraction of stage S2 on it, and returns the raw measurements with the
+ground truth.
+
+``body="skinned"`` shows MakeHuman's body (:mod:`akc_drake.operator.skinned`, deformable geometry driven by
+:class:`~akc_drake.systems.skinned_body.SkinnedBody`) instead of the primitive operator.
 
 Camera placement: by default the camera is 2.0 m in front of the operator (along +x of the operator frame
 O), at chest height (0.45 m above the pelvis), its optical axis horizontal along -x of O, so the operator's
@@ -19,9 +23,8 @@ left appears on the image's right.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -50,7 +53,7 @@ from pydrake.systems.sensors import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 
-from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detector
+from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.core.depth_noise import StereoDepthNoise, frame_rng
 from akc_drake.core.skeleton import NUM_LANDMARKS
 from akc_drake.operator.model import (
@@ -428,9 +431,8 @@ class DepthCameraSource(Diagram):
         """Label value -> body name for the label image (the label is the plant's body index, or the
         skinned body's region)."""
         if self.skinned is not None:
-            from akc_drake.systems.skinned_body import REGION_LABEL_BASE
-
             from akc_drake.operator.skinned import REGIONS
+            from akc_drake.systems.skinned_body import REGION_LABEL_BASE
 
             return {REGION_LABEL_BASE + k: f"skinned_{n}" for k, n in enumerate(REGIONS)}
         return {int(i): self.plant.get_body(i).name() for i in self.plant.GetBodyIndices(self.instance)}
@@ -503,207 +505,28 @@ def add_sim_camera_source(builder: DiagramBuilder, cfg, motion: OperatorMotion |
     return source, K, len(motion.frame_times(K.rate_hz))
 
 
-@dataclass
-class Session:
-    """A rendered motion with its raw stage-S2 measurements and the ground truth.
+# The frame-by-frame renderer of whole sessions lives in its own module; its names stay importable from here.
+from akc_drake.systems.session_render import (  # noqa: E402
+    DETECTORS,
+    Session,
+    images_needed,
+    make_detector,
+    render_session,
+)
 
-    Attributes:
-        t: ``(T,)`` frame times (seconds from the motion's start).
-        raw: ``(T, 12, 3)`` raw landmarks in C from the extractor (NaN where missing).
-        visibility: ``(T, 12)`` detector visibility.
-        pixels: ``(T, 12, 2)`` detected pixels.
-        truth: ``(T, 12, 3)`` true landmarks in C.
-        intrinsics: the camera.
-        motion_name: the motion's name.
-        cycle_starts: start times of the motion's cycles (or None).
-        X_OC: ``(4, 4)`` camera pose in the operator frame.
-        render_s: ``(T,)`` seconds spent rendering each frame (colour if rendered, depth, noise).
-        extract_s: ``(T,)`` seconds spent in detection + depth lookup + deprojection.
-    """
-
-    t: np.ndarray
-    raw: np.ndarray
-    visibility: np.ndarray
-    pixels: np.ndarray
-    truth: np.ndarray
-    intrinsics: CameraIntrinsics
-    motion_name: str = ""
-    cycle_starts: np.ndarray | None = None
-    X_OC: np.ndarray = field(default_factory=lambda: np.eye(4))
-    render_s: np.ndarray | None = None
-    extract_s: np.ndarray | None = None
-
-    @property
-    def landmarks_C(self) -> np.ndarray:
-        """Alias of :attr:`raw`."""
-        return self.raw
-
-    @property
-    def source_time_s(self) -> np.ndarray | None:
-        """``(T,)`` time of stages S1 + S2 per frame (render + extraction), seconds."""
-        if self.render_s is None or self.extract_s is None:
-            return None
-        return self.render_s + self.extract_s
-
-    def __len__(self) -> int:
-        return len(self.t)
-
-
-def images_needed(detector: Detector | None) -> tuple[bool, bool]:
-    """``(colour, label)``: which images ``detector`` looks at, so a source renders only those.
-
-    A detector declares ``needs_color`` / ``needs_label`` (both assumed True when absent); None stands for the
-    default :class:`~akc_drake.core.sim_detector.SimulatedDetector`, which reads depth only.
-    """
-    if detector is None:
-        from akc_drake.core.sim_detector import SimulatedDetector
-
-        detector = SimulatedDetector
-    return bool(getattr(detector, "needs_color", True)), bool(getattr(detector, "needs_label", True))
-
-
-#: The detectors a simulated session can use (``--detector``).
-DETECTORS = ("sim", "mediapipe")
-
-
-def make_detector(detector, seed: int = 0, pose_model=None) -> Detector:
-    """A Detector from a name ("sim": :class:`~akc_drake.core.sim_detector.SimulatedDetector`, "mediapipe":
-    :class:`~akc_drake.io.mediapipe_detector.MediaPipeDetector`), or ``detector`` itself when it is one.
-
-    Raises:
-        ValueError: an unknown name. UserError: MediaPipe or its model missing.
-    """
-    if detector is None or detector == "sim":
-        from akc_drake.core.sim_detector import SimulatedDetector
-
-        return SimulatedDetector(seed=seed)
-    if detector == "mediapipe":
-        from akc_drake.io.mediapipe_detector import MediaPipeDetector
-
-        return MediaPipeDetector(model_path=pose_model)
-    if isinstance(detector, str):
-        raise ValueError(f"detector must be one of {', '.join(DETECTORS)}, got {detector!r}")
-    return detector
-
-
-def render_session(
-    motion: OperatorMotion,
-    intrinsics: CameraIntrinsics | None = None,
-    camera_pose=None,
-    noise: StereoDepthNoise | None = None,
-    seed: int = 0,
-    detector: Detector | str | None = None,
-    *,
-    body: str = "primitive",
-    params: OperatorParams | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    frame_callback: Callable[[CameraFrame], None] | None = None,
-    render_color: bool | None = None,
-    background_wall_m: float | None = 1.5,
-    window: int = 5,
-    surface_offset_m=None,
-) -> Session:
-    """Render ``motion`` frame by frame and extract raw landmarks, without a simulator.
-
-    One :class:`DepthCameraSource` and one context are reused; each frame (``t_k = k / rate``) is rendered
-    once, corrupted with the same noise the diagram would apply, passed to ``detector`` and through the
-    extractor's depth lookup, surface-to-centre correction and deprojection
-    (:func:`~akc_drake.systems.landmark_extractor.extract_landmarks`).
-    The values equal what the mocap diagram's LandmarkExtractor computes for the same frames.
-
-    Args:
-        motion: the operator's motion.
-        intrinsics: the camera (default: 640x480, 10 Hz).
-        camera_pose: :class:`CameraPlacement`, RigidTransform X_OC or 4x4 (default placement).
-        noise: depth error model (default: :class:`StereoDepthNoise`).
-        seed: seeds the depth noise, and the default detector.
-        detector: any Detector, or a name of :data:`DETECTORS` (default "sim": ``SimulatedDetector(seed=seed)``;
-            "mediapipe": MediaPipe on the rendered colour image).
-        body: "primitive" or "skinned" (see :class:`DepthCameraSource`).
-        params: the operator (default: the paper's participant).
-        progress: called as ``progress(k + 1, T)`` after each frame.
-        frame_callback: called with each :class:`CameraFrame` (e.g. to record it); the frame owns its
-            arrays, so it may be kept.
-        render_color: render the colour image; None: only when the detector or ``frame_callback`` needs it
-            (a detector declares ``needs_color = False`` to skip it; the frame then carries a black image).
-        background_wall_m: see :class:`DepthCameraSource`.
-        window: depth-lookup window (pixels).
-        surface_offset_m: the extractor's surface-to-centre depth offsets
-            (:func:`~akc_drake.systems.landmark_extractor.surface_offsets`; None: the same defaults as
-            :class:`~akc_drake.systems.landmark_extractor.LandmarkExtractor`, 0: off).
-
-    Returns:
-        A :class:`Session`.
-    """
-    from akc_drake.systems.landmark_extractor import extract_landmarks, surface_offsets
-
-    K = intrinsics or CameraIntrinsics()
-    offsets = surface_offsets(surface_offset_m)
-    detector = make_detector(detector, seed)
-    if not isinstance(detector, Detector):
-        raise ValueError(f"detector must implement the Detector protocol (name, detect), got {detector!r}")
-    needs_color, need_label = images_needed(detector)
-    if render_color is None:
-        render_color = frame_callback is not None or needs_color
-    source = DepthCameraSource(
-        motion,
-        intrinsics=K,
-        camera_pose=camera_pose,
-        noise=noise,
-        seed=seed,
-        params=params,
-        render_label=need_label,
-        background_wall_m=background_wall_m,
-        body=body,
-    )
-    context = source.CreateDefaultContext()
-    sensor_ctx = source.sensor.GetMyContextFromRoot(context)
-    noise_ctx = source.noise_system.GetMyContextFromRoot(context)
-    truth_ctx = source.truth_system.GetMyContextFromRoot(context)
-    color_port = source.sensor.color_image_output_port()
-    label_port = source.sensor.label_image_output_port()
-    depth_port = source.noise_system.get_output_port()
-    truth_port = source.truth_system.get_output_port()
-
-    times = np.arange(int(math.floor(motion.duration * K.rate_hz + 1e-9)) + 1) / K.rate_hz
-    T = len(times)
-    raw = np.full((T, NUM_LANDMARKS, 3), np.nan)
-    vis = np.zeros((T, NUM_LANDMARKS))
-    pix = np.full((T, NUM_LANDMARKS, 2), np.nan)
-    truth = np.full((T, NUM_LANDMARKS, 3), np.nan)
-    render_s = np.zeros(T)
-    extract_s = np.zeros(T)
-    black = np.zeros((K.height, K.width, 3), dtype=np.uint8)
-    black.flags.writeable = False
-    for k, t in enumerate(times):
-        t0 = time.perf_counter()
-        context.SetTime(float(t))
-        # Copies: the frame owns its arrays (Drake reuses its image buffers for the next frame).
-        color = np.ascontiguousarray(color_port.Eval(sensor_ctx).data[:, :, :3]) if render_color else black
-        depth = depth_port.Eval(noise_ctx).data[:, :, 0].copy()
-        label = label_port.Eval(sensor_ctx).data[:, :, 0].copy() if need_label else None
-        truth[k] = truth_port.Eval(truth_ctx).reshape(NUM_LANDMARKS, 3)
-        t1 = time.perf_counter()
-        frame = CameraFrame(
-            color=color, depth_m=depth, t=float(t), intrinsics=K, truth_C=truth[k], label=label
-        )
-        raw[k], vis[k], pix[k] = extract_landmarks(frame, detector, window=window, surface_offset_m=offsets)
-        t2 = time.perf_counter()
-        render_s[k], extract_s[k] = t1 - t0, t2 - t1
-        if frame_callback is not None:
-            frame_callback(frame)
-        if progress is not None:
-            progress(k + 1, T)
-    return Session(
-        t=times,
-        raw=raw,
-        visibility=vis,
-        pixels=pix,
-        truth=truth,
-        intrinsics=K,
-        motion_name=motion.name,
-        cycle_starts=None if motion.cycle_starts is None else motion.cycle_starts - motion.start,
-        X_OC=source.X_OC.GetAsMatrix4(),
-        render_s=render_s,
-        extract_s=extract_s,
-    )
+__all__ = [
+    "BODIES",
+    "DETECTORS",
+    "CameraPlacement",
+    "DepthCameraSource",
+    "LandmarkTruth",
+    "Session",
+    "StereoDepthNoiseSystem",
+    "AddDepthCameraSource",
+    "add_sim_camera_source",
+    "check_body",
+    "images_needed",
+    "intrinsics_from_config",
+    "make_detector",
+    "render_session",
+]
