@@ -159,6 +159,13 @@ class RecordingWriter:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def __del__(self):
+        # A writer dropped without close() (a crash being handled further up): release the file handle only;
+        # every appended row is already flushed.
+        f = getattr(self, "_timestamps", None)
+        if f is not None and not f.closed:
+            f.close()
+
     def write(
         self, t: float, color_rgb: np.ndarray, depth_m: np.ndarray, truth_C: np.ndarray | None = None
     ) -> int:
