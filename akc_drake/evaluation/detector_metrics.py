@@ -7,9 +7,10 @@ and the true joint centres in the camera frame):
 * **2D pixel error** per landmark: distance between the detected pixel and the projected true joint centre,
   separately for frames where the joint is visible and where it is occluded;
 * **flags**: how often an occluded joint is flagged by ``visibility < threshold`` and how often by the
-  proximity check (the paper's 5 %: a proximal joint whose pixel lies within ``proximity`` of the image
-  diagonal from a distal joint of the same arm that is nearer the camera), and how often a visible joint is
-  flagged by mistake;
+  proximity check (the paper's 5 %: a proximal joint whose pixel lies within 5 % of the image width of a
+  distal joint's pixel on the same arm loses its depth), both as the pipeline's occlusion filter applies
+  them with the paper's rules, and how often a visible joint is flagged by mistake (rejected frames of a
+  visible joint, or a visible joint whose depth is dropped);
 * **depth error**: the depth read at the detected pixel (the raw landmark's z) minus the true z.
 
 Occlusion ground truth (:func:`true_occlusion`) is geometric and independent of the detector: a landmark is
@@ -28,7 +29,6 @@ from akc_drake.core.skeleton import INDEX, LANDMARKS, NUM_LANDMARKS, SIDES
 SEGMENT_RADIUS_M = (0.045, 0.038, 0.040)
 #: Radius of the body around each landmark kind (its surface is this much nearer than its centre).
 LANDMARK_RADIUS_M = {"shoulder": 0.055, "elbow": 0.045, "wrist": 0.032, "pinky": 0.015, "index": 0.015, "hip": 0.09}
-_PROXIMAL = {"shoulder": ("elbow", "wrist"), "elbow": ("wrist",)}
 
 
 def _project(P: np.ndarray, K: CameraIntrinsics) -> np.ndarray:
@@ -59,19 +59,27 @@ def true_occlusion(truth: np.ndarray, K: CameraIntrinsics, margin_m: float = 0.0
     return occ
 
 
-def proximity_flags(pixels: np.ndarray, raw_z: np.ndarray, K: CameraIntrinsics, proximity: float = 0.05):
-    """``(T, 12)`` bool: the paper's proximity check on the detected pixels (distal joint nearer the camera)."""
-    flags = np.zeros(pixels.shape[:2], dtype=bool)
-    limit = proximity * float(np.hypot(K.width, K.height))
-    for side in SIDES:
-        for prox, distal in _PROXIMAL.items():
-            i = INDEX[f"{side}_{prox}"]
-            for dname in distal:
-                k = INDEX[f"{side}_{dname}"]
-                d = np.linalg.norm(pixels[:, i] - pixels[:, k], axis=1)
-                with np.errstate(invalid="ignore"):
-                    flags[:, i] |= (d < limit) & (raw_z[:, k] < raw_z[:, i])
-    return flags
+def occlusion_flags(session, visibility_threshold: float = 0.7, proximity: float = 0.05):
+    """``(visibility_flag, proximity_flag)``, each ``(T, 12)`` bool: what the pipeline's occlusion filter
+    (:func:`~akc_drake.core.occlusion.occlusion_filter` with the paper's rules) does to each landmark: rejected
+    for low visibility, or its depth dropped by the proximity check."""
+    from akc_drake.core.occlusion import PAPER_RULES, occlusion_filter
+
+    raw, pix, vis = np.asarray(session.raw), np.asarray(session.pixels), np.asarray(session.visibility)
+    f_vis = np.zeros(vis.shape, dtype=bool)
+    f_prox = np.zeros(vis.shape, dtype=bool)
+    for k in range(len(vis)):
+        _, info = occlusion_filter(
+            raw[k],
+            pix[k],
+            vis[k],
+            session.intrinsics.width,
+            visibility_threshold=visibility_threshold,
+            proximity=proximity,
+            **PAPER_RULES,
+        )
+        f_vis[k], f_prox[k] = info.rejected, info.depth_dropped
+    return f_vis, f_prox
 
 
 def detector_report(session, visibility_threshold: float = 0.7, proximity: float = 0.05) -> dict:
@@ -83,13 +91,12 @@ def detector_report(session, visibility_threshold: float = 0.7, proximity: float
         ``flag_visibility`` / ``flag_proximity`` / ``flag_any`` (shares of those frames flagged).
     """
     K = session.intrinsics
-    truth, pix, vis = np.asarray(session.truth), np.asarray(session.pixels), np.asarray(session.visibility)
+    truth, pix = np.asarray(session.truth), np.asarray(session.pixels)
     raw = np.asarray(session.raw)
     found = np.isfinite(pix).any(axis=(1, 2))
     err = np.linalg.norm(pix - _project(truth, K), axis=2)
     occ = true_occlusion(truth, K)
-    f_vis = vis < visibility_threshold
-    f_prox = proximity_flags(pix, raw[..., 2], K, proximity)
+    f_vis, f_prox = occlusion_flags(session, visibility_threshold, proximity)
     dz = np.abs(raw[..., 2] - truth[..., 2]) * 100.0
 
     def stats(mask: np.ndarray) -> dict:

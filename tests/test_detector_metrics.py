@@ -1,0 +1,85 @@
+"""The detector's figures against ground truth (akc_drake.evaluation.detector_metrics)."""
+
+import numpy as np
+import pytest
+
+from akc_drake.core.camera import CameraIntrinsics, project
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS
+from akc_drake.evaluation.detector_metrics import (
+    detector_report,
+    format_report,
+    occlusion_flags,
+    side_by_side,
+    true_occlusion,
+)
+from akc_drake.evaluation.report import Table
+from akc_drake.evaluation.session import Session
+
+K = CameraIntrinsics()
+
+
+def _pose(left_forward: bool) -> np.ndarray:
+    """Landmarks in the camera frame (x right, y down, z away), a person 2 m away; the left arm either out to the
+    side (on the image's right) or pointing straight at the camera's centre."""
+    P = np.zeros((NUM_LANDMARKS, 3))
+    for side, s in (("left", 1.0), ("right", -1.0)):
+        sh = np.array([s * 0.166, -0.45, 2.0])
+        P[INDEX[f"{side}_shoulder"]] = sh
+        P[INDEX[f"{side}_hip"]] = [s * 0.09, 0.05, 2.0]
+        d = -sh / np.linalg.norm(sh) if (side == "left" and left_forward) else np.array([s, 0.0, 0.0])
+        P[INDEX[f"{side}_elbow"]] = sh + 0.29 * d
+        P[INDEX[f"{side}_wrist"]] = sh + 0.57 * d
+        P[INDEX[f"{side}_index"]] = sh + 0.66 * d + [0, 0.0, 0.0] + np.cross(d, [0, 1, 0]) * 0.03
+        P[INDEX[f"{side}_pinky"]] = sh + 0.65 * d - np.cross(d, [0, 1, 0]) * 0.03
+    return P
+
+
+def _session(truth, pixels, vis, raw):
+    T = len(truth)
+    return Session(t=np.arange(T) / 10.0, raw=raw, visibility=vis, pixels=pixels, truth=truth, intrinsics=K)
+
+
+def test_an_arm_pointing_at_the_camera_hides_its_shoulder_and_elbow_only():
+    truth = np.stack([_pose(False), _pose(True)])
+    occ = true_occlusion(truth, K)
+    assert not occ[0].any()
+    hidden = {n for n in INDEX if occ[1, INDEX[n]]}
+    assert {"left_shoulder", "left_elbow"} <= hidden
+    assert not any(n.startswith("right") for n in hidden)
+
+
+def test_flags_are_the_occlusion_filters_visibility_and_proximity_checks():
+    P = _pose(True)
+    uv = np.array([project(p, K) for p in P])[None]
+    vis = np.full((1, NUM_LANDMARKS), 0.99)
+    vis[0, INDEX["right_wrist"]] = 0.3
+    f_vis, f_prox = occlusion_flags(_session(P[None], uv, vis, P[None]))
+    assert f_vis[0, INDEX["right_wrist"]] and f_vis[0].sum() == 1
+    assert f_prox[0, INDEX["left_shoulder"]] and f_prox[0, INDEX["left_elbow"]]
+    assert not f_prox[0, INDEX["right_shoulder"]] and not f_prox[0, INDEX["left_wrist"]]
+
+
+def test_report_counts_detection_pixel_error_flags_and_depth_error():
+    truth = np.stack([_pose(False), _pose(True), _pose(True)])
+    uv = np.stack([[project(p, K) for p in P] for P in truth]) + [3.0, 4.0]  # 5 px off everywhere
+    uv[2] = np.nan  # nobody found in the last frame
+    vis = np.full((3, NUM_LANDMARKS), 0.99)
+    raw = truth.copy()
+    raw[1, INDEX["left_shoulder"], 2] -= 0.5  # the depth read on the hand, 50 cm short
+    rep = detector_report(_session(truth, uv, vis, raw))
+    assert rep["frames"] == 3 and rep["detection_rate"] == pytest.approx(2 / 3, abs=1e-4)
+    ls = rep["joints"]["left_shoulder"]
+    assert ls["visible"]["frames"] == 1 and ls["occluded"]["frames"] == 1
+    assert ls["visible"]["px_median"] == pytest.approx(5.0) and ls["occluded"]["px_median"] == pytest.approx(5.0)
+    assert ls["occluded"]["depth_err_cm_median"] == pytest.approx(50.0)
+    assert ls["occluded"]["flag_visibility"] == 0.0 and ls["occluded"]["flag_proximity"] == 1.0
+    assert ls["visible"]["flag_any"] == 0.0
+    text = format_report("test", rep)
+    assert "66.7 % of 3 frames" in text and "| left_shoulder | 1/1 | 5.0 / 5.0 |" in text
+
+
+def test_side_by_side_puts_both_values_and_the_paper_in_each_cell():
+    a = Table("t1", "Table", ["z"], ["Raw", "AKC"], np.array([[30.0, 6.0]]), np.array([[34.9, 3.3]]), decimals=1)
+    b = Table("t1", "Table", ["z"], ["Raw", "AKC"], np.array([[33.8, 6.9]]), np.array([[34.9, 3.3]]), decimals=1)
+    md = side_by_side([a], [b], "sim", "mediapipe")
+    assert "sim / mediapipe (paper)" in md and "| z | 30.0 / 33.8 (34.9) | 6.0 / 6.9 (3.3) |" in md
