@@ -109,3 +109,14 @@ def test_tracker_keeps_the_wrist_frame_off_its_mirror_when_the_hand_vector_is_un
     for k in range(2):
         assert F.rotation_angle(raw[k][:3, :3].T @ a[k][:3, :3]) > 2.5  # the raw frame flipped
         assert F.rotation_angle(b[k][:3, :3].T @ a[k][:3, :3]) < 0.3  # the tracked one did not
+
+
+def test_hand_vector_is_rebuilt_from_its_image_part_and_the_hand_width():
+    # Image part 3 cm, hand 7 cm wide: the depth part is sqrt(7^2 - 3^2) cm, with the measured sign first...
+    h = F.reconstruct_hand_vector([0.03, 0.0, -0.01], 0.07)
+    np.testing.assert_allclose(h, [0.03, 0.0, -np.sqrt(0.07**2 - 0.03**2)])
+    # ... then the previous frame's sign, whatever the noisy depth says.
+    h2 = F.reconstruct_hand_vector([0.03, 0.0, +0.02], 0.07, h)
+    assert h2[2] < 0
+    # An image part as long as the hand: no depth part.
+    np.testing.assert_allclose(F.reconstruct_hand_vector([0.0, 0.08, 0.05], 0.07), [0.0, 0.08, 0.0])

@@ -7,8 +7,10 @@ frame:
    (the shoulders are the most occluded landmarks in teleoperation), else eq. (17) from the shoulders and
    hips; then smoothed on SE(3) (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard).
    Missing: the last torso is held.
-2. **Wrists** (eq. 17) in the camera frame; a frame whose hand vector is unreliable is kept on the side of the
-   previous one (:func:`~akc_drake.core.frames.resolve_wrist_flip`), then expressed in the torso frame and
+2. **Wrists** (eq. 17) in the camera frame, with the hand vector ``p_i - p_p`` rebuilt from its image-plane
+   part and the hand's learnt width (:func:`~akc_drake.core.frames.reconstruct_hand_vector`: the knuckles'
+   depths are the noisiest inputs of eq. 17); a frame whose hand vector is unreliable is kept on the side of
+   the previous one (:func:`~akc_drake.core.frames.resolve_wrist_flip`), then expressed in the torso frame and
    mapped to the robot (:func:`~akc_drake.core.frames.map_to_robot`).
 3. **Speed gate**: a side whose wrist/hand/hip landmarks would have moved faster than ``max_landmark_speed``
    since its last accepted frame is treated as lost (:func:`~akc_drake.core.frames.plausible_step`).
@@ -28,12 +30,14 @@ import numpy as np
 
 from akc_drake.core import smoothing
 from akc_drake.core.frames import (
+    DEFAULT_HAND_WIDTH_M,
     DEFAULT_MAX_LANDMARK_SPEED,
     SPEED_GATED_LANDMARKS,
     RobotMapping,
     TorsoModel,
     map_to_robot,
     plausible_step,
+    reconstruct_hand_vector,
     resolve_wrist_flip,
     torso_of,
     transform,
@@ -73,8 +77,9 @@ class ControlFrameTracker:
         self._wrist_f = smoothing.SE3OneEuro(wrist_smoothing) if wrist_smoothing is not None else None
         self.workspace = workspace
         self.max_speed = max_landmark_speed
-        # Layout: torso filter | torso R (9) + origin (3) | per side: wrist filter, previous R_C (9), gate.
-        self._side = _S + 9 + _NG
+        # Layout: torso filter | torso R (9) + origin (3) | per side: wrist filter, previous R_C (9), gate,
+        # hand width estimate (1), previous hand vector (3).
+        self._side = _S + 9 + _NG + 4
         self.state_size = _S + 12 + 2 * self._side
 
     def initial_state(self) -> np.ndarray:
@@ -93,6 +98,18 @@ class ControlFrameTracker:
         if not np.all(np.isfinite(v)):
             return None
         return v[:9].reshape(3, 3), v[9:12]
+
+    def _hand_vector(self, state: np.ndarray, sl: slice, h: np.ndarray) -> np.ndarray:
+        """The hand vector rebuilt from its image-plane part (:func:`reconstruct_hand_vector`); the hand's
+        width is learnt from frames whose hand vector lies mostly in the image plane (exponential average)."""
+        v = state[sl]
+        width = v[0] if np.isfinite(v[0]) else DEFAULT_HAND_WIDTH_M
+        n = float(np.linalg.norm(h))
+        if n > 1e-6 and float(np.linalg.norm(h[:2])) >= 0.8 * n and 0.03 < n < 0.15:
+            width += 0.1 * (n - width)
+        out = reconstruct_hand_vector(h, width, v[1:4] if np.all(np.isfinite(v[1:4])) else None)
+        state[sl] = np.concatenate([[width], out])
+        return out
 
     def step(self, state, t: float, pose) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
         """One camera frame.
@@ -116,9 +133,13 @@ class ControlFrameTracker:
         R0, o0 = torso
         for k, side in enumerate(SIDES):
             b = _S + 12 + k * self._side
-            f_sl, prev_sl, gate_sl = slice(b, b + _S), slice(b + _S, b + _S + 9), slice(b + _S + 9, b + self._side)
+            f_sl, prev_sl = slice(b, b + _S), slice(b + _S, b + _S + 9)
+            gate_sl, hand_sl = slice(b + _S + 9, b + _S + 9 + _NG), slice(b + _S + 9 + _NG, b + self._side)
             p_e, p_w, p_i, p_p = (pose[INDEX[f"{side}_{n}"]] for n in ("elbow", "wrist", "index", "pinky"))
-            R_w = wrist_frame(p_e, p_w, p_i, p_p) if np.all(np.isfinite([p_e, p_w, p_i, p_p])) else None
+            R_w = None
+            if np.all(np.isfinite([p_e, p_w, p_i, p_p])):
+                h = self._hand_vector(state, hand_sl, p_i - p_p)
+                R_w = wrist_frame(p_e, p_w, p_p + h, p_p)
             if R_w is None:
                 continue
             gate = state[gate_sl]
@@ -127,7 +148,7 @@ class ControlFrameTracker:
                 if not plausible_step(gate[:-1].reshape(-1, 3), points, t - gate[-1], self.max_speed):
                     continue  # a jump no person makes: a fault, hold the target
             prev = state[prev_sl]
-            R_w = resolve_wrist_flip(R_w, p_i - p_p, prev.reshape(3, 3) if np.all(np.isfinite(prev)) else None)
+            R_w = resolve_wrist_flip(R_w, h, prev.reshape(3, 3) if np.all(np.isfinite(prev)) else None)
             state[prev_sl] = R_w.ravel()
             state[gate_sl] = np.concatenate([points.ravel(), [t]])
             X = map_to_robot(transform(R0.T @ R_w, R0.T @ (p_w - o0)), side, self.mapping)

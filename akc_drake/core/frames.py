@@ -657,3 +657,31 @@ def resolve_wrist_flip(R_C, hand_vector_C, R_previous_C) -> np.ndarray:
     if rotation_angle(R_previous_C.T @ mirror) < rotation_angle(R_previous_C.T @ R_C):
         return mirror
     return R_C
+
+
+#: Initial estimate of the index-to-pinky knuckle distance (metres) before it is learnt from the operator.
+DEFAULT_HAND_WIDTH_M = 0.07
+
+
+def reconstruct_hand_vector(h_C, width_m: float, h_previous_C=None) -> np.ndarray:
+    """The hand vector ``p_i - p_p`` (camera frame) rebuilt from its image-plane part and the hand's width.
+
+    The same idea as AKC's for the arm, applied to the hand: the knuckles' image coordinates (x, y of C) are
+    reliable, their depths are not (two small, often self-occluded targets ~7 cm apart), while the distance
+    between them is a constant of the hand. So the depth difference is taken as
+    ``dz = +/- sqrt(width^2 - |h_xy|^2)`` (0 when the image part is already as long as the hand is wide), with
+    the sign of the previous frame's vector when there is one (a hand does not turn over between two frames)
+    and of the measured depth difference otherwise.
+
+    Args:
+        h_C: ``(3,)`` the measured ``p_i - p_p`` in C; width_m: the hand's knuckle distance;
+        h_previous_C: the previous reconstructed vector, or None.
+    """
+    h = np.asarray(h_C, dtype=float)
+    dxy2 = float(h[0] ** 2 + h[1] ** 2)
+    dz = math.sqrt(max(width_m**2 - dxy2, 0.0))
+    if h_previous_C is not None and np.all(np.isfinite(h_previous_C)) and abs(float(h_previous_C[2])) > 1e-9:
+        sign = 1.0 if float(h_previous_C[2]) > 0.0 else -1.0
+    else:
+        sign = 1.0 if h[2] >= 0.0 else -1.0
+    return np.array([h[0], h[1], sign * dz])
