@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from akc_drake.errors import SourceError, UserError
 
 
@@ -61,9 +63,11 @@ def _record_sim(args, out: Path) -> int:
             detector=getattr(args, "detector", "sim"),
         )
     elapsed = time.perf_counter() - t0
+    found = float(np.mean(np.isfinite(session.pixels).any(axis=(1, 2))))
     print(
         f"akc-drake record: wrote {len(session)} frames of motion {motion.name} to {out} "
-        f"({1e3 * float(session.render_s.mean()):.1f} ms render per frame, {elapsed:.1f} s in all)"
+        f"({1e3 * float(session.render_s.mean()):.1f} ms render per frame, {elapsed:.1f} s in all); "
+        f"the {getattr(args, 'detector', 'sim')} detector found the person in {100 * found:.0f} % of them"
     )
     return 0
 
