@@ -288,12 +288,14 @@ def write_ros2_bag(
                     ns = start + int(round(tk * 1e9))
                     v = None if series.velocity is None else series.velocity[k]
                     put(topic, _joint_state(msgs, ns, series.names, series.position[k], v), ns)
+            robot_tfs: dict[int, list] = {}  # one TFMessage per instant with every robot frame of that instant
             for child, (tr, Xs) in (robot_frames or {}).items():
                 for tk, X in zip(np.asarray(tr, dtype=float), np.asarray(Xs, dtype=float), strict=True):
                     if np.all(np.isfinite(X)):
                         ns = start + int(round(tk * 1e9))
-                        put("/tf", msgs.TFMessage(transforms=[msgs.transform(ns, ROBOT_TORSO, child, X[:3, :3],
-                                                                             X[:3, 3])]), ns)
+                        robot_tfs.setdefault(ns, []).append(msgs.transform(ns, ROBOT_TORSO, child, X[:3, :3], X[:3, 3]))
+            for ns in sorted(robot_tfs):
+                put("/tf", msgs.TFMessage(transforms=robot_tfs[ns]), ns)
             if intrinsics is not None:
                 for ns in stamps:
                     put("/camera/color/camera_info", _camera_info(msgs, ns, intrinsics), ns)
