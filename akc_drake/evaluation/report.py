@@ -204,13 +204,12 @@ def write_json(path, data: dict) -> Path:
 
 
 # ------------------------------------------------------------------------------------------- figures
-def _pyplot():
-    import matplotlib
+def _figure(nrows: int, ncols: int, figsize, **kw):
+    """A ``matplotlib.figure.Figure`` (no pyplot: no global state, no GUI backend) and its axes grid."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, squeeze=False, **kw)
 
 
 #: Line style per method in the figures.
@@ -221,6 +220,8 @@ _STYLE = {
     "EKF": dict(color="tab:olive", lw=1.2, ls="--"),
     "AKC(KF)": dict(color="tab:blue", lw=1.5, ls="-"),
     "AKC(EKF)": dict(color="tab:cyan", lw=1.5, ls="-"),
+    "AKC+(KF)": dict(color="tab:brown", lw=1.5, ls="-"),
+    "AKC+(EKF)": dict(color="tab:pink", lw=1.5, ls="-"),
     "COIK(KF)": dict(color="tab:green", lw=1.2, ls="-."),
     "COIK(EKF)": dict(color="tab:purple", lw=1.2, ls="-."),
 }
@@ -241,8 +242,7 @@ def plot_depth_cycles(panels: list[dict], path, title: str = "Depth (z) of occlu
             {label: ``(N,)`` z in m} (a ``"Truth"`` entry is drawn in black).
         path: the PNG to write.
     """
-    plt = _pyplot()
-    fig, axes = plt.subplots(len(panels), 1, figsize=(8, 2.6 * len(panels)), squeeze=False)
+    fig, axes = _figure(len(panels), 1, (8, 2.6 * len(panels)))
     for ax, panel in zip(axes[:, 0], panels, strict=True):
         for label, z in panel["series"].items():
             ax.plot(panel["t"], np.asarray(z) * 100.0, label=label, **_STYLE.get(label, {}))
@@ -252,7 +252,7 @@ def plot_depth_cycles(panels: list[dict], path, title: str = "Depth (z) of occlu
     axes[-1, 0].set_xlabel("time (s)")
     _legend_below(fig, axes[0, 0])
     fig.suptitle(title)
-    return _save(fig, path, plt)
+    return _save(fig, path)
 
 
 def plot_arm_lengths(t: np.ndarray, lengths: dict[str, dict[str, np.ndarray]], path, title: str) -> Path:
@@ -263,11 +263,8 @@ def plot_arm_lengths(t: np.ndarray, lengths: dict[str, dict[str, np.ndarray]], p
         lengths: {method: {segment: ``(T,)`` metres}}.
         path: the PNG to write.
     """
-    plt = _pyplot()
     segments = list(next(iter(lengths.values())).keys()) if lengths else []
-    fig, axes = plt.subplots(
-        len(segments), 1, figsize=(8, 2.2 * max(len(segments), 1)), squeeze=False, sharex=True
-    )
+    fig, axes = _figure(len(segments), 1, (8, 2.2 * max(len(segments), 1)), sharex=True)
     for ax, seg in zip(axes[:, 0], segments, strict=True):
         for method, segs in lengths.items():
             ax.plot(t, np.asarray(segs[seg]) * 100.0, label=method, **_STYLE.get(method, {}))
@@ -283,7 +280,7 @@ def plot_arm_lengths(t: np.ndarray, lengths: dict[str, dict[str, np.ndarray]], p
     axes[-1, 0].set_xlabel("time (s)")
     _legend_below(fig, axes[0, 0])
     fig.suptitle(title)
-    return _save(fig, path, plt)
+    return _save(fig, path)
 
 
 def plot_heatmaps(panels: list[dict], path, title: str) -> Path:
@@ -294,9 +291,8 @@ def plot_heatmaps(panels: list[dict], path, title: str) -> Path:
             ``ylabel`` and optionally ``best`` ``(x, y)`` to mark.
         path: the PNG to write.
     """
-    plt = _pyplot()
     n = len(panels)
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.8), squeeze=False)
+    fig, axes = _figure(1, n, (4.2 * n, 3.8))
     for ax, p in zip(axes[0], panels, strict=True):
         z = np.asarray(p["z"], dtype=float)
         im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
@@ -311,15 +307,15 @@ def plot_heatmaps(panels: list[dict], path, title: str) -> Path:
         fig.colorbar(im, ax=ax, label="L2 norm of joint errors (cm)")
     fig.suptitle(title)
     fig.tight_layout()
-    return _save(fig, path, plt)
+    return _save(fig, path)
 
 
 def plot_curves(
     x: np.ndarray, curves: dict[str, np.ndarray], path, xlabel: str, ylabel: str, title: str
 ) -> Path:
     """Line plot of several curves over ``x`` (the paper's Fig. 5 d, the shrink-factor curve)."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 3.8))
+    fig, axes = _figure(1, 1, (6, 3.8))
+    ax = axes[0, 0]
     for label, y in curves.items():
         ax.plot(x, y, marker="o", label=label)
     ax.set_xlabel(xlabel)
@@ -328,14 +324,11 @@ def plot_curves(
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    return _save(fig, path, plt)
+    return _save(fig, path)
 
 
-def _save(fig, path, plt) -> Path:
-    try:
-        return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
-    finally:
-        plt.close(fig)
+def _save(fig, path) -> Path:
+    return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
 
 
 # ------------------------------------------------------------------------------------------- folder
