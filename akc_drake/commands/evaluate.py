@@ -180,7 +180,7 @@ def main(args) -> int:
             raise UserError("--export writes into --out DIR/exports: give --out")
         for f in args.export.split(","):
             if f.strip():
-                check_format(f)
+                check_format(f, "--export")
     if config.motion_file:
         # Read the motion file now: a bad file is reported in one line before the calibration renders.
         from akc_drake.operator.retarget import load_motion_file

@@ -117,7 +117,7 @@ def _interop_checks(args):
 
     for f in (args.export or "").split(","):
         if f.strip():
-            check_format(f)
+            check_format(f, "--export")
     if args.smooth != "none" and not args.export:
         raise UserError("--smooth applies to the --export files: give --export FMT")
     if args.ros2_bag:

@@ -13,6 +13,7 @@ Units: CSV metres, TRC and C3D millimetres, BVH centimetres.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,11 +29,11 @@ FORMATS: dict[str, str] = {"bvh": ".bvh", "trc": ".trc", "c3d": ".c3d", "csv": "
 SMOOTHERS: tuple[str, ...] = ("none", "rts")
 
 
-def check_format(fmt: str) -> str:
-    """``fmt`` lower-cased, or a :class:`UserError` listing the formats."""
+def check_format(fmt: str, option: str = "--format") -> str:
+    """``fmt`` lower-cased, or a :class:`UserError` naming ``option`` and listing the formats."""
     f = str(fmt).strip().lower()
     if f not in FORMATS:
-        raise UserError(f"--format: unknown format {fmt!r}; choose from {', '.join(FORMATS)}")
+        raise UserError(f"{option}: unknown format {fmt!r}; choose from {', '.join(FORMATS)}")
     return f
 
 
@@ -41,12 +42,9 @@ def check_writable(path) -> Path:
     p = Path(path)
     if p.is_dir():
         raise UserError(f"{p}: is a folder, not a file")
-    folder = p.parent
-    existing = folder
+    existing = p.parent
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
-    import os
-
     if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
         raise UserError(f"{p}: cannot write into {existing}")
     return p
@@ -189,8 +187,8 @@ def rts_report(poses: PoseSet, dims: BodyDimensions | None = None) -> dict | Non
 def export_run(npz_path, formats, out_dir, *, frame: str = "world", smooth: str = "none",
                stages=("raw", "filtered", "corrected"), dims: BodyDimensions | None = None) -> list[dict]:
     """``run/evaluate --export FMT[,FMT]``: each of ``stages`` of a ``poses.npz`` as ``out_dir/<stage>.<ext>``."""
-    fmts = [check_format(f) for f in str(formats).split(",") if f.strip()] if isinstance(formats, str) else [
-        check_format(f) for f in formats]
+    items = str(formats).split(",") if isinstance(formats, str) else list(formats)
+    fmts = [check_format(f, "--export") for f in items if str(f).strip()]
     if not fmts:
         raise UserError("--export: give at least one format (bvh, trc, c3d, csv)")
     poses = load_poses(npz_path)
@@ -314,7 +312,7 @@ def export_evaluation(ev, formats, out_dir, *, frame: str = "world") -> dict:
     from akc_drake.core.occlusion import occlusion_filter
     from akc_drake.core.smoother import rts_gain, smoothed_stages
 
-    fmts = [check_format(f) for f in str(formats).split(",") if f.strip()]
+    fmts = [check_format(f, "--export") for f in str(formats).split(",") if f.strip()]
     if not fmts:
         raise UserError("--export: give at least one format (bvh, trc, c3d, csv)")
     cfg = ev.config
