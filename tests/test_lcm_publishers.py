@@ -1,5 +1,6 @@
 """AddLcmPublishers: Drake's LcmPublisherSystem on memq:// (in process) and udpm with ttl=0 (two processes)."""
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -84,7 +85,7 @@ CHILD = textwrap.dedent(
 def test_two_processes_over_multicast_that_stays_on_this_host():
     # ttl=0: the kernel never sends these multicast datagrams beyond this host (ip(7), IP_MULTICAST_TTL).
     url = "udpm://239.255.76.67:7681?ttl=0"
-    channel = "AKC_TEST_" + str(np.random.default_rng().integers(1 << 30))
+    channel = f"AKC_TEST_{os.getpid()}_"  # another test run on this host publishes on other channels
     try:
         lcm = open_lcm(url)
     except ValueError as e:
