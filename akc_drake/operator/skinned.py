@@ -82,6 +82,9 @@ _WAIST_SHARE = 0.22
 #: The neckline: this far above the shoulder joint centres at the back, lower toward the front.
 _COLLAR_ABOVE_SHOULDERS_M = 0.045
 _COLLAR_DROP = 0.25
+#: Share of the forearm's roll (relative to the upper arm) its skin bone takes, the hand taking all of it: the
+#: twist is spread between the elbow and the wrist.
+_FOREARM_TWIST_SHARE = 0.5
 #: T-shirt sleeves end this far down the upper arm (share of its length).
 _SLEEVE_SHARE = 0.5
 
@@ -240,6 +243,36 @@ def load_assets(folder: str | None = None) -> HumanAssets:
         weights=W,
         knuckles=knuckles,
     )
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = axis / np.linalg.norm(axis)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
+
+
+def _spread_twist(R_full: np.ndarray, R_parent: np.ndarray, bone_rest: np.ndarray, share: float) -> np.ndarray:
+    """The forearm's rotation with only ``share`` of its twist about its own axis relative to the upper arm.
+
+    Pronation and supination turn the forearm progressively from the elbow to the wrist; a skin with one
+    forearm bone that takes the whole roll pinches the elbow (linear blend skinning averages the two bones'
+    rotations there). The bone keeps its direction (so the joint centres do not move); the hand, carried by
+    its own bone, keeps the full roll.
+    """
+    f = R_full @ bone_rest
+    f_par = R_parent @ bone_rest
+    # The swing: the smallest rotation taking the bone as the parent carries it onto its posed direction.
+    axis = np.cross(f_par, f)
+    s, c = np.linalg.norm(axis), float(f_par @ f)
+    swing = _axis_angle(axis, math.atan2(s, c)) if s > 1e-12 else np.eye(3)
+    R_swing = swing @ R_parent
+    twist = R_full @ R_swing.T  # a rotation about f
+    u = np.cross(f, [1.0, 0.0, 0.0])
+    if np.linalg.norm(u) < 1e-6:
+        u = np.cross(f, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    angle = math.atan2(float(np.cross(u, twist @ u) @ f) / np.linalg.norm(f), float(u @ twist @ u))
+    return _axis_angle(f, share * angle) @ R_swing
 
 
 def _frame(y: np.ndarray, x_hint: np.ndarray) -> np.ndarray:
@@ -420,6 +453,8 @@ class SkinnedOperator:
             RU, RF, RH = R_OU @ F_U.T, R_OF @ F_F.T, R_OH @ F_F.T
             el_p = sh + RU @ (el - sh)
             wr_p = el_p + RF @ (wr - el)
+            # The forearm's skin rolls with the hand (pronation), but takes only part of the twist.
+            RF = _spread_twist(RH, RU, wr - el, _FOREARM_TWIST_SHARE)
             iu, jf, hand = self._hand_bones[side]
             maps[iu] = skinning.rigid_map(RU, sh, sh)
             maps[jf] = skinning.rigid_map(RF, el, el_p)
