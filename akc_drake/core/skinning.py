@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-#: Default depth of a shell tetrahedron's inner vertex below its triangle (metres).
+#: Default thickness of the prism layer under the surface (metres).
 SHELL_DEPTH_M = 0.002
 
 
