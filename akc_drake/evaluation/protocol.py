@@ -12,15 +12,19 @@ S4 COIK                       cold start each frame, 10 iterations,         warm
                               feasibility 1e-6 (it reaches the limit)
 ============================  ============================================  =========================================
 
-Why each ``ours`` change (measured on the rendered bench, 5 cycles, seed 7; README "Results" has the
-30-cycle figures):
+Why each ``ours`` change: each measured alone on top of ``paper`` (rendered bench, 5 cycles, seed 7, left shoulder z
+RMSE in cm, Motion I / II; ``paper``: KF 44.8 / 40.3, per-joint EKF 6.0 / 6.0, AKC(KF) 5.9 / 5.3; README "Two
+protocols"):
 
-* the hold: without it a depth lost for seconds drifts at its last velocity (the paper's Table I KF z of
-  122.9 cm in Motion II); with it, the KF's z error stays bounded (see the README's protocol table);
-* the shoulder-elbow pair: with the upper arm pointing at the camera the elbow hides the shoulder, whose
-  depth then reads the elbow's surface; the paper's pairs miss it;
-* the depth offset: the camera reads the body's surface, a few centimetres in front of the joint centre;
-* the coupled EKF and the strong COIK: ours are better estimators; the paper's are what its tables measure.
+* the depth offset: EKF 3.0 / 2.7, AKC(KF) 2.9 / 2.0 -- the camera reads the body's surface, 4-5 cm in front of
+  the joint centre; the one change that helps every method;
+* the hold: KF 34.1 / 38.8 (the constant-velocity model no longer runs away with a lost depth);
+* the shoulder-elbow pair: it drops the depth the elbow's surface gives the shoulder when the upper arm points at
+  the camera; alone, without the hold, it makes the KF worse (more dropped depths to extrapolate: 303 cm in
+  Motion II), so it only belongs with the hold;
+* the coupled EKF: not better than the paper's per-joint EKF on this bench (8.3 / 15.2 alone); it stays ours for
+  its shoulder-width constraint, and the paper's is what the paper's tables measure;
+* the strong COIK: ours converges every frame; the paper's reaches its limit on most Motion II frames.
 """
 
 from __future__ import annotations

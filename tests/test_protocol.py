@@ -1,0 +1,35 @@
+import math
+
+import pytest
+
+from akc_drake.core.occlusion import PAPER_RULES
+from akc_drake.errors import UserError
+from akc_drake.evaluation.experiment import ExperimentConfig
+from akc_drake.evaluation.protocol import check_protocol, method_options, paper_coik_config, render_kwargs
+
+
+def test_paper_protocol_is_the_papers_pipeline():
+    o = method_options("paper")
+    assert o.kf_config.max_predict_s == math.inf and o.ekf_config.max_predict_s == math.inf
+    assert o.ekf_kind == "per_joint"
+    assert o.occlusion_rules == PAPER_RULES
+    c = paper_coik_config()
+    assert not c.warm_start and c.iteration_limit == 10
+    assert render_kwargs("paper") == {"surface_offset_m": 0.0}
+
+
+def test_ours_protocol_is_the_default_stages():
+    o = method_options("ours")
+    assert o.kf_config is None and o.ekf_kind == "coupled" and o.occlusion_rules is None
+    assert render_kwargs("ours") == {}
+    cfg = ExperimentConfig(protocol="ours")
+    assert cfg.run_options() is cfg.options
+    paper = ExperimentConfig(protocol="paper", cycles=1).run_options()
+    assert paper.ekf_kind == "per_joint" and paper.visibility_threshold == 0.7
+
+
+def test_unknown_protocol():
+    with pytest.raises(UserError, match="--protocol"):
+        check_protocol("nope")
+    with pytest.raises(ValueError, match="protocol"):
+        ExperimentConfig(protocol="nope")
