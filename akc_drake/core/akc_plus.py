@@ -49,13 +49,16 @@ import numpy as np
 
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.arm_geometry import bends_backwards, torso_axes
-from akc_drake.core.skeleton import NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
 _hypot = math.hypot
 _isfinite = math.isfinite
 _NAN = float("nan")
 _BIG = 1e6
+
+_LHIP_Z = 3 * INDEX["left_hip"] + 2
+_RHIP_Z = 3 * INDEX["right_hip"] + 2
 
 #: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters.
 STATE_SIZE = 24
@@ -73,6 +76,10 @@ class AKCPlusConfig:
         drift_m_per_frame: added to it per frame without a trusted depth (extrapolation drift).
         sigma_temporal_m: how far a joint may move between two frames (10 Hz: 1 m/s -> 0.1 m).
         sigma_width_m: standard deviation of the shoulder-width term (0 turns it off).
+        sigma_torso_m: standard deviation of a shoulder's depth about the hips' (torso lean; 0 turns it off).
+        temporal_cap: the temporal term is capped at this many standard deviations (squared): continuity breaks
+            ties and resists single-frame evidence, but persistent evidence (filter, torso) can undo a wrong
+            configuration instead of locking it in.
         elbow_min_deg: candidates folded more than this (or hyperextended) are penalised.
         xy_tol_m: a seen shoulder that would move the elbow's image position (x, y) by more than this makes
             the elbow be placed from the shoulder and the wrist follow.
@@ -89,6 +96,8 @@ class AKCPlusConfig:
     drift_m_per_frame: float = 0.02
     sigma_temporal_m: float = 0.10
     sigma_width_m: float = 0.05
+    sigma_torso_m: float = 0.20
+    temporal_cap: float = 4.0
     elbow_min_deg: float = 40.0
     xy_tol_m: float = 0.03
     jump_m: float = 0.15
@@ -205,8 +214,12 @@ class ArmKinematicCorrectorPlus:
         self._ls = dims.SW
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
         self._inv_t2 = 1.0 / config.sigma_temporal_m**2
+        self._t_cap = config.temporal_cap**2
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
+        self._inv_torso2 = 1.0 / config.sigma_torso_m**2 if config.sigma_torso_m > 0 else 0.0
+        self._hip_z = None
+        self._no_prior: set = set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
         self.reset()
 
@@ -263,17 +276,23 @@ class ArmKinematicCorrectorPlus:
         mx, my, mz = m[o], m[o + 1], m[o + 2]
         return _isfinite(mx + my + mz) and abs(mz - fz) <= self.config.consistency_m
 
+    def _inv_f2(self, k):
+        """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
+        if k in self._no_prior:
+            return 0.0
+        cfg = self.config
+        sf = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[k]
+        return 1.0 / (sf * sf)
+
     def _choose(self, cands, fx, fy, fz, prev_p, k_lost, extra=None):
         """The candidate with the smallest Gaussian cost (filter prior, temporal prior, extra terms)."""
-        cfg = self.config
-        sf = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[k_lost]
-        inv_f2 = 1.0 / (sf * sf)
+        inv_f2 = self._inv_f2(k_lost)
         best = None
         best_j = math.inf
         for i, p in enumerate(cands):
             j = _d2(p, fx, fy, fz) * inv_f2
             if prev_p is not None:
-                j += _d2(p, prev_p[0], prev_p[1], prev_p[2]) * self._inv_t2
+                j += min(_d2(p, prev_p[0], prev_p[1], prev_p[2]) * self._inv_t2, self._t_cap)
             if extra is not None:
                 j += extra[i]
             if j < best_j:
@@ -312,6 +331,7 @@ class ArmKinematicCorrectorPlus:
             sz = prev[2] if prev is not None else ez
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
+        self._no_prior = set()
         tol = self.config.length_tol_m
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
         me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
@@ -333,11 +353,14 @@ class ArmKinematicCorrectorPlus:
             # last velocity; our last output is then the better estimate.
             # (Only when the filter has moved it away from our last output by more than jump_m: a holding
             # filter's estimate is kept.)
+            # Our own last output is no evidence: the filter prior is then left out of the candidate choice.
             jump = self.config.jump_m
             if not exy and _hypot(ex - prev[3], ey - prev[4], ez - prev[5]) > jump:
                 ex, ey, ez = prev[3], prev[4], prev[5]
+                self._no_prior.add(2 * side)
             if not sxy and _hypot(sx - prev[0], sy - prev[1], sz - prev[2]) > jump:
                 sx, sy, sz = prev[0], prev[1], prev[2]
+                self._no_prior.add(2 * side + 1)
         # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
         # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface.
         r2 = self.config.occlusion_radius_m ** 2
@@ -352,9 +375,7 @@ class ArmKinematicCorrectorPlus:
         te = me and geo_f  # elbow seen and at the forearm length from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
         # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
-        # A shoulder the detector lost altogether (no x, y either) is held at its last output (eq. 7-8 need its
-        # 2D position).
-        ts = (ms or (not sxy and prev is not None)) and not (te and not geo_u)
+        ts = ms and not (te and not geo_u)
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
@@ -399,13 +420,11 @@ class ArmKinematicCorrectorPlus:
                 e_cands = _candidates(wx, wy, wz, ex, ey, ez, lf, exy, tol)
                 best = None
                 best_j = math.inf
-                cfg = self.config
-                sfe = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[ke]
-                inv_fe2 = 1.0 / (sfe * sfe)
+                inv_fe2 = self._inv_f2(ke)
                 for ec in e_cands:
                     je = _d2(ec, ex, ey, ez) * inv_fe2
                     if pe is not None:
-                        je += _d2(ec, pe[0], pe[1], pe[2]) * self._inv_t2
+                        je += min(_d2(ec, pe[0], pe[1], pe[2]) * self._inv_t2, self._t_cap)
                     s_pair = _candidates(ec[0], ec[1], ec[2], sx, sy, sz, lu, sxy, tol)
                     if len(s_pair) == 1:
                         sc = s_pair[0]
@@ -422,14 +441,18 @@ class ArmKinematicCorrectorPlus:
         return (*s, *e, *w)
 
     def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
-        cfg = self.config
-        sf = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[ks]
-        j = _d2(c, sx, sy, sz) / (sf * sf)
+        j = _d2(c, sx, sy, sz) * self._inv_f2(ks)
         if ps is not None:
-            j += _d2(c, ps[0], ps[1], ps[2]) * self._inv_t2
+            j += min(_d2(c, ps[0], ps[1], ps[2]) * self._inv_t2, self._t_cap)
         if other is not None and self._inv_w2:
             dw = _hypot(c[0] - other[0], c[1] - other[1], c[2] - other[2]) - self._ls
             j += dw * dw * self._inv_w2
+        hz = self._hip_z
+        if hz is not None:
+            # The shoulders sit on the torso: near the hips' depth (both arms' mirror candidates together
+            # would otherwise keep the shoulder width).
+            dz = c[2] - hz
+            j += dz * dz * self._inv_torso2
         return j + self._penalty(c, e, w, lu, lf, axes)
 
     def _choose_shoulder(self, pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
@@ -463,6 +486,8 @@ class ArmKinematicCorrectorPlus:
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.ravel().tolist()
         axes = torso_axes(v)
+        hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z])
+        self._hip_z = hz if _isfinite(hz) else None
         chosen = [-1, -1]
         held = [True, True]
         fallback = [False, False]
