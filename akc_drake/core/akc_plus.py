@@ -2,41 +2,34 @@
 
 The paper's AKC (:mod:`akc_drake.core.akc`) replaces the elbow and shoulder depths of every frame by one of
 four Pythagorean candidates, even when the camera measured those depths well; on real motion that makes
-well-seen joints worse than the filter it corrects (a mirror candidate picked on a noisy frame, or an
-in-plane arm whose ± depths are both wrong). AKC+ changes three things, and keeps the wrist as the anchor
-and the arm lengths exact:
+well-seen joints worse than the filter it corrects (a mirror candidate picked on a noisy frame, eq. 9 moving
+x and y). AKC+ was designed on real motion-capture clips (README, "Real motion"), and differs from the paper:
 
-1. **Trusted depths are kept.** A joint's depth is *trusted* when, this frame, it was measured and passed
-   the occlusion filter (``measured`` row finite), agrees with the filtered estimate within
-   ``consistency_m`` (a depth the filter refused to follow is an outlier), and gives a segment length within
-   ``length_tol_m`` of the calibrated one (an occluder's depth makes a 3D segment too short or too long,
-   whatever the 2D view). A trusted joint is moved only as much as the exact lengths require:
+1. **Seen depths are kept.** A joint's depth is *seen* when, this frame, it was measured and passed the occlusion
+   filter (its ``measured`` row is finite), is within ``consistency_m`` of the filtered depth, within ``jump_m``
+   of our last output (else it is an occluder's until it has persisted ``gate_frames`` frames and fits the arm),
+   and, for a shoulder, is not within ``occlusion_radius_m`` of its elbow in the image (the pair the paper's
+   occlusion filter lacks). A seen shoulder is not trusted when a seen elbow that fits the wrist contradicts it.
+   Seen joints move only as much as the exact lengths require: with a seen shoulder the elbow goes on the circle
+   at ``l_f`` from the wrist and ``l_u`` from the shoulder (nearest its filtered or rebuilt position); when that
+   would move the elbow off its image position, the elbow is placed from the shoulder and the wrist follows.
+2. **Lost depths are rebuilt with a temporally consistent choice.** The two Pythagorean candidates (eq. 7-8
+   with the full calibrated length; x, y of the joint kept when detected, else a radial correction when the
+   filter's estimate is near the length) are scored as Gaussian log-likelihoods::
 
-   * trusted shoulder: the shoulder stays where the filter has it and the elbow is put on the circle where
-     the sphere of radius ``l_f`` about the wrist meets the sphere of radius ``l_u`` about the shoulder,
-     at the point nearest the filtered elbow (trusted elbow) or nearest the chosen Pythagorean candidate
-     (untrusted elbow). Wrist and shoulder are unchanged; a noise-free arm is unchanged.
-   * untrusted shoulder: the elbow is put at ``l_f`` from the wrist (radially if trusted, else a
-     Pythagorean candidate), then the shoulder at ``l_u`` from the elbow (a Pythagorean candidate).
+       J = |p - p̂|^2 / sigma_f^2 + min(|p - p_prev|^2 / sigma_t^2, cap^2) [+ width, torso and m5 terms]
 
-2. **Temporally consistent candidate choice.** For a joint whose depth is not trusted, the two Pythagorean
-   candidates (x, y of the filtered joint kept, eq. 7-8 with the full calibrated length) are scored as
-   Gaussian log-likelihoods rather than the paper's weighted distances::
+   ``sigma_f`` grows with the frames since the depth was last seen (a constant-velocity filter extrapolating a
+   lost depth drifts) and the filter term is dropped when its estimate was replaced by our last output; the
+   temporal term is capped so that persistent evidence can undo a wrong configuration. Switching to the mirror
+   candidate (2r away) needs evidence over several frames; an arm passing through the image plane (r -> 0)
+   follows the filter. The shoulder candidates also weigh the shoulder width and the shoulders' depth about the
+   hips' (torso lean ``sigma_torso_m``); folded or hyperextended candidates get m5's penalty.
+3. **No shrink factor**: seen depths make the near-in-plane ± instability, the shrink factor's reason, moot.
 
-       J = |p - p̂|^2 / sigma_f^2 + |p - p_prev|^2 / sigma_t^2 [+ (width - l_s)^2 / sigma_l^2]
-
-   ``sigma_f`` (the filter's say) grows with the number of frames since the joint's depth was last trusted
-   (a constant-velocity filter extrapolating a lost depth drifts), ``sigma_t`` is how far a joint may move
-   in one frame. Switching to the mirror candidate (2r away) therefore needs the filter to favour it by a
-   margin that grows with r: no switch without evidence from the data, but an arm that passes through the
-   image plane (r -> 0) follows the filter. Folded (< ``elbow_min_deg``) or hyperextended candidates get a
-   large penalty, as the paper's m5 with our signed angle.
-3. **No shrink factor.** Trusted depths make the near-in-plane ± instability, the shrink factor's reason,
-   moot: an in-plane arm is usually seen. Where the in-plane distance exceeds the length (noise) the joint
-   is put at the length along its in-plane direction at the anchor's depth.
-
-Every output arm has exactly the calibrated lengths (to rounding). Plain Python floats (about 10 µs per
-frame for both arms; numpy calls would cost more than the arithmetic).
+The wrist is the anchor (the paper's assumption) except when a seen shoulder and elbow contradict it. Every
+output arm has exactly the calibrated lengths (to rounding). Plain Python floats (about 15 µs per frame for both
+arms; numpy calls would cost more than the arithmetic).
 """
 
 from __future__ import annotations
