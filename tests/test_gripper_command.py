@@ -50,3 +50,17 @@ def test_dropped_frames_are_nan_and_keep_the_gripper():
     ctx = sim.get_context()
     assert np.all(np.isnan(hands.get_output_port().Eval(hands.GetMyContextFromRoot(ctx))))
     np.testing.assert_array_equal(cmd.GetOutputPort("closed").Eval(cmd.GetMyContextFromRoot(ctx)), [0.0, 1.0])
+
+
+def test_the_hand_channel_counts_frames_from_any_start_time():
+    """A run recorded after others starts at t0 > 0: frame k is still the motion at k periods from its start."""
+    builder = DiagramBuilder()
+    hands = builder.AddSystem(HandApertureSource(_motion(), 0.1, seed=0, noise_m=0.0))
+    sim = Simulator(builder.Build())
+    sim.get_mutable_context().SetTime(40.0)
+    sim.AdvanceTo(40.55)
+    out = hands.get_output_port().Eval(hands.GetMyContextFromRoot(sim.get_context()))
+    np.testing.assert_allclose(out, [OPEN_HAND_APERTURE_M] * 2)
+    sim.AdvanceTo(41.25)
+    out = hands.get_output_port().Eval(hands.GetMyContextFromRoot(sim.get_context()))
+    np.testing.assert_allclose(out, [OPEN_HAND_APERTURE_M, PINCH_APERTURE_M])

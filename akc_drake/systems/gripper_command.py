@@ -40,14 +40,16 @@ class HandApertureSource(LeafSystem):
         if dropout is not None:
             mask = np.asarray(dropout, dtype=bool)[: len(times)]
             self._values[np.flatnonzero(mask)] = np.nan
-        self._period = float(period_s)
+        # Frame 0 from the start; each update moves to the next frame (counted, so a run may start at any time).
         self._state = self.DeclareDiscreteState(self._values[0])
+        self._frame = self.DeclareDiscreteState(np.zeros(1))
         self.DeclareStateOutputPort("thumb_index_m", self._state)
         self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
 
     def _update(self, context, discrete_state) -> None:
-        k = int(round(context.get_time() / self._period))
-        k = min(max(k, 0), len(self._values) - 1)
+        k = int(context.get_discrete_state(self._frame).get_value()[0]) + 1
+        k = min(k, len(self._values) - 1)
+        discrete_state.get_mutable_vector(self._frame).SetFromVector([k])
         discrete_state.get_mutable_vector(self._state).SetFromVector(self._values[k])
 
 
