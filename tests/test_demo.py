@@ -181,6 +181,8 @@ def test_demo_options_validation():
         ({"max_frames": 3}, "max_frames"),
         ({"correctors": ("AKC",)}, "correctors"),
         ({"out_dir": " "}, "--out"),
+        ({"task": "stack"}, "--task"),
+        ({"task": "pick-place", "seeds": 0}, "--seeds"),
     ):
         with pytest.raises(UserError, match=match):
             teleop.DemoOptions(**bad).validate()
