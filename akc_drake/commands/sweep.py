@@ -55,11 +55,12 @@ def main(args) -> int:
         if bad:
             raise UserError(f"rendering {bad[0].line()}")
         sessions = {n: session_from_plain(r["session"]) for n, r in zip(names, rendered, strict=True)}
-        dims = calibrate_session(sessions["tpose"], "tpose", config.options)
+        opts = config.run_options()  # the protocol's stages (the paper's by default), as evaluate
+        dims = calibrate_session(sessions["tpose"], "tpose", opts)
         motion_sessions = {m: sessions[m] for m in motions}
         workers = sched.workers()
         print(f"sweep on {scheduler} ({workers} worker{'s' if workers != 1 else ''})", file=sys.stderr)
-        result = run_sweep(motion_sessions, dims, grid, args.jobs, config.options, scheduler=sched, show_progress=True)
+        result = run_sweep(motion_sessions, dims, grid, args.jobs, opts, scheduler=sched, show_progress=True)
     elapsed = time.perf_counter() - t0
 
     print("Optimum weights (tuned on the first cycle; objective = L2 norm of the joints' RMS Euclidean errors):")

@@ -447,14 +447,8 @@ def run_experiment(
     for name in names:
         if name not in sessions:
             raise ValueError(f"no session for motion {name!r} (have: {', '.join(sessions)})")
-    opts = config.run_options()
-
     # ---- calibration (Table VIII)
-    tpose_dims = calibrate_session(sessions["tpose"], "tpose", opts)
-    truth_dims = true_dimensions(sessions["tpose"])
-    calibrations = {"Manual": manual_dimensions(truth_dims), "Truth": truth_dims, "T-pose": tpose_dims}
-    if config.calibration_study and "lpose" in sessions:
-        calibrations["L-pose"] = calibrate_session(sessions["lpose"], "lpose", opts)
+    tpose_dims, calibrations = calibrate_all(config, sessions)
     if progress is not None:
         progress(sum(sessions[p].num_frames for p in ("tpose", "lpose") if p in sessions), "calibration")
 
@@ -463,6 +457,22 @@ def run_experiment(
     ev = assemble_evaluation(config, calibrations, tpose_dims, runs)
     ev.elapsed_s = time.perf_counter() - t_start
     return ev
+
+
+def calibrate_all(
+    config: ExperimentConfig, sessions: dict[str, Session]
+) -> tuple[BodyDimensions, dict[str, BodyDimensions]]:
+    """The T-pose dimensions every method uses, and every calibration of Tables VIII-IX.
+
+    ``sessions`` needs ``"tpose"`` (and ``"lpose"`` for the L-pose column of the calibration study).
+    """
+    opts = config.run_options()
+    tpose_dims = calibrate_session(sessions["tpose"], "tpose", opts)
+    truth_dims = true_dimensions(sessions["tpose"])
+    calibrations = {"Manual": manual_dimensions(truth_dims), "Truth": truth_dims, "T-pose": tpose_dims}
+    if config.calibration_study and "lpose" in sessions:
+        calibrations["L-pose"] = calibrate_session(sessions["lpose"], "lpose", opts)
+    return tpose_dims, calibrations
 
 
 def run_motion(

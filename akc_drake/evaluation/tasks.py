@@ -233,19 +233,6 @@ def clip_task(item: dict) -> dict:
 
 
 # ============================================================================================ driver
-def calibrations_from(sessions: dict[str, Session], config) -> tuple[BodyDimensions, dict[str, BodyDimensions]]:
-    """The T-pose dims and every calibration of Tables VIII-IX, as :func:`run_experiment` computes them."""
-    from akc_drake.evaluation.experiment import calibrate_session, manual_dimensions, true_dimensions
-
-    opts = config.run_options() if hasattr(config, "run_options") else config.options
-    tpose_dims = calibrate_session(sessions["tpose"], "tpose", opts)
-    truth_dims = true_dimensions(sessions["tpose"])
-    calibrations = {"Manual": manual_dimensions(truth_dims), "Truth": truth_dims, "T-pose": tpose_dims}
-    if config.calibration_study and "lpose" in sessions:
-        calibrations["L-pose"] = calibrate_session(sessions["lpose"], "lpose", opts)
-    return tpose_dims, calibrations
-
-
 def evaluate_tasks(
     config,
     *,
@@ -278,7 +265,7 @@ def evaluate_tasks(
     Raises:
         ValueError: when a calibration pose or every clip fails (nothing to report).
     """
-    from akc_drake.evaluation.experiment import assemble_evaluation
+    from akc_drake.evaluation.experiment import assemble_evaluation, calibrate_all
 
     specs = session_specs(config)
     poses = [p for p in ("tpose", "lpose") if p in specs]
@@ -300,7 +287,7 @@ def evaluate_tasks(
         if bad:
             raise ValueError(f"calibration pose {bad[0].line()}")
         cal_sessions = {p: session_from_plain(r["session"]) for p, r in zip(poses, rendered, strict=True)}
-        tpose_dims, calibrations = calibrations_from(cal_sessions, config)
+        tpose_dims, calibrations = calibrate_all(config, cal_sessions)
         render_s = time.perf_counter() - t0
 
         t1 = time.perf_counter()
