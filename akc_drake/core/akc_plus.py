@@ -368,7 +368,9 @@ class ArmKinematicCorrectorPlus:
         te = me and geo_f  # elbow seen and at the forearm length from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
         # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
-        ts = ms and not (te and not geo_u)
+        # A shoulder the detector lost altogether (no x, y) is kept where it is held (eq. 8 would need its 2D
+        # position): the proximal joint moves least, and a wrong elbow is likelier than a wrong held shoulder.
+        ts = (ms or (not sxy and prev is not None)) and not (te and not geo_u)
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
