@@ -512,7 +512,8 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         torso_model: a calibrated :class:`~akc_drake.core.frames.TorsoModel` (the torso carried by the hips);
             None: eq. (17)'s torso from the shoulders.
         smoothing: One Euro smoothing on SE(3) of the torso and wrist frames
-            (:data:`~akc_drake.core.smoothing.WRIST_SMOOTHING`, :data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`).
+            (:data:`~akc_drake.core.smoothing.WRIST_SMOOTHING`, :data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`),
+            with the wrist frames' hand vector rebuilt and kept off their mirror (``robust_wrist``).
         workspace: clip each target into its arm's :class:`~akc_drake.core.frames.Workspace`.
         hand_dropout: ``(frames,)`` bool, frames in which the hand channel is blanked too (``--dropout``).
 
@@ -545,7 +546,8 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                     period_s=period, stage_offset_s=cfg.stage_offset_s, torso_model=torso_model,
                     wrist_smoothing=sm.WRIST_SMOOTHING if smoothing else None,
                     torso_smoothing=sm.TORSO_SMOOTHING if smoothing else None,
-                    workspace={s: Workspace.for_side(s) for s in ("left", "right")} if workspace else None)
+                    workspace={s: Workspace.for_side(s) for s in ("left", "right")} if workspace else None,
+                    robust_wrist=smoothing)
     )
     mapper.set_name("FrameMapper")
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))

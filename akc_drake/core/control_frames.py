@@ -59,6 +59,8 @@ class ControlFrameTracker:
         wrist_smoothing, torso_smoothing: :class:`~akc_drake.core.smoothing.SE3SmoothingParams`, None: off.
         workspace: per side a :class:`Workspace` (None: no clipping).
         max_landmark_speed: the speed gate, m/s (None: off).
+        robust_wrist: rebuild the hand vector and keep the wrist frame off its mirror (step 2); False: eq. (17)
+            on the landmarks as they are.
     """
 
     def __init__(
@@ -70,8 +72,10 @@ class ControlFrameTracker:
         torso_smoothing: smoothing.SE3SmoothingParams | None = smoothing.TORSO_SMOOTHING,
         workspace: dict | None = None,
         max_landmark_speed: float | None = DEFAULT_MAX_LANDMARK_SPEED,
+        robust_wrist: bool = True,
     ):
         self.mapping = mapping
+        self.robust_wrist = bool(robust_wrist)
         self.torso_model = torso_model
         self._torso_f = smoothing.SE3OneEuro(torso_smoothing) if torso_smoothing is not None else None
         self._wrist_f = smoothing.SE3OneEuro(wrist_smoothing) if wrist_smoothing is not None else None
@@ -138,7 +142,7 @@ class ControlFrameTracker:
             p_e, p_w, p_i, p_p = (pose[INDEX[f"{side}_{n}"]] for n in ("elbow", "wrist", "index", "pinky"))
             R_w = None
             if np.all(np.isfinite([p_e, p_w, p_i, p_p])):
-                h = self._hand_vector(state, hand_sl, p_i - p_p)
+                h = self._hand_vector(state, hand_sl, p_i - p_p) if self.robust_wrist else p_i - p_p
                 R_w = wrist_frame(p_e, p_w, p_p + h, p_p)
             if R_w is None:
                 continue
@@ -148,7 +152,8 @@ class ControlFrameTracker:
                 if not plausible_step(gate[:-1].reshape(-1, 3), points, t - gate[-1], self.max_speed):
                     continue  # a jump no person makes: a fault, hold the target
             prev = state[prev_sl]
-            R_w = resolve_wrist_flip(R_w, h, prev.reshape(3, 3) if np.all(np.isfinite(prev)) else None)
+            if self.robust_wrist:
+                R_w = resolve_wrist_flip(R_w, h, prev.reshape(3, 3) if np.all(np.isfinite(prev)) else None)
             state[prev_sl] = R_w.ravel()
             state[gate_sl] = np.concatenate([points.ravel(), [t]])
             X = map_to_robot(transform(R0.T @ R_w, R0.T @ (p_w - o0)), side, self.mapping)

@@ -81,6 +81,9 @@ class FrameMapper(LeafSystem):
         wrist_smoothing, torso_smoothing: :class:`~akc_drake.core.smoothing.SE3SmoothingParams` (None: off;
             defaults off here, the teleop diagram turns them on).
         workspace: per side a :class:`~akc_drake.core.frames.Workspace` to clip targets to (None: no clip).
+        robust_wrist: rebuild the hand vector from its image part and keep the wrist frame off its mirror
+            (:class:`~akc_drake.core.control_frames.ControlFrameTracker`); off here (eq. 17 as it is), on in the
+            teleop diagram.
     """
 
     def __init__(
@@ -96,6 +99,7 @@ class FrameMapper(LeafSystem):
         wrist_smoothing: smoothing.SE3SmoothingParams | None = None,
         torso_smoothing: smoothing.SE3SmoothingParams | None = None,
         workspace: dict | None = None,
+        robust_wrist: bool = False,
     ):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0.0):
@@ -111,6 +115,7 @@ class FrameMapper(LeafSystem):
             torso_smoothing=torso_smoothing,
             workspace=workspace,
             max_landmark_speed=None if v is None else float(v),
+            robust_wrist=robust_wrist,
         )
         homes = {"left": X_TE_home_left, "right": X_TE_home_right}
         self._home = {}
