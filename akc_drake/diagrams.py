@@ -484,8 +484,8 @@ class TeleopDiagram(MocapDiagram):
 
 #: The Meshcat camera of the teleop view (world, metres): front left of the robot, looking at the robot, the
 #: table and the operator's skeletons standing at the robot's left.
-TELEOP_CAMERA_W = (1.9, 1.75, 1.65)
-TELEOP_CAMERA_TARGET_W = (0.3, 0.4, 0.9)
+TELEOP_CAMERA_W = (2.0, 2.0, 1.7)
+TELEOP_CAMERA_TARGET_W = (0.25, 0.55, 0.9)
 
 
 def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measurements | None = None,

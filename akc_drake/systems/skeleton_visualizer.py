@@ -33,8 +33,8 @@ BONES: tuple[tuple[str, str], ...] = (
 )
 _BONE_IDX = np.array([[INDEX[a], INDEX[b]] for a, b in BONES])
 
-#: Where the skeletons' hip midpoint is placed (world, metres): 1.1 m to the robot's left, 0.95 m up.
-SKELETON_HIPS_W = (0.0, 1.1, 0.95)
+#: Where the skeletons' hip midpoint is placed (world, metres): 1.4 m to the robot's left, 0.95 m up.
+SKELETON_HIPS_W = (-0.1, 1.4, 0.95)
 #: Rotation of the camera frame C in the world for the skeletons (operator facing world +x, upright).
 R_WC_FACING_X = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
