@@ -62,7 +62,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         return np.concatenate([fn(r, side)[a] for r, a in zip(runs, after, strict=True)])
 
     keys = ("err", "err_all", "p95", "reach", "op", "unreach", "jang", "jlin", "oang", "olin", "top", "top95")
-    keys += ("lag", "cross", "clip")
+    keys += ("lag", "rlag", "cross", "clip")
     v: dict[str, dict] = {k: {} for k in keys}
     for side in SIDES:
         e_after = np.concatenate([r.errors[side][r.error_t[side] >= settling_s] for r in runs])
@@ -79,6 +79,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         v["top"][side] = _median_cm(top)
         v["top95"][side] = _p95_cm(top)
         v["lag"][side] = _added_latency_ms(runs, side, after)
+        v["rlag"][side] = _added_latency_ms(runs, side, after, rotation=True)
         v["cross"][side] = int(sum(_midline_crossings(r, side, a) for r, a in zip(runs, after, strict=True)))
         clip = [r.clipped[side][a] for r, a in zip(runs, after, strict=True) if side in r.clipped]
         v["clip"][side] = float(np.mean(np.concatenate(clip))) if clip and sum(map(len, clip)) else None
@@ -105,6 +106,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "target_operator_error_cm": v["top"],
         "target_operator_error_p95_cm": v["top95"],
         "smoothing_latency_ms": v["lag"],
+        "smoothing_rotation_latency_ms": v["rlag"],
         "midline_crossings": v["cross"],
         "workspace_clipped_share": v["clip"],
         "jitter": {"angular_rad_s": v["jang"], "linear_m_s": v["jlin"]},
@@ -132,9 +134,21 @@ def _share(num: int, den: int) -> float | None:
     return float(num) / float(den) if den else None
 
 
-def _added_latency_ms(runs, side: str, after) -> float | None:
+def _rotation_vectors(X: np.ndarray) -> np.ndarray:
+    """``(T, 3)`` rotation vectors of ``X``'s rotations relative to its first finite one (NaN rows kept)."""
+    from scipy.spatial.transform import Rotation
+
+    out = np.full((len(X), 3), np.nan)
+    ok = np.flatnonzero(np.all(np.isfinite(X), axis=(1, 2)))
+    if ok.size:
+        R0 = X[ok[0], :3, :3]
+        out[ok] = Rotation.from_matrix(np.einsum("ji,kjl->kil", R0, X[ok, :3, :3])).as_rotvec()
+    return out
+
+
+def _added_latency_ms(runs, side: str, after, rotation: bool = False) -> float | None:
     """Delay (ms) the smoothing adds: :func:`~akc_drake.core.smoothing.estimate_lag` of the target positions
-    behind the unsmoothed ones, frames weighted over the runs."""
+    (``rotation``: rotation vectors) behind the unsmoothed ones, frames weighted over the runs."""
     from akc_drake.core.smoothing import estimate_lag
 
     lags, weights = [], []
@@ -142,7 +156,12 @@ def _added_latency_ms(runs, side: str, after) -> float | None:
         raw = r.unsmoothed.get(side) if r.unsmoothed else None
         if raw is None:
             continue
-        lag = estimate_lag(raw[a], r.target[side][a][:, :3, 3], r.period_s, max_lag_s=0.5)
+        if rotation:
+            both = np.concatenate([raw[a], r.target[side][a]])
+            rv = _rotation_vectors(both)
+            lag = estimate_lag(rv[: len(rv) // 2], rv[len(rv) // 2 :], r.period_s, max_lag_s=1.5)
+        else:
+            lag = estimate_lag(raw[a][:, :3, 3], r.target[side][a][:, :3, 3], r.period_s, max_lag_s=0.5)
         if math.isfinite(lag):
             lags.append(lag)
             weights.append(int(np.count_nonzero(a)))

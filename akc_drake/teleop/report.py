@@ -204,7 +204,8 @@ def control_frame_lines(summary: dict) -> list[str]:
     position-only IK steps, midline crossings."""
     out = [
         "Control frames, both motions: target vs the operator's true mapped wrist (median/p95 cm), jitter "
-        "relative to the operator's (angular, linear), smoothing latency (ms), clipped to the workspace (%), "
+        "relative to the operator's (angular, linear), smoothing latency of positions (and rotations) in ms, "
+        "clipped to the workspace (%), "
         "IK steps failed (%) / position-only, midline crossings"
     ]
     for c, m in summary["correctors"].items():
@@ -218,6 +219,7 @@ def control_frame_lines(summary: dict) -> list[str]:
             return _fmt(a / b if a is not None and b else None, ".1f")
 
         lat = m.get("smoothing_latency_ms") or {}
+        rlat = m.get("smoothing_rotation_latency_ms") or {}
         clip = m.get("workspace_clipped_share") or {}
         cross = m.get("midline_crossings") or {}
         share = m.get("ik_failure_share")
@@ -227,7 +229,7 @@ def control_frame_lines(summary: dict) -> list[str]:
             f"{_fmt(p95.get('right'))}   jitter x{ratio('angular_rad_s', 'left')}/"
             f"x{ratio('angular_rad_s', 'right')}"
             f" ang, x{ratio('linear_m_s', 'left')}/x{ratio('linear_m_s', 'right')} lin   latency "
-            f"{_lr(lat, '.0f')} ms   clipped {_lr(pct, '.0f')} %   IK failed "
+            f"{_lr(lat, '.0f')} ms (rotation {_lr(rlat, '.0f')})   clipped {_lr(pct, '.0f')} %   IK failed "
             f"{_fmt(None if share is None else 100 * share, '.2f')} % / {m.get('ik_orientation_relaxed', 0)} "
             f"position-only   midline {cross.get('left', 0)}/{cross.get('right', 0)}"
         )

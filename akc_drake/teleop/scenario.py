@@ -372,11 +372,11 @@ def _clipped_frames(td, sim, n: int) -> dict[str, np.ndarray]:
 
 
 def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_model) -> dict[str, np.ndarray]:
-    """Per side ``(n, 3)``: the target positions the same tracker gives without smoothing and clipping, from
-    the corrected landmarks the diagram logged (for the smoothing's added latency); NaN when unknown."""
+    """Per side ``(n, 4, 4)``: the targets the same tracker gives without smoothing and clipping, from the
+    corrected landmarks the diagram logged (for the smoothing's added latency); NaN when unknown."""
     from akc_drake.core.control_frames import ControlFrameTracker
 
-    out = {s: np.full((n, 3), np.nan) for s in SIDES}
+    out = {s: np.full((n, 4, 4), np.nan) for s in SIDES}
     log = td.loggers.get("corrected")
     if log is None:
         return out
@@ -393,7 +393,7 @@ def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_mode
         state, targets, _, _ = tracker.step(state, start + k * period, values[j].reshape(-1, 3))
         for side, X in zip(SIDES, targets, strict=True):
             if X is not None:
-                out[side][k] = X[:3, 3]
+                out[side][k] = X
     return out
 
 
