@@ -30,7 +30,7 @@ def screenshot(html_path, png_path, budget_ms: int = 6000) -> None:
         f"--screenshot={png_path}",
         f"file://{html_path}",
     ]
-    subprocess.run(cmd, check=True, capture_output=True, timeout=180)
+    subprocess.run(cmd, check=True, capture_output=True, timeout=300)  # a loaded machine renders slowly
 
 
 @pytest.fixture(scope="module")
