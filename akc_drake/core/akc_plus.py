@@ -178,6 +178,19 @@ def _radial(ax, ay, az, px, py, pz, length):
     return ax + dx * f, ay + dy * f, az + dz * f
 
 
+def _follow(ax, ay, az, px, py, pz, length):
+    """Joint ``p`` moved to ``length`` from ``a``: its x, y kept (the image is the reliable part) at the
+    Pythagorean depth nearest its own when that moves it less than 1.5 times the radial move, else radially."""
+    r = _radial(ax, ay, az, px, py, pz, length)
+    pair = _pythagoras(ax, ay, az, px, py, length)
+    if pair is None:
+        return r
+    q = pair[0] if abs(pair[0][2] - pz) <= abs(pair[1][2] - pz) else pair[1]
+    if abs(q[2] - pz) <= 1.5 * _hypot(r[0] - px, r[1] - py, r[2] - pz):
+        return q
+    return r
+
+
 def _d2(p, qx, qy, qz):
     dx, dy, dz = p[0] - qx, p[1] - qy, p[2] - qz
     return dx * dx + dy * dy + dz * dz
@@ -370,13 +383,18 @@ class ArmKinematicCorrectorPlus:
         # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
         # A shoulder the detector lost altogether (no x, y) is kept where it is held (eq. 8 would need its 2D
         # position): the proximal joint moves least, and a wrong elbow is likelier than a wrong held shoulder.
-        ts = (ms or (not sxy and prev is not None)) and not (te and not geo_u)
+        # (The upper arm must then fit within consistency_m, the depth's own tolerance: a seen elbow at the
+        # forearm length is the stronger evidence.)
+        fit_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self.config.consistency_m
+        ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te)
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
             s = (sx, sy, sz)
             if te:
                 e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
+                if e is not None and _d2(e, ex, ey, ez) > self.config.xy_tol_m ** 2:
+                    e = None  # the wrist (a lagging filter's) would move the seen elbow: the wrist moves instead
             elif not me:
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
                 if pair is not None:
@@ -395,13 +413,15 @@ class ArmKinematicCorrectorPlus:
                 if me:
                     e = _radial(sx, sy, sz, ex, ey, ez, lu)
                 else:
-                    cands = _candidates(sx, sy, sz, ex, ey, ez, lu, exy, tol)
+                    # The Pythagorean pair (x, y kept) and the point at l_u nearest the filter's estimate
+                    # (the filter's own elbow when only the lengths contradict it).
+                    cands = _candidates(sx, sy, sz, ex, ey, ez, lu, exy, tol) + (_radial(sx, sy, sz, ex, ey, ez, lu),)
                     extra = []
                     for c in cands:
                         dw = _hypot(c[0] - wx, c[1] - wy, c[2] - wz) - lf
                         extra.append(dw * dw * self._inv_wrist2 + self._penalty(s, c, w, lu, lf, axes))
                     e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
-                w = _radial(e[0], e[1], e[2], wx, wy, wz, lf)
+                w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         if not ts:
             if te:
@@ -451,9 +471,12 @@ class ArmKinematicCorrectorPlus:
         return j + self._penalty(c, e, w, lu, lf, axes)
 
     def _choose_shoulder(self, pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
-        j0 = self._shoulder_cost(pair[0], e, w, sx, sy, sz, ps, ks, lu, lf, axes, other)
-        j1 = self._shoulder_cost(pair[1], e, w, sx, sy, sz, ps, ks, lu, lf, axes, other)
-        return pair[1] if j1 < j0 else pair[0]
+        best, best_j = pair[0], math.inf
+        for c in pair:
+            j = self._shoulder_cost(c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other)
+            if j < best_j:
+                best, best_j = c, j
+        return best
 
     def correct(self, pose, measured=None) -> AKCResult:
         """Correct one filtered pose.
