@@ -226,6 +226,7 @@ class ArmKinematicCorrectorPlus:
         self._inv_torso2 = 1.0 / config.sigma_torso_m**2 if config.sigma_torso_m > 0 else 0.0
         self._hip_z = None
         self._no_prior: set = set()
+        self._fits: set = set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
         self.reset()
 
@@ -287,6 +288,8 @@ class ArmKinematicCorrectorPlus:
         if k in self._no_prior:
             return 0.0
         cfg = self.config
+        if k in self._fits:  # the filter's estimate fits the calibrated length: no sign of drift
+            return self._inv_wrist2
         sf = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[k]
         return 1.0 / (sf * sf)
 
@@ -372,6 +375,14 @@ class ArmKinematicCorrectorPlus:
         r2 = self.config.occlusion_radius_m ** 2
         if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < r2:
             ms = False
+        # A lost depth whose filtered estimate still fits the calibrated length (to the wrist, or to the
+        # filtered elbow) within consistency_m shows no drift: its filter prior keeps its full weight.
+        cons = self.config.consistency_m
+        self._fits = set()
+        if not me and ke not in self._no_prior and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= cons:
+            self._fits.add(ke)
+        if not ms and ks not in self._no_prior and abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons:
+            self._fits.add(ks)
         self._lost[ke] = 0.0 if me else self._lost[ke] + 1.0
         self._lost[ks] = 0.0 if ms else self._lost[ks] + 1.0
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
