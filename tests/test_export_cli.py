@@ -42,6 +42,19 @@ def test_run_writes_exports_and_bag(teleop_run):
     assert {"left_wrist_target", "right_ee", "operator_torso", "operator_left_wrist"} <= children
     _, js = bag["/robot/joint_commands"][-1]
     assert len(js.name) == 14 and np.all(np.isfinite(js.position))
+    # The robot's measured joint state: one message per command, same stamps, same joint names, finite values that
+    # follow the commands (the station's position control lags a command by a few IK steps at most).
+    states, cmds = bag["/robot/joint_states"], bag["/robot/joint_commands"]
+    assert len(states) == len(cmds)
+    assert [ns for ns, _ in states] == [ns for ns, _ in cmds]
+    assert all(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec == ns for ns, m in states)
+    q_meas = np.array([m.position for _, m in states])
+    v_meas = np.array([m.velocity for _, m in states])
+    q_cmd = np.array([m.position for _, m in cmds])
+    assert list(states[0][1].name) == list(cmds[0][1].name) and q_meas.shape == v_meas.shape == (len(states), 14)
+    assert np.all(np.isfinite(q_meas)) and np.all(np.isfinite(v_meas))
+    assert np.median(np.abs(q_meas[5:] - q_cmd[:-5])) < 0.05
+    assert np.max(np.abs(np.diff(q_meas, axis=0))) > 1e-4  # the arm moves: not a constant copy
 
 
 def test_world_frame_on_the_rendered_operator_is_level(teleop_run):

@@ -128,3 +128,38 @@ def test_foxglove_layout_shows_what_the_bag_holds(tmp_path):
     assert topics <= set(bag), topics - set(bag)
     tf_frames = {x.child_frame_id for _, m in bag["/tf"] + bag["/tf_static"] for x in m.transforms}
     assert frames - {"robot_torso"} <= tf_frames and "left_wrist_target" in tf_frames
+
+
+def test_teleop_bag_carries_the_measured_joint_state(tmp_path):
+    # Two teleop runs one after the other: commands and measured states (positions and velocities) per run.
+    from akc_drake.pipeline.export import TeleopRecording, write_teleop_bag
+
+    s = synthetic_session(T=10)
+    names = [f"arm_{side}_{i}_joint" for side in ("left", "right") for i in range(1, 8)]
+    rng = np.random.default_rng(1)
+    recs = []
+    for _ in range(2):
+        tq = np.arange(30) * 0.01
+        q = rng.normal(size=(30, 14))
+        state = JointSeries(tq, names, q + 0.02, velocity=rng.normal(size=(30, 14)))
+        X = np.tile(np.eye(4), (30, 1, 1))
+        recs.append(TeleopRecording(s["t"], {"corrected": s["corrected"]}, JointSeries(tq, names, q),
+                                    {"left_wrist_target": (tq, X)}, state))
+    out = tmp_path / "teleop.mcap"
+    counts = write_teleop_bag(out, recs, world=WorldFrame.camera(), gap_s=1.0, start_ns=START)
+    bag = read_ros2_bag(out)
+    assert counts["/robot/joint_states"] == len(bag["/robot/joint_states"]) == 60
+    states = bag["/robot/joint_states"]
+    # The second run starts gap_s after the first one's last frame (0.9 s): at 1.9 s.
+    want_t = np.concatenate([recs[0].states.t, recs[1].states.t + 1.9])
+    np.testing.assert_array_equal([ns for ns, _ in states], START + np.round(want_t * 1e9).astype(np.int64))
+    np.testing.assert_array_equal([ns for ns, _ in states], [ns for ns, _ in bag["/robot/joint_commands"]])
+    got_q = np.array([m.position for _, m in states])
+    got_v = np.array([m.velocity for _, m in states])
+    np.testing.assert_array_equal(got_q, np.concatenate([r.states.position for r in recs]))
+    np.testing.assert_array_equal(got_v, np.concatenate([r.states.velocity for r in recs]))
+    assert list(states[0][1].name) == names
+    # A recording without the measured state (an older monitor): no half-logged topic.
+    recs[1].states = None
+    counts = write_teleop_bag(tmp_path / "partial.mcap", recs, world=WorldFrame.camera(), start_ns=START)
+    assert "/robot/joint_states" not in counts and counts["/robot/joint_commands"] == 60

@@ -38,6 +38,10 @@ def test_nominal_posture_tracks_its_own_pose_with_no_faults():
     assert np.max(mon.ee_errors("left")) < 0.01  # the robot holds its nominal pose: target = achieved
     h = mon.history_arrays()
     assert h["q_left"].shape == (31, 7) and h["target_right"].shape == (31, 4, 4)
+    # The measured joint state (the plant's), held at the nominal posture, at rest.
+    assert h["q_measured_left"].shape == (31, 7) and h["v_measured_right"].shape == (31, 7)
+    np.testing.assert_allclose(h["q_measured_left"], np.tile(NOMINAL_ARM_Q, (31, 1)), atol=1e-3)
+    assert np.max(np.abs(h["v_measured_right"])) < 1e-2
 
 
 def test_counts_nan_commands_limit_hits_and_target_distance():

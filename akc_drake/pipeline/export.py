@@ -208,13 +208,15 @@ class TeleopRecording:
     Attributes:
         t: ``(T,)`` camera frame times (s); skeletons: stage -> ``(T, 12, 3)`` in C;
         commands: the arm joint commands at the IK rate; targets: ``{frame: (t, (N, 4, 4))}`` the wrist targets
-        and the achieved end effectors (``{left,right}_ee``) in the robot's torso frame.
+        and the achieved end effectors (``{left,right}_ee``) in the robot's torso frame; states: the measured arm
+        joint positions and velocities at the IK rate (None when the monitor did not record them).
     """
 
     t: np.ndarray
     skeletons: dict
     commands: object
     targets: dict
+    states: object = None
 
 
 def teleop_recording(td, log=None, num_frames: int | None = None) -> TeleopRecording:
@@ -247,7 +249,13 @@ def teleop_recording(td, log=None, num_frames: int | None = None) -> TeleopRecor
     targets = {f"{s}_wrist_target": (t, np.asarray(hist[f"target_{s}"])) for s in ("left", "right")}
     # The robot's achieved end effectors (its state, as frames): where the targets were reached.
     targets.update({f"{s}_ee": (t, np.asarray(hist[f"ee_{s}"])) for s in ("left", "right")})
-    return TeleopRecording(t_frames, skeletons, JointSeries(t, names, q), targets)
+    states = None  # the measured arm joints (the plant's state at each IK step)
+    if len(hist.get("q_measured_left", [])) == len(t):
+        states = JointSeries(
+            t, names,
+            np.concatenate([np.asarray(hist["q_measured_left"]), np.asarray(hist["q_measured_right"])], axis=1),
+            np.concatenate([np.asarray(hist["v_measured_left"]), np.asarray(hist["v_measured_right"])], axis=1))
+    return TeleopRecording(t_frames, skeletons, JointSeries(t, names, q), targets, states)
 
 
 def write_teleop_bag(path, recordings, *, world: WorldFrame | None = None, gap_s: float = 1.0,
@@ -270,21 +278,27 @@ def write_teleop_bag(path, recordings, *, world: WorldFrame | None = None, gap_s
             world = estimate_world_frame(recs[0].skeletons["filtered"])
         except ValueError:
             world = WorldFrame.camera()
-    offset, ts, sk, qt, qv, tg = 0.0, [], {}, [], [], {}
+    offset, ts, sk, qt, qv, tg, st = 0.0, [], {}, [], [], {}, []
     for r in recs:
         ts.append(r.t + offset)
         for k, v in r.skeletons.items():
             sk.setdefault(k, []).append(v)
         qt.append(r.commands.t + offset)
         qv.append(r.commands.position)
+        if r.states is not None:
+            st.append((r.states.t + offset, r.states.position, r.states.velocity))
         for k, (tt, X) in r.targets.items():
             tg.setdefault(k, ([], []))
             tg[k][0].append(tt + offset)
             tg[k][1].append(X)
         offset = max(float(ts[-1][-1]), float(qt[-1][-1])) + gap_s
     cmds = JointSeries(np.concatenate(qt), recs[0].commands.names, np.concatenate(qv))
+    states = None
+    if len(st) == len(recs):  # the measured joint state of every run (else none: a bag is not half-logged)
+        states = JointSeries(np.concatenate([a for a, _, _ in st]), recs[0].states.names,
+                             np.concatenate([b for _, b, _ in st]), np.concatenate([c for _, _, c in st]))
     return write_ros2_bag(path, np.concatenate(ts), {k: np.concatenate(v) for k, v in sk.items()}, world=world,
-                          joint_commands=cmds, robot_frames={k: (np.concatenate(a), np.concatenate(b))
+                          joint_commands=cmds, joint_states=states, robot_frames={k: (np.concatenate(a), np.concatenate(b))
                                                              for k, (a, b) in tg.items()}, start_ns=start_ns)
 
 

@@ -7,7 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 
-from akc_drake.robot.model import arm_joint_limits, ee_frame, torso_frame
+from akc_drake.robot.model import arm_joint_limits, arm_joint_names, ee_frame, torso_frame
 
 SIDES = ("left", "right")
 
@@ -26,6 +26,9 @@ class TeleopMonitor(LeafSystem):
         - q_commanded_right
         - robot_state
         output_ports: []
+
+    History (``keep_history``): per sample the wrist targets, the achieved end-effector poses, the commanded arm
+    joints (``q_{side}``) and the measured ones (``q_measured_{side}``, ``v_measured_{side}``: the plant's state).
 
     Statistics: NaN commands, the largest commanded joint speed as a fraction of its limit, commands at a
     position or velocity limit, and the distance between the target and the achieved end-effector position.
@@ -46,6 +49,10 @@ class TeleopMonitor(LeafSystem):
         self._ee = {s: ee_frame(plant, s, robot) for s in SIDES}
         self._torso = torso_frame(plant, robot)
         self._limits = {s: arm_joint_limits(s) for s in SIDES}
+        # Where each arm's joints sit in the plant's full q and v (the measured joint state of the history).
+        joints = {s: [plant.GetJointByName(n, robot) for n in arm_joint_names(s)] for s in SIDES}
+        self._q_index = {s: np.array([j.position_start() for j in joints[s]], dtype=np.intp) for s in SIDES}
+        self._v_index = {s: np.array([j.velocity_start() for j in joints[s]], dtype=np.intp) for s in SIDES}
         self._period = period_s
         self._keep = keep_history
         for s in SIDES:
@@ -70,7 +77,8 @@ class TeleopMonitor(LeafSystem):
         self._errors = {s: [] for s in SIDES}  # decimated to the camera rate, so tiny even for long runs
         self._error_t = {s: [] for s in SIDES}  # the sample time of each entry of _errors
         self.history = {k: [] for k in ("t", "target_left", "target_right", "ee_left", "ee_right",
-                                        "q_left", "q_right", "lost")}
+                                        "q_left", "q_right", "q_measured_left", "q_measured_right",
+                                        "v_measured_left", "v_measured_right", "lost")}
 
     def _sample(self, context):
         t = context.get_time()
@@ -81,6 +89,9 @@ class TeleopMonitor(LeafSystem):
         if np.any(lost > 0.5):
             self.tracking_lost_samples += 1
         row = {"t": t, "lost": np.array(lost, copy=True)}
+        if self._keep:
+            q_all = self._plant.GetPositions(self._plant_context)
+            v_all = self._plant.GetVelocities(self._plant_context)
         for s in SIDES:
             q = np.array(self.GetInputPort(f"q_commanded_{s}").Eval(context), copy=True)
             lo, hi, vel = self._limits[s]
@@ -106,6 +117,8 @@ class TeleopMonitor(LeafSystem):
                 row[f"target_{s}"] = X_target.GetAsMatrix4()
                 row[f"ee_{s}"] = X_ee.GetAsMatrix4()
                 row[f"q_{s}"] = q
+                row[f"q_measured_{s}"] = q_all[self._q_index[s]].copy()
+                row[f"v_measured_{s}"] = v_all[self._v_index[s]].copy()
         if self._keep:
             for k, v in row.items():
                 self.history[k].append(v)
