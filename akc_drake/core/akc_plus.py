@@ -49,12 +49,16 @@ _hypot = math.hypot
 _isfinite = math.isfinite
 _NAN = float("nan")
 _BIG = 1e6
+#: m5's hyperextension penalty (a squared standard deviation): a sign test on noisy, nearly straight arms
+#: is no veto; a filter estimate that fits the lengths and a continuous configuration can outweigh it.
+_BACKWARDS = 25.0
 
 _LHIP_Z = 3 * INDEX["left_hip"] + 2
 _RHIP_Z = 3 * INDEX["right_hip"] + 2
 
-#: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters.
-STATE_SIZE = 24
+#: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, and per
+#: elbow/shoulder the filter's estimate when its depth was lost (4 x 3, NaN when seen).
+STATE_SIZE = 36
 
 
 @dataclass(frozen=True)
@@ -238,9 +242,12 @@ class ArmKinematicCorrectorPlus:
         """Forget the previous output and the untrusted-frame counters."""
         self._prev: list[tuple | None] = [None, None]
         self._lost = [0.0, 0.0, 0.0, 0.0]  # frames without a trusted depth: (left elbow, left shoulder, right ...)
+        self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when the depth was lost
+        self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
 
     def get_state_vector(self) -> np.ndarray:
-        """``(24,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters."""
+        """``(36,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, and the
+        filter's estimate of each elbow/shoulder when its depth was lost (NaN when seen)."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -248,6 +255,9 @@ class ArmKinematicCorrectorPlus:
                 v[9 * side : 9 * side + 9] = p
             v[18 + side] = 0.0 if p is None else 1.0
         v[20:24] = self._lost
+        for k in range(4):
+            if self._f0[k] is not None:
+                v[24 + 3 * k : 27 + 3 * k] = self._f0[k]
         return v
 
     def set_state_vector(self, v) -> None:
@@ -272,8 +282,12 @@ class ArmKinematicCorrectorPlus:
         lost = a[20:24]
         if not np.all(np.isfinite(lost) & (lost >= 0)):
             raise ValueError(f"AKC+ state vector: counters [20:24] must be >= 0, got {lost.tolist()}")
+        f0 = [a[24 + 3 * k : 27 + 3 * k] for k in range(4)]
+        f0 = [tuple(q.tolist()) if np.all(np.isfinite(q)) else None for q in f0]
         self._prev = prev
         self._lost = lost.tolist()
+        self._f0 = f0
+        self._travel = [0.0, 0.0, 0.0, 0.0]
 
     # ------------------------------------------------------------------ hot path (plain floats)
     def _measured(self, m, o, fz):
@@ -288,9 +302,11 @@ class ArmKinematicCorrectorPlus:
         if k in self._no_prior:
             return 0.0
         cfg = self.config
-        if k in self._fits:  # the filter's estimate fits the calibrated length: no sign of drift
-            return self._inv_wrist2
-        sf = cfg.sigma_filter_m + cfg.drift_m_per_frame * self._lost[k]
+        # Drift: the frames without a depth (unless the estimate still fits the calibrated length) and twice
+        # the distance the filter's depth has travelled since it was lost.
+        sf = cfg.sigma_filter_m + 2.0 * self._travel[k]
+        if k not in self._fits:
+            sf += cfg.drift_m_per_frame * self._lost[k]
         return 1.0 / (sf * sf)
 
     def _choose(self, cands, fx, fy, fz, prev_p, k_lost, extra=None):
@@ -309,12 +325,14 @@ class ArmKinematicCorrectorPlus:
         return best, best_j
 
     def _penalty(self, s, e, w, lu, lf, axes):
-        """Large when the arm's elbow is folded below elbow_min_deg or hyperextended (m5 with our sign)."""
+        """Large when the arm's elbow is folded below elbow_min_deg; _BACKWARDS when hyperextended (m5, our sign)."""
         ux, uy, uz = s[0] - e[0], s[1] - e[1], s[2] - e[2]
         fx, fy, fz = w[0] - e[0], w[1] - e[1], w[2] - e[2]
         cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
-        if cos_t > self._cos_min or bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
+        if cos_t > self._cos_min:
             return _BIG
+        if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
+            return _BACKWARDS
         return 0.0
 
     def _arm(self, v, m, side, axes, other_shoulder):
@@ -383,6 +401,16 @@ class ArmKinematicCorrectorPlus:
             self._fits.add(ke)
         if not ms and ks not in self._no_prior and abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons:
             self._fits.add(ks)
+        # How far the filter's depth has travelled since the depth was lost, from our output at that time (a
+        # filter that jumps to, or drifts towards, another depth while blind is no evidence for it).
+        for k, seen, pz, j in ((ke, me, ez, 5), (ks, ms, sz, 2)):
+            if seen:
+                self._f0[k] = None
+                self._travel[k] = 0.0
+                continue
+            if self._f0[k] is None:
+                self._f0[k] = (prev[j - 2], prev[j - 1], prev[j]) if prev is not None else (_NAN, _NAN, pz)
+            self._travel[k] = abs(pz - self._f0[k][2])
         self._lost[ke] = 0.0 if me else self._lost[ke] + 1.0
         self._lost[ks] = 0.0 if ms else self._lost[ks] + 1.0
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
