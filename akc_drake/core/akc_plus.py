@@ -57,7 +57,7 @@ _LHIP_Z = 3 * INDEX["left_hip"] + 2
 _RHIP_Z = 3 * INDEX["right_hip"] + 2
 
 #: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, and per
-#: elbow/shoulder the filter's estimate when its depth was lost (4 x 3, NaN when seen).
+#: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none).
 STATE_SIZE = 36
 
 
@@ -242,12 +242,12 @@ class ArmKinematicCorrectorPlus:
         """Forget the previous output and the untrusted-frame counters."""
         self._prev: list[tuple | None] = [None, None]
         self._lost = [0.0, 0.0, 0.0, 0.0]  # frames without a trusted depth: (left elbow, left shoulder, right ...)
-        self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when the depth was lost
+        self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when last seen
         self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
 
     def get_state_vector(self) -> np.ndarray:
         """``(36,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, and the
-        filter's estimate of each elbow/shoulder when its depth was lost (NaN when seen)."""
+        filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none)."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -401,16 +401,18 @@ class ArmKinematicCorrectorPlus:
             self._fits.add(ke)
         if not ms and ks not in self._no_prior and abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons:
             self._fits.add(ks)
-        # How far the filter's depth has travelled since the depth was lost, from our output at that time (a
-        # filter that jumps to, or drifts towards, another depth while blind is no evidence for it).
-        for k, seen, pz, j in ((ke, me, ez, 5), (ks, ms, sz, 2)):
+        # How far the filter's depth has travelled since the depth was lost, from the filter's depth in the
+        # last frame it was seen (a filter that jumps to, or drifts towards, another depth while blind is no
+        # evidence for it; one that stays where it was is).
+        for k, seen, px, py, pz in ((ke, me, ex, ey, ez), (ks, ms, sx, sy, sz)):
             if seen:
-                self._f0[k] = None
+                self._f0[k] = (px, py, pz)
                 self._travel[k] = 0.0
-                continue
-            if self._f0[k] is None:
-                self._f0[k] = (prev[j - 2], prev[j - 1], prev[j]) if prev is not None else (_NAN, _NAN, pz)
-            self._travel[k] = abs(pz - self._f0[k][2])
+            elif self._f0[k] is None:
+                self._f0[k] = (px, py, pz)
+                self._travel[k] = 0.0
+            else:
+                self._travel[k] = abs(pz - self._f0[k][2])
         self._lost[ke] = 0.0 if me else self._lost[ke] + 1.0
         self._lost[ks] = 0.0 if ms else self._lost[ks] + 1.0
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
@@ -551,8 +553,12 @@ class ArmKinematicCorrectorPlus:
         for side in (0, 1):
             # The other shoulder for the width term: its last corrected position (the filtered one may be
             # drifting on a lost depth), else the filtered one.
+            # (Only a shoulder seen when last corrected: a rebuilt one may be a wrong configuration, which
+            # the width term would copy to this side.)
             po = self._prev[1 - side]
-            if po is not None:
+            if po is not None and self._lost[2 * (1 - side) + 1] > 0:
+                other = None
+            elif po is not None:
                 other = (po[0], po[1], po[2])
             else:
                 o_other = self._offsets[1 - side][0]
