@@ -140,3 +140,32 @@ def test_missing_wrist_holds_and_state_round_trips():
         AKCPlusConfig(consistency_m=-1.0)
     with pytest.raises(ValueError, match="measured"):
         akc.correct(p, measured=np.zeros((3, 3)))
+
+
+def test_seen_elbow_is_not_pulled_onto_a_lagging_filter_wrist():
+    # Every joint measured; the filter's wrist lags 8 cm in depth (a constant-velocity KF on a fast hand).
+    # The seen shoulder and elbow keep their positions; the wrist takes the length, its x, y kept.
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    akc.correct(p, measured=p)
+    filt = p.copy()
+    filt[LW, 2] += 0.08
+    out = akc.correct(filt, measured=p).pose
+    np.testing.assert_allclose(out[[LS, LE]], p[[LS, LE]], atol=1e-9)
+    np.testing.assert_allclose(out[LW, :2], p[LW, :2], atol=1e-9)
+    assert abs(out[LW, 2] - p[LW, 2]) < abs(filt[LW, 2] - p[LW, 2])
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_lost_shoulder_stays_with_a_filter_that_fits_the_lengths():
+    # The shoulder's depth is lost for 60 frames while a wrong depth (the forearm's surface, 20 cm nearer)
+    # is measured there; the filter holds the right depth, consistent with the arm's lengths. AKC+ stays with
+    # the filter (no drift growth of its uncertainty, no switch to the mirror candidate), whatever the time.
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    akc.correct(p, measured=p)
+    meas = p.copy()
+    meas[LS, 2] -= 0.20
+    for _ in range(60):
+        out = akc.correct(p, measured=meas).pose
+        np.testing.assert_allclose(out[[LS, LE, LW]], p[[LS, LE, LW]], atol=1e-9)
