@@ -9,27 +9,39 @@ x and y). AKC+ was designed on real motion-capture clips (README, "Real motion")
    filter (its ``measured`` row is finite), is within ``consistency_m`` of the filtered depth, within ``jump_m``
    of our last output (else it is an occluder's until it has persisted ``gate_frames`` frames and fits the arm),
    and, for a shoulder, is not within ``occlusion_radius_m`` of its elbow in the image (the pair the paper's
-   occlusion filter lacks). A seen shoulder is not trusted when a seen elbow that fits the wrist contradicts it.
-   Seen joints move only as much as the exact lengths require: with a seen shoulder the elbow goes on the circle
-   at ``l_f`` from the wrist and ``l_u`` from the shoulder (nearest its filtered or rebuilt position); when that
-   would move the elbow off its image position, the elbow is placed from the shoulder and the wrist follows.
+   occlusion filter lacks). A seen shoulder is not trusted when a seen elbow that fits the wrist contradicts it
+   (upper arm off its length by more than ``consistency_m``); a shoulder the detector lost altogether yields
+   to a seen elbow. Seen joints move only as much as the exact lengths require: with a seen shoulder the elbow
+   goes on the circle at ``l_f`` from the wrist and ``l_u`` from the shoulder (nearest its filtered or rebuilt
+   position); when that would move a seen elbow by more than ``xy_tol_m`` (a lagging filter wrist) or a
+   rebuilt one off its image position, the elbow is placed from the shoulder and the wrist follows (x, y kept
+   where the length allows).
 2. **Lost depths are rebuilt with a temporally consistent choice.** The two Pythagorean candidates (eq. 7-8
    with the full calibrated length; x, y of the joint kept when detected, else a radial correction when the
    filter's estimate is near the length) are scored as Gaussian log-likelihoods::
 
        J = |p - p̂|^2 / sigma_f^2 + min(|p - p_prev|^2 / sigma_t^2, cap^2) [+ width, torso and m5 terms]
 
-   ``sigma_f`` grows with the frames since the depth was last seen (a constant-velocity filter extrapolating a
-   lost depth drifts) and the filter term is dropped when its estimate was replaced by our last output; the
-   temporal term is capped so that persistent evidence can undo a wrong configuration. Switching to the mirror
+   ``sigma_f`` grows with the distance the filter's depth has travelled since it was last seen (twice it) and,
+   unless the filter's estimate still fits the calibrated length within ``consistency_m``, with the frames
+   since then (a constant-velocity filter extrapolating a lost depth drifts; one that holds a depth consistent
+   with the lengths is evidence). When rebuilding the elbow from a seen shoulder, the point at ``l_u`` nearest
+   the filter's elbow is a candidate beside the pair. The filter term is dropped when its estimate was
+   replaced by our last output; the temporal term is capped so that persistent evidence can undo a wrong
+   configuration. Switching to the mirror
    candidate (2r away) needs evidence over several frames; an arm passing through the image plane (r -> 0)
-   follows the filter. The shoulder candidates also weigh the shoulder width and the shoulders' depth about the
-   hips' (torso lean ``sigma_torso_m``); folded or hyperextended candidates get m5's penalty.
+   follows the filter. The shoulder candidates also weigh the shoulder width (against the other shoulder only
+   when that was seen) and the shoulders' depth about the hips' (torso lean ``sigma_torso_m``); folded
+   candidates are vetoed, hyperextended ones (a sign test that noise flips on nearly straight arms) get a
+   finite penalty (5 standard deviations squared).
 3. **No shrink factor**: seen depths make the near-in-plane ± instability, the shrink factor's reason, moot.
 
 The wrist is the anchor (the paper's assumption) except when a seen shoulder and elbow contradict it. Every
-output arm has exactly the calibrated lengths (to rounding). Plain Python floats (about 15 µs per frame for both
-arms; numpy calls would cost more than the arithmetic).
+output arm has exactly the calibrated lengths (to rounding). Plain Python floats (15-19 µs per frame for both
+arms on real clips; numpy calls would cost more than the arithmetic).
+
+AKC+ sees only the filter's estimate, not its covariance (the corrector's interface is the pose and the
+occlusion filter's output); the filter's uncertainty is inferred from how long and how far it has been blind.
 """
 
 from __future__ import annotations
