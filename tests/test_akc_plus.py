@@ -17,7 +17,7 @@ def arm_pose(elbow_dir_l=(0.3, 0.5, -0.8), wrist_dir_l=(0.2, -0.3, -0.9)) -> tup
     p = np.zeros((12, 3))
     p[LS] = [0.18, 0.0, 2.0]
     p[RS] = [-0.18, 0.0, 2.0]
-    for side, (s, e, w), sign in ((0, (LS, LE, LW), 1.0), (1, (RS, RE, RW), -1.0)):
+    for _side, (s, e, w), sign in ((0, (LS, LE, LW), 1.0), (1, (RS, RE, RW), -1.0)):
         de = np.array(elbow_dir_l) * [sign, 1, 1]
         dw = np.array(wrist_dir_l) * [sign, 1, 1]
         p[e] = p[s] + 0.29 * de / np.linalg.norm(de)
