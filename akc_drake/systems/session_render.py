@@ -159,6 +159,7 @@ def render_session(
 
     K = intrinsics or CameraIntrinsics()
     offsets = surface_offsets(surface_offset_m)
+    owned = isinstance(detector, str)  # a detector made here from its name is closed here
     detector = make_detector(detector, seed)
     if not isinstance(detector, Detector):
         raise ValueError(f"detector must implement the Detector protocol (name, detect), got {detector!r}")
@@ -214,6 +215,8 @@ def render_session(
             frame_callback(frame)
         if progress is not None:
             progress(k + 1, T)
+    if owned and hasattr(detector, "close"):
+        detector.close()
     return Session(
         t=times,
         raw=raw,
