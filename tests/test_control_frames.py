@@ -118,5 +118,22 @@ def test_hand_vector_is_rebuilt_from_its_image_part_and_the_hand_width():
     # ... then the previous frame's sign, whatever the noisy depth says.
     h2 = F.reconstruct_hand_vector([0.03, 0.0, +0.02], 0.07, h)
     assert h2[2] < 0
-    # An image part as long as the hand: no depth part.
-    np.testing.assert_allclose(F.reconstruct_hand_vector([0.0, 0.08, 0.05], 0.07), [0.0, 0.08, 0.0])
+    # An image part as long as the hand: no depth part (1 nm, which keeps the sign for the next frame).
+    flat = F.reconstruct_hand_vector([0.0, 0.08, -0.05], 0.07, h)
+    np.testing.assert_allclose(flat, [0.0, 0.08, 0.0], atol=1e-8)
+    assert F.reconstruct_hand_vector([0.03, 0.0, +0.03], 0.07, flat)[2] < 0  # the sign survived the flat frame
+    # A knuckle line three hands long is a failed landmark: the previous vector is kept.
+    np.testing.assert_array_equal(F.reconstruct_hand_vector([0.2, 0.1, 0.0], 0.07, h), h)
+
+
+def test_hand_vector_sign_from_the_forearm():
+    # Forearm f = (0.9, 0, 0.43), partly along the camera ray: of (3, 0, +6.3) and (3, 0, -6.3) cm, the second
+    # is perpendicular to it (|cos| 0.0 against 0.77): it wins over the previous frame's sign and over the
+    # measured depth.
+    f = np.array([0.9, 0.0, 0.43])
+    prev = np.array([0.03, 0.0, 0.06])
+    h = F.reconstruct_hand_vector([0.03, 0.0, 0.05], 0.07, prev, f)
+    assert h[2] < 0
+    # A forearm in the image plane says nothing about the depth sign: the previous frame's is kept.
+    h = F.reconstruct_hand_vector([0.03, 0.0, -0.05], 0.07, prev, np.array([0.0, 1.0, 0.0]))
+    assert h[2] > 0

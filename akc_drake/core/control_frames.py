@@ -103,7 +103,7 @@ class ControlFrameTracker:
             return None
         return v[:9].reshape(3, 3), v[9:12]
 
-    def _hand_vector(self, state: np.ndarray, sl: slice, h: np.ndarray) -> np.ndarray:
+    def _hand_vector(self, state: np.ndarray, sl: slice, h: np.ndarray, forearm: np.ndarray) -> np.ndarray:
         """The hand vector rebuilt from its image-plane part (:func:`reconstruct_hand_vector`); the hand's
         width is learnt from frames whose hand vector lies mostly in the image plane (exponential average)."""
         v = state[sl]
@@ -111,7 +111,7 @@ class ControlFrameTracker:
         n = float(np.linalg.norm(h))
         if n > 1e-6 and float(np.linalg.norm(h[:2])) >= 0.8 * n and 0.03 < n < 0.15:
             width += 0.1 * (n - width)
-        out = reconstruct_hand_vector(h, width, v[1:4] if np.all(np.isfinite(v[1:4])) else None)
+        out = reconstruct_hand_vector(h, width, v[1:4] if np.all(np.isfinite(v[1:4])) else None, forearm)
         state[sl] = np.concatenate([[width], out])
         return out
 
@@ -142,7 +142,7 @@ class ControlFrameTracker:
             p_e, p_w, p_i, p_p = (pose[INDEX[f"{side}_{n}"]] for n in ("elbow", "wrist", "index", "pinky"))
             R_w = None
             if np.all(np.isfinite([p_e, p_w, p_i, p_p])):
-                h = self._hand_vector(state, hand_sl, p_i - p_p) if self.robust_wrist else p_i - p_p
+                h = self._hand_vector(state, hand_sl, p_i - p_p, p_e - p_w) if self.robust_wrist else p_i - p_p
                 R_w = wrist_frame(p_e, p_w, p_p + h, p_p)
             if R_w is None:
                 continue

@@ -19,6 +19,7 @@ CORRECTORS: dict[str, tuple[str, str]] = {
     "Raw": ("none", "none"),
     "KF": ("KF", "none"),
     "AKC(KF)": ("KF", "AKC"),
+    "AKC+(KF)": ("KF", "AKC+"),  # ours: AKC with a temporally consistent candidate choice (core/akc_plus.py)
     "COIK(KF)": ("KF", "COIK"),
 }
 #: The configuration whose figures are the headline (and that is also run with rendering and recorded).
