@@ -126,3 +126,8 @@ def test_wrist_rotation_lags_a_turn_by_under_50_ms_and_a_one_frame_flip_is_rejec
     assert rotation_angle(R0.T @ R_hold) < 1e-9
     R_back, _ = f(0.6, R0, p)
     assert rotation_angle(R0.T @ R_back) < 1e-9
+    # A mirror that persists beyond reacquire_s (0.5 s) is followed, at 10 rad/s (1 rad per frame), not in a jump.
+    out = [f(0.7 + k * dt, R0 @ np.diag([-1.0, 1.0, -1.0]), p)[0] for k in range(12)]
+    steps = [rotation_angle(a.T @ b) for a, b in zip(out[:-1], out[1:], strict=True)]
+    assert max(steps) <= 1.0 + 1e-9 and sum(s > 0.5 for s in steps) == 3  # pi in 3 steps
+    assert rotation_angle((R0 @ np.diag([-1.0, 1.0, -1.0])).T @ out[-1]) < 0.1

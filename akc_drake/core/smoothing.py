@@ -18,7 +18,8 @@ from the estimate: those are a mirror flip of an
 eq. (17) frame (the hand vector ``p_i - p_p`` or a shoulder depth reconstructed on the wrong side), not a motion
 a person makes in one camera period. A One Euro filter alone would *follow* such an outlier (its speed raises
 the cutoff). A genuine large turn is accepted once it has persisted for ``reacquire_s`` (the estimate is then
-reset to the sample), so the guard cannot lock a track out.
+reset to the sample, or with ``slew`` turned toward it at ``max_angular_speed``), so the guard cannot lock a
+track out.
 
 Everything is numpy + scipy; the filter's state is a flat vector (:data:`STATE_SIZE`) so a Drake system can keep
 it in discrete state.
@@ -76,13 +77,16 @@ class SE3SmoothingParams:
         position: One Euro parameters of the position (speed in m/s).
         rotation: One Euro parameters of the rotation (speed in rad/s).
         max_angular_speed: flip guard on rotation, rad/s (None: off).
-        reacquire_s: a rejected change that persists this long is accepted (the estimate jumps to it).
+        reacquire_s: a rejected change that persists this long is accepted.
+        slew: how it is accepted: False, the estimate jumps to it; True, the estimate turns toward it at
+            ``max_angular_speed`` (a commanded wrist never turns half a turn in one step).
     """
 
     position: OneEuroParams
     rotation: OneEuroParams
     max_angular_speed: float | None = None
     reacquire_s: float = 0.5
+    slew: bool = False
 
 
 #: Wrist targets (robot frame T). Position: cutoff 2 Hz at rest rising by 10 Hz per m/s (a hand moving at
@@ -95,8 +99,8 @@ class SE3SmoothingParams:
 #: frame (the hand vector's depth sign), which no low-pass removes without seconds of lag. So:
 #:
 #: * ``max_angular_speed = 10 rad/s``: a person's fastest forearm pronation/supination stays below this, while
-#:   a flip in one 0.1 s frame is > 25 rad/s; such a sample is rejected, and accepted (estimate reset) only
-#:   when it persists for ``reacquire_s = 0.5 s``;
+#:   a flip in one 0.1 s frame is > 25 rad/s; such a sample is rejected, and followed (at 10 rad/s, not in one
+#:   jump) only when it persists for ``reacquire_s = 0.5 s``;
 #: * ``min_cutoff_hz = 2.0``: the top of the operator's band; the noise above it (2-5 Hz, ~half of it) is cut.
 #:   A first-order filter at ``fc`` lags by ``1 / (2 pi fc)`` at rest (80 ms at 2 Hz);
 #: * ``beta = 0.1`` Hz per rad/s: at the operator's 1-3 rad/s turns the cutoff rises to 2.1-2.3 Hz; a larger
@@ -108,6 +112,7 @@ WRIST_SMOOTHING = SE3SmoothingParams(
     rotation=OneEuroParams(min_cutoff_hz=2.0, beta=0.1, d_cutoff_hz=1.0),
     max_angular_speed=10.0,
     reacquire_s=0.5,
+    slew=True,
 )
 #: Torso frame: a standing operator's torso moves slowly, and its shoulders are the most occluded landmarks
 #: (the arms reach toward the camera): 0.3 Hz at rest; a turn faster than 1.5 rad/s is a flip (held for up
@@ -191,8 +196,14 @@ class SE3OneEuro:
             since = float(t) if not math.isfinite(rej) else rej
             if float(t) - since < prm.reacquire_s:
                 return _pack(p_new, v, q0, w0, t, since), rot0.as_matrix(), p_new, False
-            # The change has persisted: it is real. Restart the rotation estimate from the sample.
-            return _pack(p_new, v, rot.as_quat(), np.zeros(3), t, math.nan), R.copy(), p_new, True
+            # The change has persisted: it is real.
+            if not prm.slew:  # restart the rotation estimate from the sample
+                return _pack(p_new, v, rot.as_quat(), np.zeros(3), t, math.nan), R.copy(), p_new, True
+            # Turn toward it at the guard's speed (never a jump: the robot's wrist is not commanded through half a
+            # turn in one step); the guard stays open until it is reached.
+            n = float(np.linalg.norm(delta))
+            rot_new = rot0 * Rotation.from_rotvec(delta * min(1.0, prm.max_angular_speed * dt / n))
+            return _pack(p_new, v, rot_new.as_quat(), np.zeros(3), t, since), rot_new.as_matrix(), p_new, True
         w = w0 + alpha(prm.rotation.d_cutoff_hz, dt) * (delta / dt - w0)
         fc_r = prm.rotation.min_cutoff_hz + prm.rotation.beta * float(np.linalg.norm(w))
         rot_new = rot0 * Rotation.from_rotvec(alpha(fc_r, dt) * delta)

@@ -8,7 +8,7 @@
    (:func:`~akc_drake.systems.depth_camera_source.render_session`). With ``dropout > 0``, the same bursts of
    lost frames (the whole person, 0.5-3 s each, seeded: :func:`akc_drake.faults.inject_dropouts`) are
    blanked in every corrector's replay.
-3. **Teleoperate** the robot with each corrector (:data:`CORRECTORS`: Raw, KF, AKC(KF), COIK(KF)) by
+3. **Teleoperate** the robot with each corrector (:data:`CORRECTORS`: Raw, KF, AKC(KF), AKC+(KF), COIK(KF)) by
    replaying the same measurements through the teleop diagram, and once more with the AKC(KF) pipeline
    *rendering* its camera frames inside the diagram (the realtime factor of the full pipeline).
 4. **Report**: a table per motion and pooled (:func:`format_table`), ``demo.json``, the end-effector paths

@@ -19,7 +19,7 @@ def _save_figure(fig, path: Path) -> Path:
     return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format=path.suffix.lstrip(".") or "png"))
 
 
-_COLORS = {"Raw": "tab:red", "KF": "tab:orange", "AKC(KF)": "tab:blue", "COIK(KF)": "tab:green"}
+_COLORS = {"Raw": "tab:red", "KF": "tab:orange", "AKC(KF)": "tab:blue", "AKC+(KF)": "tab:cyan", "COIK(KF)": "tab:green"}
 
 
 def plot_paths(runs: list[TeleopRun], path: Path, title: str = "") -> Path:
