@@ -37,7 +37,7 @@ x and y). AKC+ was designed on real motion-capture clips (README, "Real motion")
 3. **No shrink factor**: seen depths make the near-in-plane ± instability, the shrink factor's reason, moot.
 
 The wrist is the anchor (the paper's assumption) except when a seen shoulder and elbow contradict it. Every
-output arm has exactly the calibrated lengths (to rounding). Plain Python floats (15-19 µs per frame for both
+output arm has exactly the calibrated lengths (to rounding). Plain Python floats (15-21 µs per frame for both
 arms on real clips; numpy calls would cost more than the arithmetic).
 
 AKC+ sees only the filter's estimate, not its covariance (the corrector's interface is the pose and the
