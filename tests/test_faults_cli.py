@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from akc_drake import cli
+from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.fileio import atomic_save_npz as save_npz_atomic
 from akc_drake.fileio import write_json
-from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.io.recording import RecordingWriter
 
 DATA = Path(__file__).parent / "data" / "mocap"

@@ -24,8 +24,8 @@ from __future__ import annotations
 import math
 import os
 import re
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 

@@ -297,9 +297,9 @@ def write_teleop_bag(path, recordings, *, world: WorldFrame | None = None, gap_s
     if len(st) == len(recs):  # the measured joint state of every run (else none: a bag is not half-logged)
         states = JointSeries(np.concatenate([a for a, _, _ in st]), recs[0].states.names,
                              np.concatenate([b for _, b, _ in st]), np.concatenate([c for _, _, c in st]))
+    robot_frames = {k: (np.concatenate(a), np.concatenate(b)) for k, (a, b) in tg.items()}
     return write_ros2_bag(path, np.concatenate(ts), {k: np.concatenate(v) for k, v in sk.items()}, world=world,
-                          joint_commands=cmds, joint_states=states, robot_frames={k: (np.concatenate(a), np.concatenate(b))
-                                                             for k, (a, b) in tg.items()}, start_ns=start_ns)
+                          joint_commands=cmds, joint_states=states, robot_frames=robot_frames, start_ns=start_ns)
 
 
 def _file_stem(method: str) -> str:
