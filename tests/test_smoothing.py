@@ -40,14 +40,12 @@ def test_noise_on_a_constant_frame_is_reduced_by_a_measured_factor():
     ang_in, lin_in = frame_jitter(noisy[20:], DT)
     ang_out, lin_out = frame_jitter(out[20:], DT)
     print(f"jitter reduction: angular x{ang_in / ang_out:.1f}, linear x{lin_in / lin_out:.1f}")
-    # Measured with seed 0: angular jitter / 2.1, linear / 1.8 (both cutoffs at 2 Hz at rest: the rotation's
-    # lag is kept under 50 ms, so white noise is only about halved; flips are the guard's job).
-    assert ang_out < ang_in / 1.8
+    # Measured with seed 0: angular jitter / 8.0, linear / 1.8 (the position cutoff is higher: little lag).
+    assert ang_out < ang_in / 6.0
     assert lin_out < lin_in / 1.5
     # The estimate stays near the true frame (no drift).
     errs = [rotation_angle(R0.as_matrix().T @ X[:3, :3]) for X in out[20:]]
-    # (the input's median error is ~12 deg: 8 deg per axis; measured output 7.5 deg)
-    assert float(np.median(errs)) < math.radians(9.0)
+    assert float(np.median(errs)) < math.radians(5.0)
 
 
 def test_rotation_is_filtered_on_the_manifold_across_pi():
@@ -102,14 +100,14 @@ def test_estimate_lag_finds_a_known_delay():
     assert sm.estimate_lag(x, x, DT) == pytest.approx(0.0, abs=1e-9)
 
 
-def test_wrist_rotation_lags_a_turn_by_under_50_ms_and_a_one_frame_flip_is_rejected():
+def test_low_lag_wrist_rotation_lags_a_turn_by_under_60_ms_and_a_one_frame_flip_is_rejected():
     # An operator turning the wrist at 1 Hz (+/- 0.5 rad about a fixed axis), sampled at 10 Hz (the camera).
     dt = 0.1
     t = np.arange(100) * dt
     axis = np.array([0.3, 0.9, 0.3]) / np.linalg.norm([0.3, 0.9, 0.3])
     Rs = [Rotation.from_rotvec(0.5 * math.sin(2 * math.pi * tk) * axis).as_matrix() for tk in t]
     p = np.zeros(3)
-    f = sm.SE3OneEuro(sm.WRIST_SMOOTHING)
+    f = sm.SE3OneEuro(sm.WRIST_SMOOTHING_LOW_LAG)
     out = np.array([f(tk, R, p)[0] for tk, R in zip(t, Rs, strict=True)])
     rv_in = Rotation.from_matrix(np.array(Rs)).as_rotvec()
     rv_out = Rotation.from_matrix(out).as_rotvec()
@@ -117,8 +115,12 @@ def test_wrist_rotation_lags_a_turn_by_under_50_ms_and_a_one_frame_flip_is_rejec
     # Measured 55 ms on this 1 Hz turn (peak 3.1 rad/s, the top of an operator's band); the old 0.3 Hz setting
     # lagged by more than 200 ms.
     assert lag <= 0.060
+    slow = sm.SE3OneEuro(sm.WRIST_SMOOTHING)
+    out_slow = np.array([slow(tk, R, p)[0] for tk, R in zip(t, Rs, strict=True)])
+    lag_slow = sm.estimate_lag(rv_in[10:], Rotation.from_matrix(out_slow).as_rotvec()[10:], dt, max_lag_s=0.5)
+    assert lag_slow > 0.12  # the default's price: 155 ms on this 1 Hz turn (more on slower ones)
     # One frame mirrored by pi about the frame's y axis (the hand vector's depth sign): held, not followed.
-    f = sm.SE3OneEuro(sm.WRIST_SMOOTHING)
+    f = sm.SE3OneEuro(sm.WRIST_SMOOTHING_LOW_LAG)
     R0 = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
     for k in range(5):
         f(k * dt, R0, p)

@@ -90,13 +90,19 @@ class SE3SmoothingParams:
 
 
 #: Wrist targets (robot frame T). Position: cutoff 2 Hz at rest rising by 10 Hz per m/s (a hand moving at
-#: 0.5 m/s is followed at 7 Hz: about 20 ms of lag).
-#:
-#: Rotation, set from the measured noise (the rendered bench, 10 Hz camera, AKC+(KF) landmarks; see the README's
-#: demo section): the per-frame error of the rebuilt wrist rotation is broadband (its power is spread evenly
-#: up to the 5 Hz Nyquist frequency) while the operator's wrist motion has 97 % of its power below 2 Hz. Its
-#: RMS angular speed is dominated (80-90 % of the squared sum) by a few mirror flips of ~150-175 deg in one
-#: frame (the hand vector's depth sign), which no low-pass removes without seconds of lag. So:
+#: 0.5 m/s is followed at 7 Hz: about 20 ms of lag). Rotation: 0.3 Hz at rest rising by 0.02 Hz per rad/s, no
+#: guard (mirror flips are resolved before the filter: :func:`akc_drake.core.frames.reconstruct_hand_vector`,
+#: :func:`akc_drake.core.frames.resolve_wrist_flip`). This adds 250-350 ms of lag to the rotation (more during
+#: a flip episode): :data:`WRIST_SMOOTHING_LOW_LAG` is the alternative, measured worse (README, demo section).
+WRIST_SMOOTHING = SE3SmoothingParams(
+    position=OneEuroParams(min_cutoff_hz=2.0, beta=10.0, d_cutoff_hz=1.0),
+    rotation=OneEuroParams(min_cutoff_hz=0.3, beta=0.02, d_cutoff_hz=1.0),
+    max_angular_speed=None,
+)
+#: The wrist smoothing set from the measured noise for <= 50 ms of rotation lag (the rendered bench, 10 Hz camera):
+#: the per-frame error of the rebuilt wrist rotation is broadband (its power spread evenly up to the 5 Hz Nyquist
+#: frequency) while the operator's wrist motion has 97 % of its power below 2 Hz, and its RMS angular speed is
+#: dominated (80-90 % of the squared sum) by a few mirror flips of ~150-175 deg in one frame. So:
 #:
 #: * ``max_angular_speed = 10 rad/s``: a person's fastest forearm pronation/supination stays below this, while
 #:   a flip in one 0.1 s frame is > 25 rad/s; such a sample is rejected, and followed (at 10 rad/s, not in one
@@ -104,10 +110,12 @@ class SE3SmoothingParams:
 #: * ``min_cutoff_hz = 2.0``: the top of the operator's band; the noise above it (2-5 Hz, ~half of it) is cut.
 #:   A first-order filter at ``fc`` lags by ``1 / (2 pi fc)`` at rest (80 ms at 2 Hz);
 #: * ``beta = 0.1`` Hz per rad/s: at the operator's 1-3 rad/s turns the cutoff rises to 2.1-2.3 Hz; a larger
-#:   beta would read the residual noise (several rad/s) as speed. Measured added latency: 35-50 ms.
+#:   beta would read the residual noise (several rad/s) as speed.
 #:
-#: The old setting (0.3 Hz, no guard) smeared the flips into slow turns at 200-350 ms of lag.
-WRIST_SMOOTHING = SE3SmoothingParams(
+#: Measured on the demo (two seeds): 45-50 ms of rotation lag in most runs, but 1.4-2.4x the operator's angular
+#: jitter and, on one seed, 2-2.7 % IK failures (the 2 Hz rotation passes the residual noise to the IK): not the
+#: default.
+WRIST_SMOOTHING_LOW_LAG = SE3SmoothingParams(
     position=OneEuroParams(min_cutoff_hz=2.0, beta=10.0, d_cutoff_hz=1.0),
     rotation=OneEuroParams(min_cutoff_hz=2.0, beta=0.1, d_cutoff_hz=1.0),
     max_angular_speed=10.0,
