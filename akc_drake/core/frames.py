@@ -663,54 +663,37 @@ def resolve_wrist_flip(R_C, hand_vector_C, R_previous_C) -> np.ndarray:
 DEFAULT_HAND_WIDTH_M = 0.07
 
 
-#: The knuckle line ``p_i - p_p`` is about perpendicular to the forearm (the wrist's flexion axis runs along it;
-#: radial/ulnar deviation tilts it by up to ~30 deg, |cos| <= 0.5): of the two depth signs, the one whose vector
-#: is more perpendicular to the forearm is taken when their |cos| to the forearm differ by at least this much
-#: (0.6: more than the deviation a wrist makes, so a decision rests on the geometry, not on noise).
-FOREARM_SIGN_MARGIN = 0.6
-#: A measured knuckle line whose image-plane part is longer than this many hand widths is a failed landmark
-#: (the previous hand vector is kept).
-HAND_OUTLIER_WIDTHS = 1.5
+#: The knuckle line is ~perpendicular to the forearm (ulnar/radial deviation <= ~30 deg): the depth sign more
+#: perpendicular to it wins when their |cos| differ by this much. Image part > HAND_OUTLIER_WIDTHS widths: failed.
+FOREARM_SIGN_MARGIN, HAND_OUTLIER_WIDTHS = 0.6, 1.5
 
 
 def reconstruct_hand_vector(h_C, width_m: float, h_previous_C=None, forearm_C=None) -> np.ndarray:
     """The hand vector ``p_i - p_p`` (camera frame) rebuilt from its image-plane part and the hand's width.
 
-    The same idea as AKC's for the arm, applied to the hand: the knuckles' image coordinates (x, y of C) are
-    reliable, their depths are not (two small, often self-occluded targets ~7 cm apart), while the distance
-    between them is a constant of the hand. So the depth difference is taken as
-    ``dz = +/- sqrt(width^2 - |h_xy|^2)`` (0 when the image part is already as long as the hand is wide).
-    The sign: the measured depth difference carries almost no information on it (on the rendered bench it is
-    wrong in half of the frames where the true depth difference exceeds 2 cm), so it is taken, in this order,
-    from the forearm (``forearm_C``, ``p_e - p_w``: the candidate more perpendicular to it, when the two differ
-    by :data:`FOREARM_SIGN_MARGIN` in |cos|: the knuckle line is about perpendicular to the forearm), from the
-    previous frame's vector (a hand does not turn over between two frames), from the measured depth difference.
-    The depth part is never exactly 0 (at least 1 nm), so the sign survives frames where the hand lies in the
-    image plane (a 0 there would re-seed it from the noisy measured depth). A measured vector whose image part
-    is longer than :data:`HAND_OUTLIER_WIDTHS` hand widths is a failed landmark: the previous vector is kept.
+    AKC's idea applied to the hand: the knuckles' image coordinates (x, y of C) are reliable, their depths are not,
+    their distance is a constant of the hand: ``dz = +/- sqrt(width^2 - |h_xy|^2)``. The measured depth difference
+    says little about the sign (wrong in half of the bench's frames where the true one exceeds 2 cm), so the sign
+    comes from the forearm (:data:`FOREARM_SIGN_MARGIN`), else the previous frame (a hand does not turn over between
+    two frames), else the measured depths. ``dz`` is at least 1 nm, so the sign survives frames with the hand in the
+    image plane. An image part over :data:`HAND_OUTLIER_WIDTHS` hand widths is a failed landmark: the previous vector
+    is kept.
 
     Args:
         h_C: ``(3,)`` the measured ``p_i - p_p`` in C; width_m: the hand's knuckle distance;
-        h_previous_C: the previous reconstructed vector, or None; forearm_C: ``(3,)`` ``p_e - p_w`` in C, or
-            None.
+        h_previous_C: the previous reconstructed vector, or None; forearm_C: ``p_e - p_w`` in C, or None.
     """
-    h = np.asarray(h_C, dtype=float)
+    h, dxy2 = np.asarray(h_C, dtype=float), float(h_C[0] ** 2 + h_C[1] ** 2)
     has_previous = h_previous_C is not None and bool(np.all(np.isfinite(h_previous_C)))
-    dxy2 = float(h[0] ** 2 + h[1] ** 2)
     if has_previous and dxy2 > (HAND_OUTLIER_WIDTHS * width_m) ** 2:
         return np.asarray(h_previous_C, dtype=float).copy()
     dz = max(math.sqrt(max(width_m**2 - dxy2, 0.0)), 1e-9)
-    if forearm_C is not None and dz > 0.0:
-        f = np.asarray(forearm_C, dtype=float)
-        nf = float(np.linalg.norm(f))
-        if math.isfinite(nf) and nf > MIN_NORM_M:
-            n_h = math.sqrt(dxy2 + dz**2)
-            c_plus = abs(float(h[0] * f[0] + h[1] * f[1] + dz * f[2])) / (nf * n_h)
-            c_minus = abs(float(h[0] * f[0] + h[1] * f[1] - dz * f[2])) / (nf * n_h)
-            if abs(c_plus - c_minus) >= FOREARM_SIGN_MARGIN:
-                return np.array([h[0], h[1], dz if c_plus < c_minus else -dz])
-    if has_previous and float(h_previous_C[2]) != 0.0:
-        sign = 1.0 if float(h_previous_C[2]) > 0.0 else -1.0
-    else:
-        sign = 1.0 if h[2] >= 0.0 else -1.0
-    return np.array([h[0], h[1], sign * dz])
+    f = np.asarray(forearm_C if forearm_C is not None else np.full(3, np.nan), dtype=float)
+    nf = float(np.linalg.norm(f))
+    if math.isfinite(nf) and nf > MIN_NORM_M:  # |cos| of each candidate to the forearm
+        c_plus, c_minus = (abs(float(h[0] * f[0] + h[1] * f[1] + sg * dz * f[2])) / (nf * math.sqrt(dxy2 + dz**2))
+                           for sg in (1.0, -1.0))
+        if abs(c_plus - c_minus) >= FOREARM_SIGN_MARGIN:
+            return np.array([h[0], h[1], dz if c_plus < c_minus else -dz])
+    ref = float(h_previous_C[2]) if has_previous and float(h_previous_C[2]) != 0.0 else float(h[2])
+    return np.array([h[0], h[1], dz if ref >= 0.0 else -dz])
