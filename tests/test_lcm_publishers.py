@@ -73,7 +73,7 @@ CHILD = textwrap.dedent(
     got = []
     lcm.Subscribe(sys.argv[2], lambda m: got.append(lcmt_robot_state.decode(m)))
     print("ready", flush=True)
-    for _ in range(100):
+    for _ in range(1200):  # up to 60 s: the parent may take seconds to build its diagram on a loaded machine
         lcm.HandleSubscriptions(50)
         if len(got) >= 5:
             break
