@@ -13,17 +13,19 @@ from pydrake.multibody.plant import MultibodyPlant
 
 from akc_drake.core.skeleton import INDEX, LANDMARKS, BodyDimensions, segment_lengths
 from akc_drake.operator.model import (
-    MESH_FOLDER,
-    MESHES,
     NEUTRAL_FOREARM_ROLL,
     NUM_ARM_DOF,
     OperatorParams,
-    add_operator,
     arm_angles_from_directions,
     arm_forward_kinematics,
     arm_rotations,
-    landmark_positions,
     landmarks_from_q,
+)
+from akc_drake.operator.sdf import (
+    MESH_FOLDER,
+    MESHES,
+    add_operator,
+    landmark_positions,
     operator_position_indices,
     operator_sdf,
 )
@@ -52,7 +54,7 @@ def test_models_file_is_the_generator_output():
     sdf = MODELS_DIR / "operator.sdf"
     assert sdf.read_text(encoding="utf-8") == operator_sdf(OperatorParams()), (
         "akc_drake/models/operator.sdf is stale: regenerate it with "
-        "python -c 'from akc_drake.operator.model import write_operator_sdf; "
+        "python -c 'from akc_drake.operator.sdf import write_operator_sdf; "
         'write_operator_sdf("akc_drake/models/operator.sdf")\''
     )
     for name, gen in MESHES.items():

@@ -1,4 +1,4 @@
-"""The simulated operator: a human upper body built from primitives, as SDF, and its arm kinematics.
+"""The simulated operator: a human upper body built from primitives, its parameters and arm kinematics (its SDF: :mod:`akc_drake.operator.sdf`).
 
 Operator frame O: origin at the pelvis (midpoint of the two hip joint centres), x forward (the way the
 person faces), y to the person's left, z up. The camera looks at the operator from the front, so its
@@ -38,17 +38,12 @@ rendered depth is its surface depth, or an occluder's.
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 
 import numpy as np
 
 from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS, SIDES, BodyDimensions
-from akc_drake.fileio import atomic_write_text
 
 #: Revolute joints per arm (3 shoulder, elbow flexion, forearm roll).
 NUM_ARM_DOF = 5
@@ -186,12 +181,12 @@ class OperatorParams:
 
     def shoulder_O(self, side: str) -> np.ndarray:
         """Shoulder joint centre of ``side`` in O."""
-        s = _side_sign(side)
+        s = side_sign(side)
         return np.array([0.0, s * self.dims.SW / 2.0, self.torso_height])
 
     def hip_O(self, side: str) -> np.ndarray:
         """Hip joint centre of ``side`` in O."""
-        s = _side_sign(side)
+        s = side_sign(side)
         return np.array([0.0, s * self.hip_width / 2.0, 0.0])
 
     def R_H_hand(self, side: str) -> np.ndarray:
@@ -201,23 +196,23 @@ class OperatorParams:
         the frame's z axis (the thumb axis, across the wrist) by ``wrist_extension_deg``, so that the fingers
         bend toward the back of the hand (-x of the hand frame, the palm facing +x) on both sides.
         """
-        a = math.radians(self.wrist_extension_deg) * _side_sign(side)
+        a = math.radians(self.wrist_extension_deg) * side_sign(side)
         c, sn = math.cos(a), math.sin(a)
         return np.array([[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]])
 
     def index_H(self, side: str) -> np.ndarray:
         """Index MCP in ``side``'s hand frame (origin at the wrist, aligned with O at q = 0)."""
-        s = _side_sign(side)
+        s = side_sign(side)
         return self.R_H_hand(side) @ np.array([0.0, s * self.knuckle_distance, self.knuckle_offset])
 
     def pinky_H(self, side: str) -> np.ndarray:
         """Pinky MCP in ``side``'s hand frame (a little closer to the wrist than the index MCP)."""
-        s = _side_sign(side)
+        s = side_sign(side)
         p = np.array([0.0, s * (self.knuckle_distance - 0.008), -self.knuckle_offset])
         return self.R_H_hand(side) @ p
 
 
-def _side_sign(side: str) -> float:
+def side_sign(side: str) -> float:
     if side == "left":
         return 1.0
     if side == "right":
@@ -274,7 +269,7 @@ def arm_forward_kinematics(side: str, q: np.ndarray, params: OperatorParams | No
     params = params or OperatorParams()
     single = np.ndim(q) == 1
     q2 = np.atleast_2d(np.asarray(q, dtype=float))
-    s = _side_sign(side)
+    s = side_sign(side)
     R_OU, R_OF, R_OH = arm_rotations(side, q2)
     p_S = params.shoulder_O(side)
     y = np.array([0.0, s, 0.0])
@@ -411,7 +406,7 @@ def arm_angles_from_directions(
     Raises:
         ValueError: a wrong shape, or a non-finite or zero direction (naming the argument and frame).
     """
-    s = _side_sign(side)
+    s = side_sign(side)
     u = _unit_rows(upper_dir_O, "upper_dir_O")
     T = u.shape[0]
     f = _unit_rows(fore_dir_O, "fore_dir_O", T)
@@ -444,358 +439,6 @@ def arm_angles_from_directions(
     return np.stack([q0, q1, q2, q3, q4], axis=1)
 
 
-# --------------------------------------------------------------------------------------------------
-# Meshes and SDF
-# --------------------------------------------------------------------------------------------------
-
-#: Folder (next to the SDF) holding the operator's low-polygon unit meshes.
-MESH_FOLDER = "operator_meshes"
-_MESH_SEGMENTS = 16
-_MESH_RINGS = 10
-
-
-def unit_sphere_obj(segments: int = _MESH_SEGMENTS, rings: int = _MESH_RINGS) -> str:
-    """A low-polygon unit sphere as OBJ text (smooth normals).
-
-    Drake's built-in curved shapes are finely tessellated, which makes software rendering slow
-    (~25 ms per depth image for this model); scaled low-polygon meshes render several times faster with
-    a surface error below 2 % of the radius.
-    """
-    v = [(0.0, 0.0, 1.0)]
-    for i in range(1, rings):
-        th = math.pi * i / rings
-        for j in range(segments):
-            ph = 2 * math.pi * j / segments
-            v.append((math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th)))
-    v.append((0.0, 0.0, -1.0))
-
-    def k(i, j):  # 1-based OBJ index of ring i (1..rings-1), segment j
-        return 2 + (i - 1) * segments + (j % segments)
-
-    faces = [(1, k(1, j), k(1, j + 1)) for j in range(segments)]
-    for i in range(1, rings - 1):
-        for j in range(segments):
-            faces.append((k(i, j), k(i + 1, j), k(i + 1, j + 1)))
-            faces.append((k(i, j), k(i + 1, j + 1), k(i, j + 1)))
-    last = len(v)
-    faces += [(last, k(rings - 1, j + 1), k(rings - 1, j)) for j in range(segments)]
-    lines = ["# unit sphere, generated by akc_drake.operator.model.unit_sphere_obj()\n"]
-    lines += [f"v {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in v]
-    lines += [f"vn {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in v]
-    lines += [f"f {a}//{a} {b}//{b} {c}//{c}\n" for a, b, c in faces]
-    return "".join(lines)
-
-
-def unit_cylinder_obj(segments: int = _MESH_SEGMENTS) -> str:
-    """A low-polygon cylinder of radius 1 and length 1 along z (centred at the origin), as OBJ text."""
-    v, n, faces = [], [], []
-    for z in (-0.5, 0.5):
-        for j in range(segments):
-            ph = 2 * math.pi * j / segments
-            v.append((math.cos(ph), math.sin(ph), z))
-            n.append((math.cos(ph), math.sin(ph), 0.0))
-    for j in range(segments):  # side: vertex/normal indices 1..2*segments
-        a, b = 1 + j, 1 + (j + 1) % segments
-        faces.append(((a, a), (b, b), (b + segments, b + segments)))
-        faces.append(((a, a), (b + segments, b + segments), (a + segments, a + segments)))
-    for z, sign in ((-0.5, -1.0), (0.5, 1.0)):  # caps: a centre vertex and a flat normal
-        centre = len(v) + 1
-        v.append((0.0, 0.0, z))
-        n.append((0.0, 0.0, sign))
-        nc = len(n)
-        base = 1 if z < 0 else 1 + segments
-        for j in range(segments):
-            a, b = base + j, base + (j + 1) % segments
-            tri = ((centre, nc), (a, nc), (b, nc)) if sign > 0 else ((centre, nc), (b, nc), (a, nc))
-            faces.append(tri)
-    lines = [
-        "# unit cylinder (radius 1, length 1, axis z), "
-        "generated by akc_drake.operator.model.unit_cylinder_obj()\n"
-    ]
-    lines += [f"v {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in v]
-    lines += [f"vn {a:.6f} {b:.6f} {c:.6f}\n" for a, b, c in n]
-    lines += ["f " + " ".join(f"{vi}//{ni}" for vi, ni in f) + "\n" for f in faces]
-    return "".join(lines)
-
-
-#: Mesh file name -> generator.
-MESHES = {"unit_sphere.obj": unit_sphere_obj, "unit_cylinder.obj": unit_cylinder_obj}
-
-
-def write_meshes(folder) -> Path:
-    """Write the operator's unit meshes into ``folder`` (only files whose content differs); returns it."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, gen in MESHES.items():
-        path = folder / name
-        text = gen()
-        if not path.exists() or path.read_text(encoding="utf-8") != text:
-            atomic_write_text(path, text)
-    return folder
-
-
-def _fmt(*values: float) -> str:
-    return " ".join(f"{v:.6g}" for v in np.asarray(values, dtype=float).ravel())
-
-
-def _inertial(mass: float, ixx: float, iyy: float, izz: float) -> str:
-    return (
-        f"      <inertial><mass>{mass:.6g}</mass><inertia><ixx>{ixx:.6g}</ixx><iyy>{iyy:.6g}</iyy>"
-        f"<izz>{izz:.6g}</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial>\n"
-    )
-
-
-class _Geometry:
-    """Visual geometry of one link: boxes, and spheres/ellipsoids/cylinders as scaled unit meshes."""
-
-    def __init__(self, mesh_prefix: str):
-        self.prefix = mesh_prefix
-        self.parts: list[str] = []
-
-    def _add(self, name, xyz, rpy, geometry, rgba):
-        self.parts.append(
-            f'      <visual name="{name}">\n'
-            f"        <pose>{_fmt(*xyz, *rpy)}</pose>\n"
-            f"        <geometry>{geometry}</geometry>\n"
-            f"        <material><diffuse>{_fmt(*rgba)}</diffuse></material>\n"
-            f"      </visual>\n"
-        )
-
-    def box(self, name, xyz, size, rgba, rpy=(0, 0, 0)):
-        self._add(name, xyz, rpy, f"<box><size>{_fmt(*size)}</size></box>", rgba)
-
-    def ellipsoid(self, name, xyz, radii, rgba):
-        mesh = f"<mesh><uri>{self.prefix}unit_sphere.obj</uri><scale>{_fmt(*radii)}</scale></mesh>"
-        self._add(name, xyz, (0, 0, 0), mesh, rgba)
-
-    def sphere(self, name, xyz, radius, rgba):
-        self.ellipsoid(name, xyz, (radius, radius, radius), rgba)
-
-    def cylinder(self, name, xyz, radius, length, rgba, rpy=(0, 0, 0)):
-        scale = _fmt(radius, radius, length)
-        mesh = f"<mesh><uri>{self.prefix}unit_cylinder.obj</uri><scale>{scale}</scale></mesh>"
-        self._add(name, xyz, rpy, mesh, rgba)
-
-    def text(self) -> str:
-        return "".join(self.parts)
-
-
-def _link(name: str, xyz, inertial: str, geometry: _Geometry | None = None) -> str:
-    body = inertial + (geometry.text() if geometry is not None else "")
-    return f'    <link name="{name}">\n      <pose>{_fmt(*xyz, 0, 0, 0)}</pose>\n{body}    </link>\n'
-
-
-def _revolute(name: str, parent: str, child: str, axis) -> str:
-    return (
-        f'    <joint name="{name}" type="revolute">\n'
-        f"      <parent>{parent}</parent>\n      <child>{child}</child>\n"
-        f"      <axis><xyz>{_fmt(*axis)}</xyz></axis>\n"
-        f"    </joint>\n"
-    )
-
-
-def _frame(name: str, attached_to: str, xyz) -> str:
-    # Landmark frames carry the numpy kinematics' exact numbers (15 digits), not the visuals' 6.
-    pose = " ".join(f"{v:.15g}" for v in (*np.asarray(xyz, dtype=float), 0.0, 0.0, 0.0))
-    return f'    <frame name="{name}" attached_to="{attached_to}"><pose>{pose}</pose></frame>\n'
-
-
-
-def operator_sdf(params: OperatorParams | None = None, mesh_dir=None) -> str:
-    """The operator model as SDF text (deterministic: the same arguments give the same text).
-
-    Links: ``pelvis`` (with the thighs), ``torso`` (chest, abdomen, clavicles, neck, head; welded to the
-    pelvis), and per side ``<side>_shoulder_link1``, ``<side>_shoulder_link2`` (small links between the
-    shoulder's three revolute joints), ``<side>_upper_arm`` (deltoid and upper-arm cylinder, origin at the
-    shoulder joint centre), ``<side>_forearm`` (elbow sphere and forearm, origin at the elbow),
-    ``<side>_hand`` (wrist sphere, palm, fingers, thumb; origin at the wrist). All link frames are aligned
-    with the model frame (= O) at q = 0. Frames named as the landmarks (``left_shoulder``, ``left_index``,
-    ...) mark the 12 landmarks.
-
-    Args:
-        params: the operator's dimensions (default: the paper's participant).
-        mesh_dir: where the unit meshes are; None: the relative folder :data:`MESH_FOLDER` (for an SDF
-            file written next to it, as ``models/operator.sdf``).
-    """
-    p = params or OperatorParams()
-    d = p.dims
-    H = p.torso_height
-    prefix = f"{MESH_FOLDER}/" if mesh_dir is None else Path(mesh_dir).resolve().as_uri() + "/"
-    shirt, skin, trousers = p.shirt_rgba, p.skin_rgba, p.trousers_rgba
-    half_pi = math.pi / 2
-    out = [
-        '<?xml version="1.0"?>\n',
-        "<!-- Generated by akc_drake.operator.model.write_operator_sdf(); do not edit by hand. -->\n",
-        '<sdf version="1.9">\n',
-        f'  <model name="{MODEL_INSTANCE_NAME}">\n',
-    ]
-
-    g = _Geometry(prefix)
-    g.box("pelvis", (0, 0, 0.02), (p.pelvis_depth, p.pelvis_width, 0.18), trousers)
-    for side in SIDES:
-        hip = p.hip_O(side)
-        g.cylinder(
-            f"{side}_thigh", (0.01, hip[1], -p.thigh_length / 2), p.thigh_radius, p.thigh_length, trousers
-        )
-    out.append(_link("pelvis", (0, 0, 0), _inertial(10.0, 0.1, 0.1, 0.1), g))
-
-    # Torso, origin at the centre of the shoulder line.
-    g = _Geometry(prefix)
-    chest_h = 0.30
-    g.ellipsoid(
-        "chest",
-        (0, 0, -chest_h / 2 + 0.02),
-        (p.chest_depth / 2, p.chest_width / 2, chest_h / 2 + 0.03),
-        shirt,
-    )
-    abdomen_h = H - chest_h + 0.02
-    g.box(
-        "abdomen",
-        (0, 0, -H + 0.09 + abdomen_h / 2),
-        (p.chest_depth * 0.9, p.chest_width * 0.92, abdomen_h),
-        shirt,
-    )
-    g.cylinder("clavicles", (-0.01, 0, -0.01), 0.045, d.SW - 2 * p.deltoid_radius, shirt, rpy=(half_pi, 0, 0))
-    g.cylinder("neck", (-0.01, 0, 0.09), p.neck_radius, 0.14, skin)
-    g.ellipsoid(
-        "head",
-        (0.0, 0, 0.12 + p.head_radius),
-        (p.head_radius * 0.95, p.head_radius * 0.8, p.head_radius * 1.15),
-        skin,
-    )
-    out.append(_link("torso", (0, 0, H), _inertial(25.0, 0.6, 0.5, 0.3), g))
-    out.append(
-        '    <joint name="pelvis_torso" type="fixed">\n'
-        "      <parent>pelvis</parent>\n      <child>torso</child>\n    </joint>\n"
-    )
-
-    for side in SIDES:
-        s = _side_sign(side)
-        sh = p.shoulder_O(side)
-        lu, lf = d.upper(side), d.lower(side)
-        el = sh + np.array([0.0, s * lu, 0.0])
-        wr = el + np.array([0.0, s * lf, 0.0])
-        small = _inertial(0.05, 1e-4, 1e-4, 1e-4)
-        out.append(_link(f"{side}_shoulder_link1", sh, small))
-        out.append(_link(f"{side}_shoulder_link2", sh, small))
-        g = _Geometry(prefix)
-        g.sphere(f"{side}_deltoid", (0, s * 0.01, 0.005), p.deltoid_radius, shirt)
-        g.cylinder(
-            f"{side}_upper_arm", (0, s * lu / 2, 0), p.upper_arm_radius, lu, shirt, rpy=(half_pi, 0, 0)
-        )
-        out.append(_link(f"{side}_upper_arm", sh, _inertial(2.0, 0.015, 0.002, 0.015), g))
-        g = _Geometry(prefix)
-        g.sphere(f"{side}_elbow", (0, 0, 0), p.upper_arm_radius, skin)
-        g.cylinder(f"{side}_forearm", (0, s * lf / 2, 0), p.forearm_radius, lf, skin, rpy=(half_pi, 0, 0))
-        out.append(_link(f"{side}_forearm", el, _inertial(1.2, 0.008, 0.001, 0.008), g))
-        # Hand: palm normal +x and thumb toward +z at q = 0 for a straight wrist; the wrist posture turns
-        # the palm, fingers and thumb about the hand frame's z axis (OperatorParams.R_H_hand).
-        g = _Geometry(prefix)
-        palm_len = p.knuckle_distance + 0.01
-        fing_len = p.hand_length - palm_len
-        R_hand = p.R_H_hand(side)
-        yaw = math.radians(p.wrist_extension_deg) * s  # R_hand = Rz(yaw); SDF rpy composes Rz Ry Rx
-        g.sphere(f"{side}_wrist", (0, 0, 0), p.forearm_radius * 0.9, skin)
-        g.box(
-            f"{side}_palm",
-            R_hand @ [0, s * palm_len / 2, 0],
-            (p.hand_thickness, palm_len, p.hand_width),
-            skin,
-            rpy=(0, 0, yaw),
-        )
-        g.box(
-            f"{side}_fingers",
-            R_hand @ [0, s * (palm_len + fing_len / 2), -0.004],
-            (p.hand_thickness * 0.7, fing_len, p.hand_width * 0.9),
-            skin,
-            rpy=(0, 0, yaw),
-        )
-        g.cylinder(
-            f"{side}_thumb",
-            R_hand @ [0.012, s * 0.045, p.hand_width / 2 + 0.006],
-            0.011,
-            0.05,
-            skin,
-            rpy=(half_pi + s * 0.5, 0, yaw),
-        )
-        out.append(_link(f"{side}_hand", wr, _inertial(0.4, 0.001, 0.0005, 0.001), g))
-        chain = ("torso", f"{side}_shoulder_link1", f"{side}_shoulder_link2", f"{side}_upper_arm")
-        chain += (f"{side}_forearm", f"{side}_hand")
-        names = arm_joint_names(side)
-        axes = arm_joint_axes(side)
-        for k in range(NUM_ARM_DOF):
-            out.append(_revolute(names[k], chain[k], chain[k + 1], axes[k]))
-        out.append(_frame(f"{side}_shoulder", f"{side}_upper_arm", (0, 0, 0)))
-        out.append(_frame(f"{side}_elbow", f"{side}_forearm", (0, 0, 0)))
-        out.append(_frame(f"{side}_wrist", f"{side}_hand", (0, 0, 0)))
-        out.append(_frame(f"{side}_index", f"{side}_hand", p.index_H(side)))
-        out.append(_frame(f"{side}_pinky", f"{side}_hand", p.pinky_H(side)))
-        out.append(_frame(f"{side}_hip", "pelvis", p.hip_O(side)))
-    out.append("  </model>\n</sdf>\n")
-    return "".join(out)
-
-
-def write_operator_sdf(path, params: OperatorParams | None = None) -> Path:
-    """Write :func:`operator_sdf` to ``path`` and its unit meshes to ``<dir>/operator_meshes/``.
-
-    Files are written atomically (temp file + rename). Returns the SDF's path.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_meshes(path.parent / MESH_FOLDER)
-    atomic_write_text(path, operator_sdf(params))
-    return path
-
-
-def mesh_dir() -> Path:
-    """A folder with the current unit meshes: ``models/operator_meshes`` when up to date, else a cache."""
-    from akc_drake.resources import MODELS_DIR
-
-    folder = MODELS_DIR / MESH_FOLDER
-    if all(
-        (folder / n).is_file() and (folder / n).read_text(encoding="utf-8") == g() for n, g in MESHES.items()
-    ):
-        return folder
-    digest = hashlib.sha256("".join(g() for g in MESHES.values()).encode()).hexdigest()[:12]
-    return write_meshes(Path(tempfile.gettempdir()) / f"akc_drake_meshes_{os.getuid()}_{digest}")
-
-
-# --------------------------------------------------------------------------------------------------
-# Drake
-# --------------------------------------------------------------------------------------------------
-
-
-def add_operator(plant, params: OperatorParams | None = None, X_WO=None):
-    """Add the operator to ``plant`` (not finalized), its pelvis welded to the world at ``X_WO``.
-
-    Args:
-        plant: a ``MultibodyPlant``.
-        params: the operator's dimensions (default: the paper's participant).
-        X_WO: pose of the operator frame O in the world (a ``RigidTransform``; default identity).
-
-    Returns:
-        The operator's ``ModelInstanceIndex``.
-    """
-    from pydrake.math import RigidTransform
-    from pydrake.multibody.parsing import Parser
-
-    parser = Parser(plant)
-    parser.SetAutoRenaming(True)
-    (instance,) = parser.AddModelsFromString(operator_sdf(params, mesh_dir=mesh_dir()), "sdf")
-    X = X_WO if X_WO is not None else RigidTransform()
-    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("pelvis", instance), X)
-    return instance
-
-
-def operator_position_indices(plant, instance) -> np.ndarray:
-    """Indices into the plant's q of ``[left arm q (5), right arm q (5)]``, i.e. of :func:`full_q` order."""
-    idx = []
-    for side in SIDES:
-        for name in arm_joint_names(side):
-            idx.append(plant.GetJointByName(name, instance).position_start())
-    return np.array(idx, dtype=np.intp)
-
-
 def full_q(q_left: np.ndarray, q_right: np.ndarray) -> np.ndarray:
     """The operator's joint vector in our canonical order: ``[q_left, q_right]``, ``(T, 2 * NUM_ARM_DOF)``."""
     ql = _check_q(q_left, "q_left")
@@ -803,21 +446,3 @@ def full_q(q_left: np.ndarray, q_right: np.ndarray) -> np.ndarray:
     if ql.shape != qr.shape:
         raise ValueError(f"q_left and q_right must have the same shape, got {ql.shape} and {qr.shape}")
     return np.concatenate([ql, qr], axis=1)
-
-
-def landmark_positions(plant, context, instance=None, frame=None) -> np.ndarray:
-    """The 12 true landmark positions ``(12, 3)`` (joint centres and knuckles) from the plant's state.
-
-    Args:
-        plant: a finalized plant containing the operator.
-        context: the plant's context.
-        instance: the operator's model instance (default: the one named :data:`MODEL_INSTANCE_NAME`).
-        frame: the frame to express them in (default: the world frame).
-    """
-    if instance is None:
-        instance = plant.GetModelInstanceByName(MODEL_INSTANCE_NAME)
-    F = frame if frame is not None else plant.world_frame()
-    out = np.empty((NUM_LANDMARKS, 3))
-    for k, name in enumerate(LANDMARKS):
-        out[k] = plant.GetFrameByName(name, instance).CalcPose(context, F).translation()
-    return out

@@ -61,11 +61,10 @@ from akc_drake.operator.model import (
     DEFAULT_CAMERA_HEIGHT_M,
     NUM_ARM_DOF,
     OperatorParams,
-    add_operator,
     landmarks_from_q,
-    operator_position_indices,
 )
 from akc_drake.operator.motions import OperatorMotion
+from akc_drake.operator.sdf import add_operator, operator_position_indices
 from akc_drake.systems import timing
 
 RENDERER_NAME = "akc_vtk"
