@@ -1,4 +1,6 @@
-"""The simulated operator: a human upper body built from primitives, its parameters and arm kinematics (its SDF: :mod:`akc_drake.operator.sdf`).
+"""The simulated operator: a human upper body built from primitives, its parameters and its arm kinematics.
+
+Its SDF and the plant helpers are in :mod:`akc_drake.operator.sdf`.
 
 Operator frame O: origin at the pelvis (midpoint of the two hip joint centres), x forward (the way the
 person faces), y to the person's left, z up. The camera looks at the operator from the front, so its
