@@ -248,6 +248,8 @@ def test_demo_command_end_to_end(tmp_path):
         bursts = s["dropout"][m]["bursts_start_duration_s"]
         assert sum(d for _, d in bursts) == pytest.approx(0.3)
     assert s["calibration"]["frames"] == 12
+    # The main job's default is the real pipeline: MediaPipe on the rendered skinned body.
+    assert (s["config"]["body"], s["config"]["detector"]) == ("skinned", "mediapipe")
     for name in (
         "demo.json",
         "teleop.html",

@@ -58,6 +58,8 @@ class DemoOptions:
         progress: progress bars on stderr.
         ros2_bag: write the AKC(KF) replays (skeletons, wrist targets, joint commands) to this ROS 2 MCAP bag
             (:func:`akc_drake.pipeline.export.write_teleop_bag`).
+        body, detector: the rendered operator and the 2D detector; by default the real pipeline, MediaPipe on
+            the skinned body (``"primitive"``, ``"sim"``: the fast simulated path).
     """
 
     quick: bool = False
@@ -78,8 +80,8 @@ class DemoOptions:
     ros2_bag: str | Path | None = None
     task: str | None = None
     seeds: int = 5
-    body: str = "primitive"
-    detector: str = "sim"
+    body: str = "skinned"
+    detector: str = "mediapipe"
 
     def validate(self) -> DemoOptions:
         """Check the options; raises UserError naming the option."""
