@@ -55,7 +55,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from akc_drake.core.arm_geometry import bends_backwards, elbow_angle_deg, signed_elbow_angle_deg, torso_axes
+from akc_drake.core.arm_geometry import (
+    arm_inputs,
+    bends_backwards,
+    elbow_angle_deg,
+    signed_elbow_angle_deg,
+    torso_axes,
+)
 from akc_drake.core.skeleton import NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
@@ -442,25 +448,11 @@ class ArmKinematicCorrector:
 
     def _prepare(self, v, side, axes):
         """Candidates and their per-arm costs (all metrics but m4) for one side, or None to hold."""
-        o_s, o_e, o_w = self._offsets[side]
-        wx, wy, wz = v[o_w], v[o_w + 1], v[o_w + 2]
-        if not _isfinite(wx + wy + wz):
-            return None
         prev = self._prev[side]
-        ex, ey, ez = v[o_e], v[o_e + 1], v[o_e + 2]
-        if not _isfinite(ex + ey):
-            if prev is None:
-                return None
-            ex, ey = prev[3], prev[4]
-        if not _isfinite(ez):
-            ez = prev[5] if prev is not None else wz
-        sx, sy, sz = v[o_s], v[o_s + 1], v[o_s + 2]
-        if not _isfinite(sx + sy):
-            if prev is None:
-                return None
-            sx, sy = prev[0], prev[1]
-        if not _isfinite(sz):
-            sz = prev[2] if prev is not None else ez
+        joints = arm_inputs(v, self._offsets[side], prev)
+        if joints is None:
+            return None
+        sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
 
         lf = self._lf[side]
         lu = self._lu[side]

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from akc_drake.core.akc import AKCResult
-from akc_drake.core.arm_geometry import bends_backwards, torso_axes
+from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, torso_axes
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
@@ -349,25 +349,12 @@ class ArmKinematicCorrectorPlus:
 
     def _arm(self, v, m, side, axes, other_shoulder):
         """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
-        o_s, o_e, o_w = self._offsets[side]
-        wx, wy, wz = v[o_w], v[o_w + 1], v[o_w + 2]
-        if not _isfinite(wx + wy + wz):
-            return None
         prev = self._prev[side]
-        ex, ey, ez = v[o_e], v[o_e + 1], v[o_e + 2]
-        if not _isfinite(ex + ey):
-            if prev is None:
-                return None
-            ex, ey = prev[3], prev[4]
-        if not _isfinite(ez):
-            ez = prev[5] if prev is not None else wz
-        sx, sy, sz = v[o_s], v[o_s + 1], v[o_s + 2]
-        if not _isfinite(sx + sy):
-            if prev is None:
-                return None
-            sx, sy = prev[0], prev[1]
-        if not _isfinite(sz):
-            sz = prev[2] if prev is not None else ez
+        o_s, o_e, _ = offsets = self._offsets[side]
+        joints = arm_inputs(v, offsets, prev)
+        if joints is None:
+            return None
+        sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
         self._no_prior = set()

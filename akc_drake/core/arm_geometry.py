@@ -106,3 +106,38 @@ def signed_elbow_angle_deg(p_s, p_e, p_w, axes=DEFAULT_AXES) -> float:
         return 360.0 - interior
     return interior
 
+
+def arm_inputs(v, offsets, prev):
+    """One arm's shoulder, elbow and wrist from a flat pose ``v`` (plain floats), for the correctors' hot path.
+
+    A missing wrist means the arm cannot be corrected (None). A missing elbow or shoulder x, y takes the previous
+    output's (None without one); a missing depth takes the previous output's, else the next joint's (elbow <- wrist,
+    shoulder <- elbow).
+
+    Args:
+        v: the flattened (12 * 3) pose, NaN where missing.
+        offsets: the flat indices of the arm's shoulder, elbow and wrist x.
+        prev: the arm's previous output (9 floats: shoulder, elbow, wrist) or None.
+
+    Returns:
+        ``(sx, sy, sz, ex, ey, ez, wx, wy, wz)`` or None to hold the arm.
+    """
+    o_s, o_e, o_w = offsets
+    wx, wy, wz = v[o_w], v[o_w + 1], v[o_w + 2]
+    if not _isfinite(wx + wy + wz):
+        return None
+    ex, ey, ez = v[o_e], v[o_e + 1], v[o_e + 2]
+    if not _isfinite(ex + ey):
+        if prev is None:
+            return None
+        ex, ey = prev[3], prev[4]
+    if not _isfinite(ez):
+        ez = prev[5] if prev is not None else wz
+    sx, sy, sz = v[o_s], v[o_s + 1], v[o_s + 2]
+    if not _isfinite(sx + sy):
+        if prev is None:
+            return None
+        sx, sy = prev[0], prev[1]
+    if not _isfinite(sz):
+        sz = prev[2] if prev is not None else ez
+    return sx, sy, sz, ex, ey, ez, wx, wy, wz

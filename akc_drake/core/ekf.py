@@ -44,6 +44,16 @@ if _ARM != tuple(range(len(_ARM))):  # pragma: no cover - guards a change of ske
 _NA = len(_ARM)
 
 
+
+def _checked(dims, config) -> tuple[BodyDimensions, EKFConfig]:
+    """``(dims, config)`` of an EKF, ``config`` defaulted; ValueError naming a wrong type."""
+    if not isinstance(dims, BodyDimensions):
+        raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
+    config = EKFConfig() if config is None else config
+    if not isinstance(config, EKFConfig):
+        raise ValueError(f"config must be an EKFConfig, got {type(config).__name__}")
+    return dims, config
+
 class ExtendedKalmanFilterCV:
     """Constant-velocity EKF with bone-length pseudo-measurements (eq. 4-6).
 
@@ -67,13 +77,7 @@ class ExtendedKalmanFilterCV:
     """
 
     def __init__(self, dims: BodyDimensions, config: EKFConfig | None = None):
-        if not isinstance(dims, BodyDimensions):
-            raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
-        config = EKFConfig() if config is None else config
-        if not isinstance(config, EKFConfig):
-            raise ValueError(f"config must be an EKFConfig, got {type(config).__name__}")
-        self.dims = dims
-        self.config = config
+        self.dims, self.config = dims, config = _checked(dims, config)
         self.num_landmarks = NUM_LANDMARKS
         self._n3 = n3 = 3 * _NA
         self._n = n = 2 * n3
@@ -416,13 +420,7 @@ class PerJointEKF:
     )
 
     def __init__(self, dims: BodyDimensions, config: EKFConfig | None = None):
-        if not isinstance(dims, BodyDimensions):
-            raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
-        config = EKFConfig() if config is None else config
-        if not isinstance(config, EKFConfig):
-            raise ValueError(f"config must be an EKFConfig, got {type(config).__name__}")
-        self.dims = dims
-        self.config = config
+        self.dims, self.config = dims, config = _checked(dims, config)
         self.num_landmarks = NUM_LANDMARKS
         self._lengths = {s: getattr(dims, s) for s in ("LUA", "LLA", "RUA", "RLA")}
         self._r = np.asarray(config.r, dtype=float)
