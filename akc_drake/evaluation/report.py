@@ -252,7 +252,7 @@ def plot_depth_cycles(panels: list[dict], path, title: str = "Depth (z) of occlu
     axes[-1, 0].set_xlabel("time (s)")
     _legend_below(fig, axes[0, 0])
     fig.suptitle(title)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_arm_lengths(t: np.ndarray, lengths: dict[str, dict[str, np.ndarray]], path, title: str) -> Path:
@@ -280,7 +280,7 @@ def plot_arm_lengths(t: np.ndarray, lengths: dict[str, dict[str, np.ndarray]], p
     axes[-1, 0].set_xlabel("time (s)")
     _legend_below(fig, axes[0, 0])
     fig.suptitle(title)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_heatmaps(panels: list[dict], path, title: str) -> Path:
@@ -307,7 +307,7 @@ def plot_heatmaps(panels: list[dict], path, title: str) -> Path:
         fig.colorbar(im, ax=ax, label="L2 norm of joint errors (cm)")
     fig.suptitle(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_curves(
@@ -324,10 +324,11 @@ def plot_curves(
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
-def _save(fig, path) -> Path:
+def save_png(fig, path) -> Path:
+    """Write a figure as a PNG (110 dpi), atomically."""
     return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
 
 

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from akc_drake.core.skeleton import INDEX, BodyDimensions
+from akc_drake.evaluation.report import plot_heatmaps, save_png
 
 #: The joints of the objective (Table IX): both elbows and both shoulders.
 OBJECTIVE_JOINTS: tuple[str, ...] = ("left_elbow", "right_elbow", "left_shoulder", "right_shoulder")
@@ -443,42 +444,6 @@ def cross_motion_table(rows: list[dict], motions: list[str]):
     return t
 
 
-def _save_png(fig, path) -> Path:
-    from akc_drake.fileio import atomic_write
-
-    return atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
-
-
-def plot_heatmaps(panels: list[dict], path, title: str) -> Path:
-    """Heatmaps of the objective over two weights (the paper's Fig. 5 a-c), written as a PNG.
-
-    Args:
-        panels: dicts with ``title``, ``x`` values, ``y`` values, ``z`` ``(len(y), len(x))``, ``xlabel``,
-            ``ylabel`` and optionally ``best`` ``(x, y)`` to mark.
-        path: the PNG to write.
-        title: the figure's title.
-    """
-    from matplotlib.figure import Figure
-
-    n = len(panels)
-    fig = Figure(figsize=(4.2 * n, 3.8), layout="tight")
-    axes = fig.subplots(1, n, squeeze=False)[0]
-    for ax, p in zip(axes, panels, strict=True):
-        z = np.asarray(p["z"], dtype=float)
-        im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
-        ax.set_xticks(range(len(p["x"])), [f"{v:g}" for v in p["x"]], fontsize=7)
-        ax.set_yticks(range(len(p["y"])), [f"{v:g}" for v in p["y"]], fontsize=7)
-        ax.set_xlabel(p["xlabel"])
-        ax.set_ylabel(p["ylabel"])
-        ax.set_title(p["title"], fontsize=9)
-        if p.get("best") is not None:
-            bx, by = p["best"]
-            ax.plot(list(p["x"]).index(bx), list(p["y"]).index(by), marker="*", color="red", ms=12)
-        fig.colorbar(im, ax=ax, label="L2 norm of joint errors (cm)")
-    fig.suptitle(title)
-    return _save_png(fig, path)
-
-
 def plot_curves(x, curves: dict[str, np.ndarray], path, xlabel: str, ylabel: str, title: str) -> Path:
     """Curves over ``x`` (the paper's Fig. 5 d, the shrink-factor curve), written as a PNG."""
     from matplotlib.figure import Figure
@@ -492,7 +457,7 @@ def plot_curves(x, curves: dict[str, np.ndarray], path, xlabel: str, ylabel: str
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend()
-    return _save_png(fig, path)
+    return save_png(fig, path)
 
 
 def sweep_figures(result: SweepResult, out_dir) -> list[Path]:
