@@ -72,6 +72,13 @@ _ARM_BONES = {
 }
 _HIP_BONES = {"left": ("LHipJoint", "LeftUpLeg"), "right": ("RHipJoint", "RightUpLeg")}
 _KNUCKLE_GROUPS = {"index": "joint-{s}-finger-2-1", "pinky": "joint-{s}-finger-5-1"}
+#: The thumb tip and the index fingertip (MediaPipe Hands' landmarks 4 and 8): the pinch's ends.
+_FINGERTIP_GROUPS = {"thumb_tip": "joint-{s}-finger-1-4", "index_tip": "joint-{s}-finger-2-4"}
+#: Flexion of the four fingers (one rig bone from the knuckles, so they fold straight) in a closed hand; the
+#: thumb turns about its base until its tip meets the flexed index fingertip (a pinch).
+FINGER_FLEXION_DEG = 75.0
+#: Distance of the thumb tip and the index fingertip joints in a pinch (finger pads touching), metres.
+PINCH_GAP_M = 0.015
 
 #: Clothing regions, in the order of the geometries.
 REGIONS = ("skin", "shirt", "trousers")
@@ -121,7 +128,8 @@ class HumanAssets:
         parents: ``(B,)`` parent index (-1 for the root).
         heads, tails: ``(B, 3)`` rest bone heads and tails.
         weights: ``(V, B)`` skin weights (rows sum to 1).
-        knuckles: ``{"left_index": (3,), ...}`` rest MCP centres (the helper cubes' centroids).
+        knuckles: ``{"left_index": (3,), ...}`` rest MCP centres (the helper cubes' centroids), and the
+            thumb tip and the index fingertip (``"left_thumb_tip"``, ``"left_index_tip"``, ...).
     """
 
     vertices: np.ndarray
@@ -228,7 +236,7 @@ def load_assets(folder: str | None = None) -> HumanAssets:
     hip_c = 0.5 * (heads[order.index("LeftUpLeg")] + heads[order.index("RightUpLeg")])
     knuckles = {}
     for side, s in (("left", "l"), ("right", "r")):
-        for name, pattern in _KNUCKLE_GROUPS.items():
+        for name, pattern in {**_KNUCKLE_GROUPS, **_FINGERTIP_GROUPS}.items():
             g = pattern.format(s=s)
             if g not in groups:
                 raise UserError(f"{mesh_path}: no helper group {g} (not MakeHuman's hm08 base mesh)")
@@ -343,7 +351,7 @@ class SkinnedOperator:
         self.triangles = tris
         self.points_rest = points
         # 2. Rest frames and joint centres of the posed segments, and the knuckles (rigid with the hand).
-        self._frames, self._rest_joints, self._hand_bones = {}, {}, {}
+        self._frames, self._rest_joints, self._hand_bones, self._pinch = {}, {}, {}, {}
         moving = []
         for side in SIDES:
             s = 1.0 if side == "left" else -1.0
@@ -359,11 +367,55 @@ class SkinnedOperator:
             }
             self._rest_joints[side] = (sh, el, wr, kn["index"], kn["pinky"], heads[a.bone(_HIP_BONES[side][1])])
             self._hand_bones[side] = (a.bone(upper), a.bone(fore), [a.bone(n) for n in hand])
+            self._pinch[side] = self._pinch_motion(side, heads, maps, kn)
             moving += [a.bone(upper), a.bone(fore), *[a.bone(n) for n in hand]]
         self.lbs = skinning.LinearBlendSkinning(points, W, moving_bones=moving)
         self.regions = self._split_regions(verts, tris, tets, W, heads)
         rgba = {"skin": p.skin_rgba, "shirt": p.shirt_rgba, "trousers": p.trousers_rgba}
         self.colors = {name: rgba[region] for name, region in self.piece_region.items()}
+
+    def _pinch_motion(self, side: str, heads, maps, kn) -> tuple:
+        """The closed hand's finger and thumb rotations (in the reshaped rest), their pivots and its fingertips.
+
+        The four fingers (one bone, :data:`FINGER_FLEXION_DEG`) fold about the knuckle line toward the thumb; the
+        thumb turns about its base, in the plane of its tip and the folded index fingertip, until the two tips
+        are :data:`PINCH_GAP_M` apart (finger pads touching).
+        """
+        a = self.assets
+        _, _, _, (_, thumb, _, fingers) = _ARM_BONES[side]
+        p_f, p_t = heads[a.bone(fingers)], heads[a.bone(thumb)]
+        tip_t = skinning.apply_map(maps[a.bone(thumb)], a.knuckles[f"{side}_thumb_tip"][None])[0]
+        tip_i = skinning.apply_map(maps[a.bone(fingers)], a.knuckles[f"{side}_index_tip"][None])[0]
+        axis = kn["index"] - kn["pinky"]
+        flex = math.radians(FINGER_FLEXION_DEG)
+        # Flexion folds the fingers toward the palm, where the thumb is: the sign that brings the tips together.
+        axis = min((axis, -axis), key=lambda k: np.linalg.norm(p_f + _axis_angle(k, flex) @ (tip_i - p_f) - tip_t))
+        u, w = tip_t - p_t, p_f + _axis_angle(axis, flex) @ (tip_i - p_f) - p_t
+        axis_t = np.cross(u, w)
+        full = math.atan2(np.linalg.norm(axis_t), float(u @ w))
+        nu, nw = np.linalg.norm(u), np.linalg.norm(w)
+        c = (nu**2 + nw**2 - PINCH_GAP_M**2) / (2.0 * nu * nw)
+        turn = full if c >= 1.0 else full - math.acos(max(c, -1.0))
+        return p_f, axis, flex, p_t, axis_t, turn, tip_i, tip_t
+
+    def _closure_rotations(self, side: str, closure: float) -> tuple[np.ndarray, np.ndarray]:
+        """The fingers' and the thumb's rotations (rest, about their pivots) for a closure in [0, 1]."""
+        _, axis, flex, _, axis_t, turn, _, _ = self._pinch[side]
+        c = min(max(float(closure), 0.0), 1.0)
+        return _axis_angle(axis, c * flex), _axis_angle(axis_t, c * turn)
+
+    def pinch_aperture(self, closure) -> np.ndarray:
+        """``(2,)`` true thumb-tip to index-fingertip distance (left, right; metres) for closures ``(2,)``.
+
+        The distance of the rig's tip joints (MediaPipe Hands' landmarks 4 and 8 on this body); the hand is
+        rigid apart from the fingers, so it does not depend on the arm's pose.
+        """
+        out = np.empty(2)
+        for k, side in enumerate(SIDES):
+            p_f, _, _, p_t, _, _, tip_i, tip_t = self._pinch[side]
+            R_f, R_t = self._closure_rotations(side, np.asarray(closure, float)[k])
+            out[k] = np.linalg.norm(p_f + R_f @ (tip_i - p_f) - p_t - R_t @ (tip_t - p_t))
+        return out
 
     # ------------------------------------------------------------------ clothing
     def _split_regions(self, verts, tris, tets, W, heads):
@@ -442,11 +494,15 @@ class SkinnedOperator:
                 )
         return q
 
-    def bone_maps(self, q: np.ndarray) -> np.ndarray:
-        """``(B, 3, 4)`` rest -> posed bone maps for one pose ``q = [q_left, q_right]`` (10,)."""
+    def bone_maps(self, q: np.ndarray, closure=None) -> np.ndarray:
+        """``(B, 3, 4)`` rest -> posed bone maps for one pose ``q = [q_left, q_right]`` (10,).
+
+        ``closure``: optional ``(2,)`` hand closure (left, right; 0 open, 1 a pinch, :meth:`pinch_aperture`);
+        None keeps the rig's relaxed hands.
+        """
         maps = np.zeros((len(self.assets.bones), 3, 4))
         maps[:, :, :3] = np.eye(3)
-        for side, qs in (("left", q[:NUM_ARM_DOF]), ("right", q[NUM_ARM_DOF:])):
+        for k, (side, qs) in enumerate((("left", q[:NUM_ARM_DOF]), ("right", q[NUM_ARM_DOF:]))):
             R_OU, R_OF, R_OH = (R[0] for R in arm_rotations(side, qs[None]))
             F_U, F_F = self._frames[side]
             sh, el, wr = self._rest_joints[side][:3]
@@ -459,11 +515,17 @@ class SkinnedOperator:
             maps[iu] = skinning.rigid_map(RU, sh, sh)
             maps[jf] = skinning.rigid_map(RF, el, el_p)
             maps[hand] = skinning.rigid_map(RH, wr, wr_p)
+            if closure is not None:  # the fingers and the thumb turn about their pivots, carried by the hand
+                p_f, p_t = self._pinch[side][0], self._pinch[side][3]
+                R_f, R_t = self._closure_rotations(side, np.asarray(closure, float)[k])
+                maps[hand[3]] = skinning.rigid_map(RH @ R_f, p_f, wr_p + RH @ (p_f - wr))
+                maps[hand[1]] = skinning.rigid_map(RH @ R_t, p_t, wr_p + RH @ (p_t - wr))
         return maps
 
-    def posed_points(self, q: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """``(P, 3)`` every skinned point in O for one pose ``q`` (10,)."""
-        return self.lbs.skin(self.bone_maps(np.asarray(q, float).reshape(-1)), out=out)
+    def posed_points(self, q: np.ndarray, out: np.ndarray | None = None, closure=None) -> np.ndarray:
+        """``(P, 3)`` every skinned point in O for one pose ``q`` (10,) and hand ``closure`` (see
+        :meth:`bone_maps`)."""
+        return self.lbs.skin(self.bone_maps(np.asarray(q, float).reshape(-1), closure), out=out)
 
     def region_points(self, points: np.ndarray) -> dict[str, np.ndarray]:
         """The shell points of each clothing region, from :meth:`posed_points`."""

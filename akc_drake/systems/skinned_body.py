@@ -82,17 +82,24 @@ class SkinnedBody(LeafSystem):
 
     ``q`` is ``[q_left, q_right]`` (10 angles, :func:`~akc_drake.operator.model.full_q` order);
     ``geometry_configuration`` a GeometryConfigurationVector for SceneGraph's source configuration port;
-    ``landmarks_true_W`` the 12 true landmarks (row-major (12, 3)) in the world frame.
+    ``landmarks_true_W`` the 12 true landmarks (row-major (12, 3)) in the world frame. With a ``motion`` that
+    has a hand closure, the fingers follow it (at diagram time ``t``, the motion's closure at
+    ``motion.start + t``, as the operator's trajectory source plays it): a closed hand is a pinch.
     """
 
-    def __init__(self, body: SkinnedOperator, geometry_ids: dict, X_WO: RigidTransform | None = None):
+    def __init__(self, body: SkinnedOperator, geometry_ids: dict, X_WO: RigidTransform | None = None, motion=None):
         """Args:
         body: the skinned operator.
         geometry_ids: ``{region: GeometryId}`` from :func:`register_skinned_body`.
         X_WO: pose of the operator frame O in the world (default identity).
+        motion: the :class:`~akc_drake.operator.motions.OperatorMotion` whose ``hand_closed`` closes the hands
+            (None, or a motion without one: the rig's relaxed hands); may be set later with
+            :meth:`follow_hands` (before a context is used).
         """
         super().__init__()
         self.body = body
+        self._motion = None
+        self.follow_hands(motion)
         self._ids = dict(geometry_ids)
         X = X_WO if X_WO is not None else RigidTransform()
         self._R = X.rotation().matrix()
@@ -103,7 +110,7 @@ class SkinnedBody(LeafSystem):
             "geometry_configuration",
             lambda: AbstractValue.Make(GeometryConfigurationVector()),
             self._calc_configuration,
-            prerequisites_of_calc={self._q.ticket()},
+            prerequisites_of_calc={self._q.ticket(), self.time_ticket()},
         )
         self.DeclareVectorOutputPort(
             "landmarks_true_W",
@@ -112,17 +119,26 @@ class SkinnedBody(LeafSystem):
             prerequisites_of_calc={self._q.ticket()},
         )
 
-    def configuration(self, q: np.ndarray) -> dict[str, np.ndarray]:
-        """``{region: (n, 3)}`` world-frame shell vertices for the pose ``q`` (raises UserError if impossible)."""
+    def follow_hands(self, motion) -> None:
+        """Close the hands as ``motion``'s ``hand_closed`` says (None: relaxed hands)."""
+        self._motion = motion if getattr(motion, "hand_closed", None) is not None else None
+
+    def closure(self, t: float):
+        """``(2,)`` hand closure at diagram time ``t`` (None without a motion's closure)."""
+        return None if self._motion is None else self._motion.closure([self._motion.start + float(t)])[0]
+
+    def configuration(self, q: np.ndarray, closure=None) -> dict[str, np.ndarray]:
+        """``{region: (n, 3)}`` world-frame shell vertices for the pose ``q`` and hand ``closure`` ``(2,)`` (None:
+        relaxed hands); raises UserError if the pose is impossible."""
         q = self.body.check_q(q)[0]
-        P = self.body.posed_points(q, out=self._buffer)
+        P = self.body.posed_points(q, out=self._buffer, closure=closure)
         if not np.array_equal(self._R, np.eye(3)) or np.any(self._p):
             P = P @ self._R.T + self._p
         return self.body.region_points(P)
 
     def _calc_configuration(self, context, output):
         value = GeometryConfigurationVector()
-        for name, pts in self.configuration(self._q.Eval(context)).items():
+        for name, pts in self.configuration(self._q.Eval(context), self.closure(context.get_time())).items():
             value.set_value(self._ids[name], pts.ravel())
         output.set_value(value)
 
