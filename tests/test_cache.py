@@ -89,7 +89,22 @@ def test_fingerprint_covers_the_renderer_not_the_evaluation():
     files = {str(p.relative_to(root)) for p in C.fingerprint_files()}
     assert "systems/depth_camera_source.py" in files and "operator/motions.py" in files
     assert "__init__.py" in files  # the version
-    assert not any(f.startswith(("evaluation/", "commands/")) for f in files)
+    assert {"operator/skinned.py", "core/skinning.py", "io/mediapipe_detector.py", "operator/bvh.py"} <= files
+    assert "evaluation/session.py" in files  # the stored format
+    # What only reads sessions is not in it: editing a corrector or a filter keeps the renders.
+    assert not files & {"core/akc.py", "core/akc_plus.py", "core/kalman.py", "evaluation/methods.py"}
+    assert not any(f.startswith("commands/") for f in files)
+    assert any(f.endswith(".sdf") for f in files)  # the models
+
+
+def test_dependencies_of_the_body_and_detector_are_in_the_key(monkeypatch):
+    assert "mediapipe" not in C.dependency_fingerprint(spec())
+    assert "mediapipe" in C.dependency_fingerprint(spec(detector="mediapipe"))
+    assert "anny" in C.dependency_fingerprint(spec(body="skinned"))
+    key = C.spec_key(spec(detector="mediapipe"))
+    monkeypatch.setattr(C, "_pose_model_sha256", lambda model: "another model")
+    assert C.spec_key(spec(detector="mediapipe")) != key
+    assert C.spec_key(spec()) == C.spec_key(spec())
 
 
 def test_motion_files_count_by_content(tmp_path):
@@ -106,6 +121,11 @@ def test_motion_files_count_by_content(tmp_path):
 
     C.cached_render(file_spec(a), cache=tmp_path / "c", render=r)
     C.cached_render(file_spec(b), cache=tmp_path / "c", render=r)  # same content elsewhere: a hit
+    assert len(r.calls) == 1
+    import os
+
+    os.utime(b, (1e9, 1e9))  # a new modification time, same content: a hit
+    C.cached_render(file_spec(b), cache=tmp_path / "c", render=r)
     assert len(r.calls) == 1
     b.write_text("HIERARCHY two")
     C.cached_render(file_spec(b), cache=tmp_path / "c", render=r)

@@ -76,3 +76,67 @@ def test_plot_errors_per_clip(tmp_path):
     result = _result()
     path = plot_errors_per_clip(result, tmp_path / "fig.png")
     assert path.stat().st_size > 1000
+
+
+def _tables_bytes(result):
+    return [(t.key, t.ours.tobytes()) for t in motion_dir_tables(result)]
+
+
+def test_motion_dir_renders_each_clip_once_through_the_cache(tmp_path):
+    from akc_drake.evaluation.cache import spec_key
+    from akc_drake.evaluation.motion_set import clip_spec, evaluate_motion_dir
+
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    shutil.copy(DATA / "upper_body.bvh", clips / "a.bvh")
+    text = (DATA / "upper_body.bvh").read_text()
+    (clips / "b.bvh").write_text(text.replace("Frame Time: 0.025", "Frame Time: 0.05"))  # another clip
+    cache = tmp_path / "cache"
+    kw = dict(methods=["KF", "AKC+(KF)"], seed=2, protocol="ours", cache=cache, progress=False, tpose_seconds=1.0)
+
+    def entries():
+        return sorted(p.name for p in (cache / "renders").rglob("*.npz"))
+
+    first = evaluate_motion_dir(clips, **kw)
+    assert first["failures"] == []
+    assert first["render_cache"] == {"dir": str(cache), "hits": 0, "misses": 3}  # the T-pose and two clips
+    stored = entries()
+    assert len(stored) == 3
+    second = evaluate_motion_dir(clips, **kw)
+    assert second["render_cache"]["hits"] == 3 and second["render_cache"]["misses"] == 0
+    assert entries() == stored
+    assert [c["render"]["cached"] for c in second["clips"]] == [True, True]
+    assert _tables_bytes(first) == _tables_bytes(second)  # bit for bit
+    assert json.dumps(first["pooled_rmse_cm"]) == json.dumps(second["pooled_rmse_cm"])
+
+    # The key is the clip's content, not its path or modification time; the body and detector are in it.
+    clip = find_clips(clips)[0]
+    key = spec_key(clip_spec(clip, seed=2, protocol="ours"))
+    assert first["clips"][0]["render"]["key"] == key
+    moved = tmp_path / "elsewhere.bvh"
+    shutil.copy(clips / "a.bvh", moved)
+    assert spec_key(clip_spec({**clip, "path": str(moved)}, seed=2, protocol="ours")) == key
+    keys = {key}
+    for other in (dict(seed=3, protocol="ours"), dict(seed=2, protocol="paper"),
+                  dict(seed=2, protocol="ours", body="skinned"), dict(seed=2, protocol="ours", detector="mediapipe"),
+                  dict(seed=2, protocol="ours", width=320, height=240)):
+        keys.add(spec_key(clip_spec(clip, **other)))
+    assert len(keys) == 6
+    assert spec_key(clip_spec({**clip, "window_s": [0.0, 0.05]}, seed=2, protocol="ours")) != key
+    (clips / "a.bvh").write_text(text.replace("Frame Time: 0.025", "Frame Time: 0.0250"))
+    assert spec_key(clip_spec(clip, seed=2, protocol="ours")) != key
+    third = evaluate_motion_dir(clips, **kw)
+    assert third["render_cache"]["hits"] == 2 and third["render_cache"]["misses"] == 1  # only the edited clip
+    assert len(entries()) == 4
+
+
+def test_a_bad_clip_fails_alone(tmp_path):
+    from akc_drake.evaluation.motion_set import evaluate_motion_dir
+
+    shutil.copy(DATA / "upper_body.bvh", tmp_path / "a.bvh")
+    (tmp_path / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    r = evaluate_motion_dir(tmp_path, methods=["KF"], seed=0, protocol="ours", cache=False, progress=False,
+                            tpose_seconds=1.0)
+    assert [c["name"] for c in r["clips"]] == ["a"]
+    assert len(r["failures"]) == 1 and r["failures"][0].startswith("broken:") and "\n" not in r["failures"][0]
+    assert r["render_cache"] == {"dir": None, "hits": 0, "misses": 2}

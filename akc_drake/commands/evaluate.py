@@ -145,10 +145,18 @@ def run_motion_dir(args) -> int:
     except ValueError as e:
         raise UserError(f"--methods {args.methods!r}: {e}") from None
     _check_outputs(args)
+    detector = getattr(args, "detector", "sim")
+    if detector == "both":
+        raise UserError("--detector both: not with --motion-dir (run it once with sim and once with mediapipe; "
+                        "the render cache keeps both)")
+    workers = getattr(args, "workers", None)
+    if workers is not None and workers < 1:
+        raise UserError(f"--workers must be at least 1, got {workers}")
     find_clips(args.motion_dir)
     scheduler = check_scheduler(getattr(args, "scheduler", "local"))
     result = evaluate_motion_dir(args.motion_dir, methods=methods, seed=args.seed, protocol=args.protocol,
-                                 weights=args.weights, scheduler=scheduler)
+                                 weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
+                                 scheduler=scheduler, n_workers=workers)
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))
@@ -162,8 +170,11 @@ def run_motion_dir(args) -> int:
         write_tables(tables, args.out)
         plot_errors_per_clip(result, Path(args.out) / "figures" / "error_per_clip.png")
         print(f"wrote {args.out}/tables/*.csv and {args.out}/figures/error_per_clip.png")
+    rc = result["render_cache"]
+    where = rc["dir"] or "off (AKC_DRAKE_CACHE=off)"
+    print(f"render cache {where}: {rc['hits']} session(s) read, {rc['misses']} rendered")
     print(f"{len(result['clips'])} clips, {result['elapsed_s']:.1f} s")
-    return 0
+    return 1 if result["failures"] else 0
 
 
 def main(args) -> int:

