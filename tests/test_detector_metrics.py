@@ -11,6 +11,7 @@ from akc_drake.evaluation.detector_metrics import (
     occlusion_flags,
     side_by_side,
     true_occlusion,
+    upper_arm_ray_angle,
 )
 from akc_drake.evaluation.report import Table
 from akc_drake.evaluation.session import Session
@@ -83,3 +84,35 @@ def test_side_by_side_puts_both_values_and_the_paper_in_each_cell():
     b = Table("t1", "Table", ["z"], ["Raw", "AKC"], np.array([[33.8, 6.9]]), np.array([[34.9, 3.3]]), decimals=1)
     md = side_by_side([a], [b], "sim", "mediapipe")
     assert "sim / mediapipe (paper)" in md and "| z | 30.0 / 33.8 (34.9) | 6.0 / 6.9 (3.3) |" in md
+
+
+def test_upper_arm_angle_to_the_camera_ray_and_the_figures_by_view():
+    """An arm pointing at the camera is end-on (0 deg), one out to the side is seen side-on; the visible
+    joints' pixel errors are split by that angle, and the figure without the end-on frames is given beside
+    the one over every visible frame."""
+    truth = np.stack([_pose(False), _pose(True)])
+    ang = upper_arm_ray_angle(truth)
+    assert ang.shape == (2, 2)
+    assert ang[1, 0] == pytest.approx(0.0, abs=1e-6)  # left arm at the camera
+    E = truth[0, INDEX["left_elbow"]]  # out to the side along +x: the angle between +x and the ray -E
+    assert ang[0, 0] == pytest.approx(np.degrees(np.arccos(-E[0] / np.linalg.norm(E))), abs=1e-9)
+    assert ang[0, 0] == pytest.approx(ang[1, 1], abs=1e-9) and 100.0 < ang[0, 0] < 105.0
+    # Motion II's peak on the left: the upper arm at the camera, the forearm up (image -y); its elbow is visible.
+    up = truth[1].copy()
+    E = up[INDEX["left_elbow"]]
+    for n, h in (("wrist", 0.27), ("index", 0.36), ("pinky", 0.35)):
+        up[INDEX[f"left_{n}"]] = E + [0.0, -h, 0.0]
+    truth = np.stack([truth[0], up])
+    uv = np.stack([[project(p, K) for p in P] for P in truth])
+    uv[:, INDEX["right_elbow"]] += [6.0, 8.0]  # 10 px off in both frames (the right arm side-on)
+    uv[1, INDEX["left_elbow"]] += [0.0, -20.0]  # 20 px up the forearm with the left upper arm end-on
+    rep = detector_report(_session(truth, uv, np.full((2, NUM_LANDMARKS), 0.99), truth))
+    le, re = rep["joints"]["left_elbow"], rep["joints"]["right_elbow"]
+    assert le["visible"]["frames"] == 2 and le["visible"]["px_median"] == pytest.approx(10.0)
+    assert le["visible_not_end_on"]["frames"] == 1 and le["visible_not_end_on"]["px_median"] == pytest.approx(0.0)
+    assert le["visible_by_upper_arm_angle"]["0-10"] == {"frames": 1, "px_median": pytest.approx(20.0)}
+    assert le["visible_by_upper_arm_angle"]["10-30"] == {"frames": 0, "px_median": None}
+    assert re["visible_not_end_on"]["px_median"] == pytest.approx(10.0) and re["visible_not_end_on"]["frames"] == 2
+    assert "visible_not_end_on" not in rep["joints"]["left_hip"]
+    text = format_report("test", rep)
+    assert "| left_elbow | 20.0 (1) | - (0) | 0.0 (1) | 10.0 (2) | 0.0 (1) |" in text

@@ -71,6 +71,46 @@ def test_reshape_gives_the_operators_arm_lengths_and_shoulder_width():
     assert L("left_shoulder", "right_shoulder") == pytest.approx(0.36, abs=1e-9)
 
 
+def _elbow_in_mesh(points, triangles, S, E, W):
+    """mm: the elbow's distance to the mesh's upper-arm and forearm centre lines, and to the nearest skin vertex."""
+    from akc_drake.core.skinning import distance_to_line, limb_axis
+
+    upper = limb_axis(points, triangles, S, E, (0.4, 0.5, 0.6, 0.7))
+    fore = limb_axis(points, triangles, E, W, (0.3, 0.4, 0.5, 0.6))
+    skin = np.min(np.linalg.norm(points - E, axis=1))
+    return 1000 * distance_to_line(E, *upper), 1000 * distance_to_line(E, *fore), 1000 * skin
+
+
+def test_the_rig_elbow_is_the_meshs_elbow_at_rest_and_in_motion_II(body):
+    """The truth's elbow lies where the skinned mesh has its elbow: on the upper arm's and the forearm's centre
+    lines (cross-section centres) to 15 mm and at least 15 mm under the skin, at rest (where the reshaped
+    body keeps the asset's own offsets) and in Motion II, extended and flexed (upper arm at the camera), with
+    the forearm rolled anywhere from 0 to 150 deg. (Above ~120 deg of flexion the cross-sections cut the
+    folded neighbour segment, so the check does not apply there.)"""
+    V = body.num_vertices
+    a = body.assets
+    for side, bones in (
+        ("left", ("LeftArm", "LeftForeArm", "LeftHand")),
+        ("right", ("RightArm", "RightForeArm", "RightHand")),
+    ):
+        rest = _elbow_in_mesh(body.points_rest[:V], body.triangles, *body._rest_joints[side][:3])
+        asset = _elbow_in_mesh(a.vertices, body.triangles, *(a.heads[a.bone(b)] for b in bones))
+        assert max(rest[:2]) < 15.0 and rest[2] > 15.0
+        assert np.allclose(rest[:2], asset[:2], atol=2.0)  # reshaping does not move the elbow in the arm
+    m = make_motion("II", 1, 0)
+    q = m.q()
+    peak = int(np.argmax(q[:, 3]))
+    for k, roll in ((0, None), (peak, None), (peak, 0.0), (peak, 150.0)):
+        qk = q[k].copy()
+        if roll is not None:
+            qk[[4, 9]] = math.radians(roll)
+        P = body.posed_points(qk)[:V]
+        lm = body.landmarks_O(qk[None])[0]
+        for side in ("left", "right"):
+            d = _elbow_in_mesh(P, body.triangles, *(lm[INDEX[f"{side}_{n}"]] for n in ("shoulder", "elbow", "wrist")))
+            assert max(d[:2]) < 15.0 and d[2] > 15.0, (k, roll, side, d)
+
+
 def test_every_region_is_a_prism_layer_and_regions_cover_the_body(body):
     total = 0
     for name, (idx, tets, faces) in body.regions.items():

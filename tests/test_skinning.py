@@ -98,3 +98,45 @@ def test_vtk_text_has_the_counts_drake_reads():
     vtk = skinning.vtk_tetra_text(pts, tets)
     assert "POINTS 6 double" in vtk and "CELLS 3 15" in vtk and vtk.strip().endswith("10")
     assert np.allclose(skinning.vertex_normals(np.eye(3), np.array([[0, 1, 2]])), 1 / np.sqrt(3))
+
+
+def _tube(radius=0.04, length=0.3, centre=(0.1, -0.2, 0.5), n=48, rings=31):
+    """A closed-side cylinder along z (triangles), its axis through ``centre``."""
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    z = np.linspace(0, length, rings)
+    pts = np.array([[radius * np.cos(t), radius * np.sin(t), h] for h in z for t in a]) + centre
+    tris = []
+    for r in range(rings - 1):
+        for k in range(n):
+            i, j = r * n + k, r * n + (k + 1) % n
+            tris += [[i, j, j + n], [i, j + n, i + n]]
+    return pts, np.array(tris)
+
+
+def test_plane_section_cuts_a_tube_in_a_circle_around_its_axis():
+    pts, tris = _tube()
+    seg = skinning.plane_section(pts, tris, [0.1, -0.2, 0.625], [0, 0, 1])
+    assert len(seg) == 2 * 48  # each quad of the tube is two triangles, both cut
+    # Every end lies on the plane and on the tube (within the polygon's chord sag).
+    assert np.allclose(seg[..., 2], 0.625, atol=1e-12)
+    r = np.linalg.norm(seg[..., :2] - [0.1, -0.2], axis=-1)
+    assert np.all((r <= 0.04 + 1e-12) & (r > 0.04 * np.cos(np.pi / 48) - 1e-12))
+    assert np.allclose(skinning.section_centre(seg), [0.1, -0.2, 0.625], atol=1e-12)
+    # A radius filter keeps only what lies near the origin; a plane that misses the surface cuts nothing.
+    assert len(skinning.plane_section(pts, tris, [0.3, -0.2, 0.625], [0, 0, 1], radius=0.1)) == 0
+    assert len(skinning.plane_section(pts, tris, [0, 0, 2.0], [0, 0, 1])) == 0
+    with pytest.raises(ValueError, match="does not cut"):
+        skinning.section_centre(np.zeros((0, 2, 3)))
+
+
+def test_limb_axis_of_a_turned_tube_is_its_axis():
+    pts, tris = _tube(centre=(0.0, 0.0, 0.0))
+    R = _rot([1, 2, 0.5], 0.7)
+    p = pts @ R.T + [0.2, 0.1, -0.3]
+    start, end = R @ [0.0, 0.0, 0.02] + [0.2, 0.1, -0.3], R @ [0.0, 0.0, 0.28] + [0.2, 0.1, -0.3]
+    point, d = skinning.limb_axis(p, tris, start, end)
+    assert np.allclose(d, R[:, 2], atol=1e-9)
+    assert skinning.distance_to_line(start, point, d) < 1e-9
+    # A point 1 cm off the axis is 1 cm from it.
+    off = start + 0.01 * R[:, 0]
+    assert skinning.distance_to_line(off, point, d) == pytest.approx(0.01, abs=1e-9)

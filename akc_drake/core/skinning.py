@@ -178,3 +178,72 @@ def prism_shell(points: np.ndarray, triangles: np.ndarray, depth: float = SHELL_
     flip = np.einsum("ij,ij->i", np.cross(p1 - p0, p2 - p0), p3 - p0) < 0
     tets[flip] = tets[flip][:, [0, 2, 1, 3]]
     return pts, tets
+
+
+def plane_section(points: np.ndarray, triangles: np.ndarray, origin, normal, radius: float | None = None) -> np.ndarray:
+    """Where a triangle surface crosses a plane: ``(S, 2, 3)`` line segments.
+
+    Args:
+        points, triangles: the surface.
+        origin, normal: a point of the plane and its normal.
+        radius: keep only the segments whose midpoint lies within ``radius`` of ``origin`` (e.g. one limb's
+            cross-section, not the torso's the same plane cuts); None: all.
+    """
+    P = np.asarray(points, float)
+    tri = np.asarray(triangles, dtype=np.int64)
+    o = np.asarray(origin, float)
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    s = (P - o) @ n
+    st = s[tri]
+    pos = st > 0.0
+    cut = pos.any(axis=1) & ~pos.all(axis=1)
+    tri, st, pos = tri[cut], st[cut], pos[cut]
+    # The lone vertex (on its own side of the plane) and the two edges from it that the plane crosses.
+    lone = np.where(pos.sum(axis=1) == 1, np.argmax(pos, axis=1), np.argmin(pos, axis=1))
+    rows = np.arange(len(tri))
+    ends = []
+    for k in (1, 2):
+        other = (lone + k) % 3
+        a, b = tri[rows, lone], tri[rows, other]
+        sa, sb = st[rows, lone], st[rows, other]
+        f = (sa / (sa - sb))[:, None]
+        ends.append(P[a] + f * (P[b] - P[a]))
+    seg = np.stack(ends, axis=1)
+    if radius is not None:
+        seg = seg[np.linalg.norm(seg.mean(axis=1) - o, axis=1) < radius]
+    return seg
+
+
+def section_centre(segments: np.ndarray) -> np.ndarray:
+    """The centre of a cross-section's outline (``(S, 2, 3)`` segments): their length-weighted mean midpoint."""
+    seg = np.asarray(segments, float)
+    w = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)
+    if seg.size == 0 or not w.sum() > 0:
+        raise ValueError("the plane does not cut the surface there")
+    return (seg.mean(axis=1) * w[:, None]).sum(axis=0) / w.sum()
+
+
+def limb_axis(points, triangles, start, end, fractions=(0.3, 0.4, 0.5, 0.6, 0.7), radius: float = 0.08):
+    """The centre line of a limb of a surface, between two points on its length (e.g. two joint centres).
+
+    The surface is cut by planes across the segment ``start -> end`` at ``fractions`` of its length; the line
+    fitted (least squares) through the cross-sections' centres is the limb's axis.
+
+    Returns:
+        ``(point, direction)``: a point of the axis (the centres' mean) and its unit direction (pointing
+        from ``start`` toward ``end``).
+    """
+    a, b = np.asarray(start, float), np.asarray(end, float)
+    d = (b - a) / np.linalg.norm(b - a)
+    centres = np.array(
+        [section_centre(plane_section(points, triangles, a + f * (b - a), d, radius)) for f in fractions]
+    )
+    m = centres.mean(axis=0)
+    axis = np.linalg.svd(centres - m)[2][0]
+    return m, axis if axis @ d >= 0 else -axis
+
+
+def distance_to_line(p, point, direction) -> float:
+    """Distance from ``p`` to the line through ``point`` along the unit ``direction``."""
+    r = np.asarray(p, float) - np.asarray(point, float)
+    return float(np.linalg.norm(r - (r @ direction) * np.asarray(direction, float)))

@@ -11,7 +11,12 @@ and the true joint centres in the camera frame):
   distal joint's pixel on the same arm loses its depth), both as the pipeline's occlusion filter applies
   them with the paper's rules, and how often a visible joint is flagged by mistake (rejected frames of a
   visible joint, or a visible joint whose depth is dropped);
-* **depth error**: the depth read at the detected pixel (the raw landmark's z) minus the true z.
+* **depth error**: the depth read at the detected pixel (the raw landmark's z) minus the true z;
+* **by view**: the visible arm joints' pixel error by the angle between the upper arm and the camera ray
+  (:func:`upper_arm_ray_angle`). With the upper arm end-on (pointing at the camera) the shoulder and elbow
+  project onto one pixel and the image shows no bend: a 2D detector's elbow is least defined there, so the
+  figures are also given without those frames (``visible_not_end_on``: the upper arm at least
+  :data:`END_ON_DEG` from the ray), beside, never instead of, the figure over all visible frames.
 
 Occlusion ground truth (:func:`true_occlusion`) is geometric and independent of the detector: a landmark is
 occluded when a limb segment of either arm (upper arm, forearm, hand; capsules of the radii below) covers its
@@ -29,6 +34,10 @@ from akc_drake.core.skeleton import INDEX, LANDMARKS, NUM_LANDMARKS, SIDES
 SEGMENT_RADIUS_M = (0.045, 0.038, 0.040)
 #: Radius of the body around each landmark kind (its surface is this much nearer than its centre).
 LANDMARK_RADIUS_M = {"shoulder": 0.055, "elbow": 0.045, "wrist": 0.032, "pinky": 0.015, "index": 0.015, "hip": 0.09}
+#: An upper arm within this angle of the camera ray (degrees) is "end-on".
+END_ON_DEG = 30.0
+#: Bins of the upper arm's angle to the camera ray (degrees) for the per-view pixel errors.
+ANGLE_BINS_DEG = (0.0, 10.0, END_ON_DEG, 180.0)
 
 
 def _project(P: np.ndarray, K: CameraIntrinsics) -> np.ndarray:
@@ -57,6 +66,20 @@ def true_occlusion(truth: np.ndarray, K: CameraIntrinsics, margin_m: float = 0.0
                 front = pts[..., 2] + r < truth[:, j, 2][:, None] - rad - margin_m
                 occ[:, j] |= np.any((d < r_px) & front, axis=1)
     return occ
+
+
+def upper_arm_ray_angle(truth: np.ndarray) -> np.ndarray:
+    """``(T, 2)`` degrees, left and right: the angle between each upper arm (shoulder -> elbow) and the ray
+    from its elbow to the camera (the origin of the camera frame): 0 when the arm points at the camera,
+    90 when it is seen side-on."""
+    truth = np.asarray(truth, float)
+    out = np.empty((truth.shape[0], len(SIDES)))
+    for k, side in enumerate(SIDES):
+        S, E = truth[:, INDEX[f"{side}_shoulder"]], truth[:, INDEX[f"{side}_elbow"]]
+        u, ray = E - S, -E
+        cross = np.linalg.norm(np.cross(u, ray), axis=1)
+        out[:, k] = np.degrees(np.arctan2(cross, np.einsum("ij,ij->i", u, ray)))
+    return out
 
 
 def occlusion_flags(session, visibility_threshold: float = 0.7, proximity: float = 0.05):
@@ -88,7 +111,10 @@ def detector_report(session, visibility_threshold: float = 0.7, proximity: float
     Returns:
         ``{"frames", "detection_rate", "joints": {name: {"visible": {...}, "occluded": {...}}}}`` where each
         part holds ``frames``, ``px_median``, ``px_p90``, ``depth_err_cm_median`` (|raw z - true z|) and
-        ``flag_visibility`` / ``flag_proximity`` / ``flag_any`` (shares of those frames flagged).
+        ``flag_visibility`` / ``flag_proximity`` / ``flag_any`` (shares of those frames flagged). Arm
+        landmarks (not the hips) also have ``visible_not_end_on`` (the same figures over the visible frames
+        whose upper arm on that side is at least :data:`END_ON_DEG` from the camera ray) and
+        ``visible_by_upper_arm_angle``: ``{"0-10": {"frames", "px_median"}, ...}`` over :data:`ANGLE_BINS_DEG`.
     """
     K = session.intrinsics
     truth, pix = np.asarray(session.truth), np.asarray(session.pixels)
@@ -98,6 +124,7 @@ def detector_report(session, visibility_threshold: float = 0.7, proximity: float
     occ = true_occlusion(truth, K)
     f_vis, f_prox = occlusion_flags(session, visibility_threshold, proximity)
     dz = np.abs(raw[..., 2] - truth[..., 2]) * 100.0
+    angle = upper_arm_ray_angle(truth)
 
     def stats(mask: np.ndarray) -> dict:
         m = mask & found
@@ -121,6 +148,14 @@ def detector_report(session, visibility_threshold: float = 0.7, proximity: float
     for j, name in enumerate(LANDMARKS):
         err_j, dz_j, fv_j, fp_j = err[:, j], dz[:, j], f_vis[:, j], f_prox[:, j]
         joints[name] = {"visible": stats(~occ[:, j]), "occluded": stats(occ[:, j])}
+        side, kind = name.split("_", 1)
+        if kind != "hip":
+            a = angle[:, SIDES.index(side)]
+            joints[name]["visible_not_end_on"] = stats(~occ[:, j] & (a >= END_ON_DEG))
+            joints[name]["visible_by_upper_arm_angle"] = {
+                f"{lo:g}-{hi:g}": {k: stats(~occ[:, j] & (a >= lo) & (a < hi))[k] for k in ("frames", "px_median")}
+                for lo, hi in zip(ANGLE_BINS_DEG[:-1], ANGLE_BINS_DEG[1:], strict=True)
+            }
     return {"frames": int(len(found)), "detection_rate": round(float(found.mean()), 4), "joints": joints}
 
 
@@ -145,6 +180,24 @@ def format_report(name: str, rep: dict) -> str:
             f"| {f(o['flag_visibility'], '{:.0%}')} / {f(o['flag_proximity'], '{:.0%}')} / "
             f"{f(o['flag_any'], '{:.0%}')} | {f(v['flag_any'], '{:.0%}')} |"
         )
+    by_view = [r for r in rep["joints"].values() if "visible_by_upper_arm_angle" in r]
+    bins = list(by_view[0]["visible_by_upper_arm_angle"]) if by_view else []
+    if bins:
+        lines += [
+            "",
+            "Visible arm joints by the angle between the upper arm and the camera ray: px median (frames); "
+            f"the last column leaves out the end-on frames (upper arm within {END_ON_DEG:g} deg of the ray).",
+            "",
+            "| landmark | " + " | ".join(f"{b} deg" for b in bins) + f" | all visible | >= {END_ON_DEG:g} deg |",
+            "|---" * (len(bins) + 3) + "|",
+        ]
+        for name_j, r in rep["joints"].items():
+            if "visible_by_upper_arm_angle" not in r or name_j.split("_", 1)[1] not in ("shoulder", "elbow", "wrist"):
+                continue
+            cells = [f"{f(c['px_median'])} ({c['frames']})" for c in r["visible_by_upper_arm_angle"].values()]
+            v, n = r["visible"], r["visible_not_end_on"]
+            cells += [f"{f(v['px_median'])} ({v['frames']})", f"{f(n['px_median'])} ({n['frames']})"]
+            lines.append(f"| {name_j} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
