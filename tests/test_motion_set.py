@@ -140,3 +140,14 @@ def test_a_bad_clip_fails_alone(tmp_path):
     assert [c["name"] for c in r["clips"]] == ["a"]
     assert len(r["failures"]) == 1 and r["failures"][0].startswith("broken:") and "\n" not in r["failures"][0]
     assert r["render_cache"] == {"dir": None, "hits": 0, "misses": 2}
+
+
+def test_motion_dir_command_options(tmp_path, capsys):
+    from akc_drake.cli import main as cli_main
+
+    shutil.copy(DATA / "upper_body.bvh", tmp_path / "a.bvh")
+    base = ["evaluate", "--motion-dir", str(tmp_path), "--scheduler", "inprocess"]
+    assert cli_main(base + ["--detector", "both"]) == 2
+    assert "--detector both: not with --motion-dir" in capsys.readouterr().err
+    assert cli_main(base + ["--workers", "0"]) == 2
+    assert "--workers must be at least 1" in capsys.readouterr().err
