@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -327,9 +328,11 @@ def evaluate_motion_dir(
     check_protocol(protocol)
     t0 = time.perf_counter()
     clips = find_clips(motion_dir)
-    tpose, tpose_hit = render_clip(tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector,
-                                              seconds=tpose_seconds),
-                                   cache=cache)
+    from tqdm import tqdm
+
+    spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds)
+    with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
+        tpose, tpose_hit = render_clip(spec, cache=cache, progress=lambda n, _name: bar.update(n))
     dims = calibrate_session(tpose, "tpose", method_options(protocol))
     cache_arg = None if cache is None else (False if cache is False else str(cache))
     items = [
