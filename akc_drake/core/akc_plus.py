@@ -53,7 +53,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from akc_drake.core.akc import AKCResult
-from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, torso_axes
+from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, project_lengths, torso_axes
+from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
@@ -68,9 +69,11 @@ _BACKWARDS = 25.0
 _LHIP_Z = 3 * INDEX["left_hip"] + 2
 _RHIP_Z = 3 * INDEX["right_hip"] + 2
 
-#: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, and per
-#: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none).
-STATE_SIZE = 36
+#: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, per
+#: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
+#: joint and axis the running mean of the normalised innovation squared (18).
+STATE_SIZE = 54
+_NIS = 36
 
 
 @dataclass(frozen=True)
@@ -97,6 +100,16 @@ class AKCPlusConfig:
         gate_frames: ... unless it has been so for this many frames and fits the arm's lengths.
         occlusion_radius_m: a shoulder this close (x, y, metres) to its elbow does not count as seen (its
             depth may be the upper arm's surface; 8 cm ~ 25 px at 2 m).
+        depth_sigma_m, image_sigma_m: the measurement's standard deviations in depth and in x, y (the
+            filter's R: ``KFConfig.sigma_z``, ``sigma_x``); without the filter's covariance they also stand
+            for it.
+        length_sigma_m: the calibrated lengths' standard deviation (a T-pose calibration: ``EKFConfig.sigma_c``).
+        gate_sigma: the statistical tests' gate in standard deviations (a measured depth against the filter,
+            the arm against the calibrated lengths: chi2 at the same tail probability, 99.7 % for 3).
+        nis_alpha: weight of the newest frame in the running mean of each joint's normalised innovation
+            squared (0.2: a time constant of 5 frames); the filter's variance times that mean is the error
+            variance the residuals show (covariance matching): a lagging joint's grows, a still one's shrinks.
+        nis_floor: the smallest factor the running mean may apply to the filter's variance.
     """
 
     consistency_m: float = 0.05
@@ -112,6 +125,12 @@ class AKCPlusConfig:
     jump_m: float = 0.15
     occlusion_radius_m: float = 0.08
     gate_frames: float = 10.0
+    depth_sigma_m: float = 0.05
+    image_sigma_m: float = 0.01
+    length_sigma_m: float = 0.01
+    gate_sigma: float = 3.0
+    nis_alpha: float = 0.2
+    nis_floor: float = 0.01
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -124,33 +143,6 @@ class AKCPlusConfig:
                 raise ValueError(f"AKCPlusConfig.{name} must be > 0, got {getattr(self, name)!r}")
         if self.elbow_min_deg >= 180.0:
             raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")
-
-
-def _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
-    """The elbow at ``lf`` from the wrist and ``lu`` from the shoulder nearest to ``p``; None if none exists.
-
-    The two spheres meet in a circle (centre on the wrist-shoulder line, plane normal to it); the nearest
-    point of the circle to ``p`` is ``p``'s projection on the plane pushed out to the radius.
-    """
-    nx, ny, nz = sx - wx, sy - wy, sz - wz
-    d = _hypot(nx, ny, nz)
-    if not (abs(lf - lu) < d < lf + lu):
-        return None
-    nx, ny, nz = nx / d, ny / d, nz / d
-    a = (d * d + lf * lf - lu * lu) / (2.0 * d)
-    h = _sqrt(max(lf * lf - a * a, 0.0))
-    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
-    qx, qy, qz = px - cx, py - cy, pz - cz
-    t = qx * nx + qy * ny + qz * nz
-    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
-    q = _hypot(qx, qy, qz)
-    if q < 1e-12:  # p on the axis: any point of the circle; take one orthogonal to the axis and to y
-        qx, qy, qz = nz, 0.0, -nx
-        q = _hypot(qx, qy, qz)
-        if q < 1e-12:
-            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
-    f = h / q
-    return cx + qx * f, cy + qy * f, cz + qz * f
 
 
 def _pythagoras(ax, ay, az, px, py, length):
@@ -171,7 +163,11 @@ def _candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
     if not xy_seen and abs(_hypot(px - ax, py - ay, pz - az) - length) <= tol:
         return (_radial(ax, ay, az, px, py, pz, length),)
     pair = _pythagoras(ax, ay, az, px, py, length)
-    return pair if pair is not None else (_in_plane(ax, ay, az, px, py, length),)
+    if pair is not None:
+        return pair
+    # No solution: the nearest point at the length, x, y moved as little as possible when they were detected
+    # (at the anchor's depth), else along the joint's direction (every axis as uncertain).
+    return (_in_plane(ax, ay, az, px, py, length) if xy_seen else _radial(ax, ay, az, px, py, pz, length),)
 
 
 def _in_plane(ax, ay, az, px, py, length):
@@ -244,6 +240,13 @@ class ArmKinematicCorrectorPlus:
         self._no_prior: set = set()
         self._fits: set = set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
+        self._r_z = config.depth_sigma_m**2
+        self._len_var = config.length_sigma_m**2
+        self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
+        self._gate2 = config.gate_sigma**2
+        # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
+        self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
+        self._var = None
         self.reset()
 
     @property
@@ -256,6 +259,7 @@ class ArmKinematicCorrectorPlus:
         self._lost = [0.0, 0.0, 0.0, 0.0]  # frames without a trusted depth: (left elbow, left shoulder, right ...)
         self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when last seen
         self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
+        self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
 
     def get_state_vector(self) -> np.ndarray:
         """``(36,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, and the
@@ -270,6 +274,7 @@ class ArmKinematicCorrectorPlus:
         for k in range(4):
             if self._f0[k] is not None:
                 v[24 + 3 * k : 27 + 3 * k] = self._f0[k]
+        v[_NIS:] = self._nis
         return v
 
     def set_state_vector(self, v) -> None:
@@ -298,16 +303,57 @@ class ArmKinematicCorrectorPlus:
         f0 = [tuple(q.tolist()) if np.all(np.isfinite(q)) else None for q in f0]
         self._prev = prev
         self._lost = lost.tolist()
+        nis = a[_NIS:]
+        if not np.all(np.isfinite(nis) & (nis > 0)):
+            raise ValueError(f"AKC+ state vector: NIS means [{_NIS}:] must be > 0, got {nis.tolist()}")
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
+        self._nis = nis.tolist()
 
     # ------------------------------------------------------------------ hot path (plain floats)
     def _measured(self, m, o, fz):
-        """Whether row ``m[o:o+3]`` was measured this frame and agrees with the filtered depth ``fz``."""
+        """Whether row ``m[o:o+3]`` was measured this frame and agrees with the filtered depth ``fz``.
+
+        With the filter's covariance, agreeing is the innovation test: for a Kalman update with measurement
+        variance ``R`` the residual ``z - fz`` has variance ``R - P`` (``P`` the filter's posterior variance),
+        and ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared ``y^2 / S``; it must be
+        within ``gate_sigma``. Without it, within ``consistency_m``.
+        """
         if m is None:
             return False
         mx, my, mz = m[o], m[o + 1], m[o + 2]
-        return _isfinite(mx + my + mz) and abs(mz - fz) <= self.config.consistency_m
+        if not _isfinite(mx + my + mz):
+            return False
+        var = self._var
+        if var is None:
+            return abs(mz - fz) <= self.config.consistency_m
+        d = mz - fz
+        return d * d <= self._gate2 * max(self._r_z - var[o + 2], 0.0) + 1e-12
+
+    def _update_nis(self, v, m):
+        """The running mean of each arm joint's and axis's normalised innovation squared (see ``_measured``)."""
+        var, nis, a = self._var, self._nis, self.config.nis_alpha
+        rr = self._r_axes
+        i = 0
+        for side in (0, 1):
+            for o in self._offsets[side]:
+                for ax in range(3):
+                    r = m[o + ax] - v[o + ax]
+                    d = rr[ax] - var[o + ax]
+                    if r == r and d > 0.0:  # measured (not NaN) and a finite residual variance
+                        nis[i] = (1.0 - a) * nis[i] + a * (r * r / d)
+                    i += 1
+
+    def _arm_var(self, side):
+        """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS."""
+        var, nis, fl = self._var, self._nis, self.config.nis_floor
+        out = []
+        i = 9 * side
+        for o in self._offsets[side]:
+            for ax in range(3):
+                out.append(var[o + ax] * max(nis[i], fl))
+                i += 1
+        return out
 
     def _inv_f2(self, k):
         """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
@@ -363,7 +409,8 @@ class ArmKinematicCorrectorPlus:
         me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
         geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
         geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
-        if prev is not None:
+        if prev is not None and self._var is None:
+            # (With the filter's covariance the innovation test of ``_measured`` is this test.)
             # Consistent with the prediction (our last output): a seen depth that jumps by more than jump_m in
             # one frame is an occluder's until it fits the arm again or has stayed for gate_frames frames.
             jump, n = self.config.jump_m, self.config.gate_frames
@@ -418,6 +465,17 @@ class ArmKinematicCorrectorPlus:
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         w = (wx, wy, wz)
         s = e = None
+        vs = self._arm_var(side) if self._var is not None else None
+        # With the filter's covariance: a depth not seen this frame that the filter still knows as well as a
+        # measurement would (its error variance within the measurement's) counts as seen here.
+        if vs is not None and (me or vs[5] <= self._r_z) and (ms or vs[2] <= self._r_z):
+            # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its
+            # covariance), the arm nearest it in that metric with the exact lengths (the joints move least
+            # where the filter is surest, and mostly in depth).
+            arm, _ = project_lengths((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, self._len_var,
+                                     self._chi2_gate)
+            if arm is not None:
+                return tuple(arm)
         te = me and geo_f  # elbow seen and at the forearm length from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
         # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
@@ -518,13 +576,15 @@ class ArmKinematicCorrectorPlus:
                 best, best_j = c, j
         return best
 
-    def correct(self, pose, measured=None) -> AKCResult:
+    def correct(self, pose, measured=None, variance=None) -> AKCResult:
         """Correct one filtered pose.
 
         Args:
             pose: ``(12, 3)`` filtered landmarks in the camera frame, NaN where missing.
             measured: ``(12, 3)`` this frame's measurement after the occlusion filter (NaN where rejected
                 or where the depth was dropped), or None when there is none (no depth is trusted).
+            variance: ``(12, 3)`` the filter's posterior variance of each coordinate of ``pose`` (the KF's and
+                EKFs' ``position_variance``), or None (then ``depth_sigma_m`` and ``image_sigma_m`` stand for it).
 
         Returns:
             An :class:`~akc_drake.core.akc.AKCResult`; ``chosen`` is 0 for a corrected arm (-1 held),
@@ -543,6 +603,14 @@ class ArmKinematicCorrectorPlus:
             if b.shape != (NUM_LANDMARKS, 3):
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.ravel().tolist()
+        self._var = None
+        if variance is not None:
+            c = np.asarray(variance, dtype=np.float64)
+            if c.shape != (NUM_LANDMARKS, 3):
+                raise ValueError(f"variance must have shape ({NUM_LANDMARKS}, 3), got {c.shape}")
+            self._var = c.ravel().tolist()
+            if m is not None:
+                self._update_nis(v, m)
         axes = torso_axes(v)
         hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z])
         self._hip_z = hz if _isfinite(hz) else None

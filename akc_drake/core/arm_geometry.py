@@ -141,3 +141,97 @@ def arm_inputs(v, offsets, prev):
     if not _isfinite(sz):
         sz = prev[2] if prev is not None else ez
     return sx, sy, sz, ex, ey, ez, wx, wy, wz
+
+
+def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=3):
+    """The arm nearest ``f`` in the filter's metric whose segments have exactly the lengths ``lu`` and ``lf``.
+
+    Minimises ``sum (p - f)^2 / var`` over the nine coordinates (shoulder, elbow, wrist) subject to
+    ``|s - e| = lu`` and ``|e - w| = lf``: the maximum a posteriori arm under the filter's Gaussian (a diagonal
+    covariance per axis) and exact lengths. The nearly noise-free axes (x, y) then barely move and the
+    correction goes to the uncertain depths, in proportion to their variances. Sequential quadratic
+    programming (the constraints linearised at the current point, ``iters`` steps), then the elbow is put on
+    the exact circle between the shoulder and the wrist (a move of the order of rounding).
+
+    Before any step, ``chi2 = g^T (J V J^T + length_var I)^-1 g`` of the length residuals ``g`` tests whether
+    the filter's arm is consistent with the calibrated lengths (2 degrees of freedom; ``length_var`` is the
+    calibration's variance): above ``gate`` nothing is projected.
+
+    Args:
+        f: nine floats, the filter's shoulder, elbow and wrist.
+        var: nine variances (> 0) of those coordinates.
+        lu, lf: the upper and lower arm lengths.
+        length_var: the variance of each calibrated length (m^2).
+        gate: the largest chi2 accepted.
+        iters: SQP steps.
+
+    Returns:
+        ``(arm as nine floats, chi2)``; the arm is None when chi2 > gate or no arm with these lengths exists
+        near ``f`` (the shoulder-wrist distance out of reach, a zero-length segment).
+    """
+    x = list(f)
+    chi2 = math.inf
+    for it in range(iters):
+        u1 = [x[0] - x[3], x[1] - x[4], x[2] - x[5]]
+        u2 = [x[3] - x[6], x[4] - x[7], x[5] - x[8]]
+        n1, n2 = _hypot(*u1), _hypot(*u2)
+        if n1 < _MIN_SEGMENT_M or n2 < _MIN_SEGMENT_M:
+            return None, chi2
+        u1 = [c / n1 for c in u1]
+        u2 = [c / n2 for c in u2]
+        a11 = a22 = a12 = 0.0
+        b1, b2 = n1 - lu, n2 - lf
+        for a in range(3):
+            vs, ve, vw = var[a], var[3 + a], var[6 + a]
+            a11 += u1[a] * u1[a] * (vs + ve)
+            a22 += u2[a] * u2[a] * (ve + vw)
+            a12 -= u1[a] * u2[a] * ve
+            b1 += u1[a] * ((f[a] - x[a]) - (f[3 + a] - x[3 + a]))
+            b2 += u2[a] * ((f[3 + a] - x[3 + a]) - (f[6 + a] - x[6 + a]))
+        if it == 0:
+            c11, c22 = a11 + length_var, a22 + length_var
+            det = c11 * c22 - a12 * a12
+            chi2 = (c22 * b1 * b1 - 2.0 * a12 * b1 * b2 + c11 * b2 * b2) / det if det > 0.0 else math.inf
+            if not chi2 <= gate:
+                return None, chi2
+        det = a11 * a22 - a12 * a12
+        if not det > 1e-30:
+            return None, chi2
+        l1 = (a22 * b1 - a12 * b2) / det
+        l2 = (a11 * b2 - a12 * b1) / det
+        for a in range(3):
+            x[a] = f[a] - var[a] * u1[a] * l1
+            x[3 + a] = f[3 + a] - var[3 + a] * (u2[a] * l2 - u1[a] * l1)
+            x[6 + a] = f[6 + a] + var[6 + a] * u2[a] * l2
+    e = circle_point(x[6], x[7], x[8], x[0], x[1], x[2], lf, lu, x[3], x[4], x[5])
+    if e is None:
+        return None, chi2
+    x[3], x[4], x[5] = e
+    return x, chi2
+
+
+def circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
+    """The elbow at ``lf`` from the wrist and ``lu`` from the shoulder nearest to ``p``; None if none exists.
+
+    The two spheres meet in a circle (centre on the wrist-shoulder line, plane normal to it); the nearest
+    point of the circle to ``p`` is ``p``'s projection on the plane pushed out to the radius.
+    """
+    nx, ny, nz = sx - wx, sy - wy, sz - wz
+    d = _hypot(nx, ny, nz)
+    if not (abs(lf - lu) < d < lf + lu):
+        return None
+    nx, ny, nz = nx / d, ny / d, nz / d
+    a = (d * d + lf * lf - lu * lu) / (2.0 * d)
+    h = math.sqrt(max(lf * lf - a * a, 0.0))
+    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
+    qx, qy, qz = px - cx, py - cy, pz - cz
+    t = qx * nx + qy * ny + qz * nz
+    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
+    q = _hypot(qx, qy, qz)
+    if q < 1e-12:  # p on the axis: any point of the circle; take one orthogonal to the axis and to y
+        qx, qy, qz = nz, 0.0, -nx
+        q = _hypot(qx, qy, qz)
+        if q < 1e-12:
+            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
+    f = h / q
+    return cx + qx * f, cy + qy * f, cz + qz * f

@@ -182,8 +182,15 @@ def make_filter(kind: str, dims: BodyDimensions | None, kf_config=None, ekf_conf
     raise ValueError(f"unknown filter {kind!r}; known: KF, EKF")
 
 
-def run_filter(filt, measurements: np.ndarray, t: np.ndarray):
+def run_filter(filt, measurements: np.ndarray, t: np.ndarray, variance: np.ndarray | None = None):
     """Run a core filter over ``measurements`` ``(T, 12, 3)`` at times ``t``.
+
+    Args:
+        filt: a core filter (``step``, ``reset``, ``position_variance``).
+        measurements: ``(T, 12, 3)``, NaN where missing.
+        t: ``(T,)`` seconds.
+        variance: an optional ``(T, 12, 3)`` array that receives the filter's posterior variance of each
+            coordinate after every step (read outside the timed step).
 
     Returns:
         ``(estimates (T, 12, 3), seconds per frame (T,))``.
@@ -199,13 +206,16 @@ def run_filter(filt, measurements: np.ndarray, t: np.ndarray):
         est = filt.step(measurements[k], float(steps[k]))
         dt_run[k] = clock() - t0
         out[k] = est
+        if variance is not None:
+            variance[k] = filt.position_variance
     return out, dt_run
 
 
-def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None):
+def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None, variance: np.ndarray | None = None):
     """Run an AKC or AKC+ corrector over ``poses`` ``(T, 12, 3)``; (corrected, seconds, status).
 
-    ``measured`` ``(T, 12, 3)`` is the occlusion filter's output, given to AKC+ (which keeps trusted depths).
+    ``measured`` ``(T, 12, 3)`` is the occlusion filter's output and ``variance`` ``(T, 12, 3)`` the filter's
+    posterior variance, both given to AKC+ (which keeps the depths they show trustworthy).
     """
     T = poses.shape[0]
     out = np.empty((T, NUM_LANDMARKS, 3))
@@ -215,7 +225,12 @@ def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None):
     clock = time.perf_counter
     for k in range(T):
         t0 = clock()
-        res = corrector.correct(poses[k]) if measured is None else corrector.correct(poses[k], measured[k])
+        if measured is None:
+            res = corrector.correct(poses[k])
+        elif variance is None:
+            res = corrector.correct(poses[k], measured[k])
+        else:
+            res = corrector.correct(poses[k], measured[k], variance[k])
         dt_run[k] = clock() - t0
         out[k] = res.pose
         fb = getattr(res, "fallback", None)
@@ -290,6 +305,7 @@ class MethodRunner:
         self.options = options or MethodOptions()
         self._occ: tuple[np.ndarray, np.ndarray] | None = None
         self._filtered: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._variance: dict[str, np.ndarray] = {}
         self._done: dict[str, MethodResult] = {}
 
     def occlusion(self) -> tuple[np.ndarray, np.ndarray]:
@@ -307,8 +323,15 @@ class MethodRunner:
             accepted, _ = self.occlusion()
             o = self.options
             filt = make_filter(kind, self.dims, o.kf_config, o.ekf_config, o.ekf_kind)
-            self._filtered[kind] = run_filter(filt, accepted, self.session.t)
+            var = np.empty_like(accepted)
+            self._filtered[kind] = run_filter(filt, accepted, self.session.t, var)
+            self._variance[kind] = var
         return self._filtered[kind]
+
+    def filter_variance(self, kind: str) -> np.ndarray:
+        """``(T, 12, 3)`` posterior variance of each coordinate of filter ``kind``'s output."""
+        self.filtered(kind)
+        return self._variance[kind]
 
     def run(self, name: str) -> MethodResult:
         """The result of method ``name`` (cached)."""
@@ -330,7 +353,10 @@ class MethodRunner:
                 times["corrector"] = t_cor
             elif spec.corrector == "AKC+":
                 accepted, _ = self.occlusion()
-                est, t_cor, status = run_akc(make_akc_plus(self.dims, self.options.akc_plus_config), est, accepted)
+                var = self.filter_variance(spec.filter)
+                est, t_cor, status = run_akc(
+                    make_akc_plus(self.dims, self.options.akc_plus_config), est, accepted, var
+                )
                 times["corrector"] = t_cor
             elif spec.corrector == "COIK":
                 est, t_cor, status = run_coik(make_coik(self.dims, self.options.coik_config), est)
