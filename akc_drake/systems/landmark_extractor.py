@@ -1,23 +1,7 @@
-"""Stage S2: 2D landmark detection on an RGB-D frame, depth lookup and pinhole deprojection.
+"""Stage S2 as a Drake system: 2D landmark detection on an RGB-D frame, depth lookup and deprojection.
 
-The detector is pluggable (any :class:`akc_drake.core.camera.Detector`: the simulated detector on renders,
-MediaPipe on real images). For each landmark the depth is the median of the valid depth pixels in a small
-window around its detected pixel (:func:`akc_drake.core.camera.depth_lookup`; NaN when there are none), and
-the 3D point is the pinhole deprojection of the pixel at that depth (:func:`akc_drake.core.camera.deproject`).
-Nothing here knows about occlusion: a landmark hidden behind a limb gets the limb's depth. Stage S3 decides.
-
-Surface-to-centre correction. A depth camera reads the body's *surface*; the landmarks are joint *centres*
-(and knuckles) inside the body. So every raw depth is short by about the body's half-thickness at that
-joint, for a real RealSense + MediaPipe exactly as for the rendered operator. Before deprojection each
-landmark's point is pushed ``surface_offset_m[j]`` further along its pixel ray: the measured range
-``rho = z |d|`` (``d = ((u - cx) / fx, (v - cy) / fy, 1)``) becomes ``rho + offset``, i.e.
-``z_centre = z_surface + offset / |d|``. This is exact for a sphere (or a cylinder seen across its axis)
-centred on the joint and viewed through its centre, where the ray meets the surface along its normal; for
-a limb seen obliquely the ray is not normal to the surface and the true surface-to-centre distance along
-the ray is larger (up to ``radius / cos(angle)``), so the correction is approximate there. Near the image
-centre ``|d|`` is about 1 and the correction is simply ``z_centre ~ z_surface + offset``. It is applied to
-whatever the depth reads, also when that is an occluder (stage S3 rejects those). ``surface_offset_m = 0``
-turns it off.
+The numpy work (depth lookup, surface-to-centre correction, deprojection, option and image-size checks)
+is :mod:`akc_drake.core.landmark_extraction`; its names stay importable from here.
 """
 
 from __future__ import annotations
@@ -27,154 +11,26 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
-from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detector, deproject, depth_lookup
-from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS
+from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detector
+from akc_drake.core.landmark_extraction import (
+    DEFAULT_SURFACE_OFFSET_M,
+    camera_frame,
+    check_extractor_options,
+    extract_landmarks,
+    surface_offsets,
+    surface_to_centre_depth,
+)
+from akc_drake.core.skeleton import NUM_LANDMARKS
 from akc_drake.systems import timing
-
-#: Default surface-to-centre offset per joint type (metres): half the body's thickness at the joint, seen
-#: from the front, for a typical adult. These are our estimates from common anthropometric sizes, not
-#: measured values: shoulder ~0.05 (the glenohumeral centre lies about 5 cm behind the front of the
-#: deltoid, upper-arm depth at the deltoid ~10-11 cm); elbow ~0.04 (elbow depth with soft tissue ~8 cm);
-#: wrist ~0.025 (wrist about 4 cm thick and 5.5-6 cm wide: a mean half-thickness of ~2.5 cm); knuckles
-#: (index and pinky MCP) ~0.015 (hand about 3 cm thick at the knuckles, seen face-on); hip ~0.09 (the hip
-#: joint centre sits about mid-depth of a ~18 cm thick upper thigh/groin). The simulated operator
-#: (:class:`akc_drake.operator.model.OperatorParams`) has deltoid 0.055, elbow 0.045, wrist 0.032-0.035,
-#: knuckles 0.015 and hip 0.095 (half the pelvis depth): close to, but deliberately not tuned to, these.
-DEFAULT_SURFACE_OFFSET_M: dict[str, float] = {
-    "shoulder": 0.05,
-    "elbow": 0.04,
-    "wrist": 0.025,
-    "pinky": 0.015,
-    "index": 0.015,
-    "hip": 0.09,
-}
-
-
-def surface_offsets(spec=None) -> np.ndarray:
-    """The ``(12,)`` per-landmark surface-to-centre offsets (metres) described by ``spec``.
-
-    Args:
-        spec: None (the defaults, :data:`DEFAULT_SURFACE_OFFSET_M`), a number (the same offset for all
-            landmarks; 0 turns the correction off), ``(12,)`` offsets in
-            :data:`~akc_drake.core.skeleton.LANDMARKS` order, or a mapping from joint type (``"shoulder"``,
-            ``"elbow"``, ``"wrist"``, ``"index"``, ``"pinky"``, ``"hip"``) or landmark name
-            (``"left_wrist"``) to an offset; joints a mapping leaves out keep their default.
-
-    Returns:
-        ``(12,)`` float64 offsets, each finite and in [0, 0.5] m.
-
-    Raises:
-        ValueError: naming the bad key or value.
-    """
-    default = np.array([DEFAULT_SURFACE_OFFSET_M[name.split("_", 1)[1]] for name in LANDMARKS])
-    if spec is None:
-        out = default
-    elif isinstance(spec, dict):
-        out = default.copy()
-        for key, value in spec.items():
-            names = [n for n in LANDMARKS if n == key or n.split("_", 1)[1] == key]
-            if not names:
-                raise ValueError(
-                    f"surface_offset_m: unknown joint {key!r}; use one of "
-                    f"{', '.join(DEFAULT_SURFACE_OFFSET_M)} or a landmark name"
-                )
-            try:
-                v = float(value)
-            except (TypeError, ValueError):
-                raise ValueError(f"surface_offset_m[{key!r}] must be a number, got {value!r}") from None
-            for n in names:
-                out[LANDMARKS.index(n)] = v
-    else:
-        try:
-            a = np.asarray(spec, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"surface_offset_m must be a number or {NUM_LANDMARKS} numbers, got {spec!r}"
-            ) from None
-        if a.ndim == 0:
-            out = np.full(NUM_LANDMARKS, float(a))
-        elif a.shape == (NUM_LANDMARKS,):
-            out = a.copy()
-        else:
-            raise ValueError(
-                f"surface_offset_m must be a number or {NUM_LANDMARKS} numbers, got shape {a.shape}"
-            )
-    bad = ~np.isfinite(out) | (out < 0) | (out > 0.5)
-    if np.any(bad):
-        j = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"surface_offset_m[{LANDMARKS[j]!r}] must be in [0, 0.5] m, got {out[j]!r}")
-    return out
-
-
-def surface_to_centre_depth(
-    uv: np.ndarray, z: np.ndarray, offset_m: np.ndarray, K: CameraIntrinsics
-) -> np.ndarray:
-    """Depths of points ``offset_m`` further along their pixel rays than the surface depths ``z``.
-
-    ``z_centre = z + offset / |d|`` with ``d = ((u - cx) / fx, (v - cy) / fy, 1)`` (the range along the ray
-    grows by ``offset``); see the module docstring for when this is exact. NaN stays NaN.
-
-    Args:
-        uv: ``(N, 2)`` pixels. z: ``(N,)`` surface depths (metres). offset_m: ``(N,)`` offsets (metres).
-        K: the camera.
-
-    Returns:
-        ``(N,)`` corrected depths.
-    """
-    uv = np.asarray(uv, dtype=float)
-    dx = (uv[..., 0] - K.cx) / K.fx
-    dy = (uv[..., 1] - K.cy) / K.fy
-    return np.asarray(z, dtype=float) + np.asarray(offset_m, dtype=float) / np.sqrt(1.0 + dx * dx + dy * dy)
-
-
-def extract_landmarks(
-    frame: CameraFrame,
-    detector: Detector,
-    *,
-    window: int = 5,
-    min_depth: float = 0.2,
-    max_depth: float = 10.0,
-    surface_offset_m=None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Detect, look up depth, correct it from the body surface to the joint centre and deproject.
-
-    Args:
-        frame: the RGB-D frame.
-        detector: any Detector.
-        window: depth-lookup window (odd, pixels).
-        min_depth, max_depth: valid depth range (metres).
-        surface_offset_m: surface-to-centre offsets, as :func:`surface_offsets` takes them (None: the
-            defaults; 0: no correction).
-
-    Returns:
-        ``(landmarks_C (12, 3), visibility (12,), pixels (12, 2))``; NaN landmarks and pixels and zero
-        visibility when the detector finds nobody.
-    """
-    det = detector.detect(frame)
-    if not det.person_found:
-        return (
-            np.full((NUM_LANDMARKS, 3), np.nan),
-            np.zeros(NUM_LANDMARKS),
-            np.full((NUM_LANDMARKS, 2), np.nan),
-        )
-    uv = np.asarray(det.uv, dtype=float).reshape(NUM_LANDMARKS, 2)
-    vis = np.asarray(det.visibility, dtype=float).reshape(NUM_LANDMARKS)
-    offsets = surface_offsets(surface_offset_m)
-    if frame.extras.get("depth_is_surface", True) is False:
-        offsets = np.zeros_like(offsets)  # e.g. a constant --depth for a video: already a joint depth
-    z = depth_lookup(frame.depth_m, uv, window=window, min_depth=min_depth, max_depth=max_depth)
-    if np.any(offsets):
-        z = surface_to_centre_depth(uv, z, offsets, frame.intrinsics)
-    return deproject(uv, z, frame.intrinsics), vis, uv
 
 
 class LandmarkExtractor(LeafSystem):
     """Stage S2 as a sampled system: detector + depth lookup + surface-to-centre correction + deprojection.
 
-    At ``t_k + timing.stage_offset("extractor")`` it builds a
-    :class:`~akc_drake.core.camera.CameraFrame` from its inputs (frame time ``t_k``), runs
-    :func:`extract_landmarks` and stores the result in its discrete state; the outputs read the state. Before
-    the first frame the outputs are NaN (landmarks, pixels) and 0 (visibility).
+    At ``t_k + timing.stage_offset("extractor")`` it builds a :class:`~akc_drake.core.camera.CameraFrame`
+    from its inputs (frame time ``t_k``), runs :func:`~akc_drake.core.landmark_extraction.extract_landmarks`
+    and stores the result in its discrete state; the outputs read the state. Before the first frame the
+    outputs are NaN (landmarks, pixels) and 0 (visibility).
 
     .. pydrake_system::
 
@@ -193,62 +49,37 @@ class LandmarkExtractor(LeafSystem):
     ``color_image`` is ImageRgba8U, ``depth_image`` ImageDepth32F (metres, 0 invalid), ``camera_info`` an
     AbstractValue of :class:`~akc_drake.core.camera.CameraIntrinsics` (when unconnected: the intrinsics given
     to the constructor); the optional ports are left unconnected for real cameras (the frame then carries
-    no label image or truth). Outputs: ``landmarks_C``
-    36 = (12, 3) row-major in the camera frame C, ``visibility`` 12, ``pixels`` 24 = (12, 2) row-major.
+    no label image or truth). Outputs: ``landmarks_C`` 36 = (12, 3) row-major in the camera frame C,
+    ``visibility`` 12, ``pixels`` 24 = (12, 2) row-major.
+
+    Args:
+        intrinsics: the camera; sets the image size of the input models and the default period
+            (``1 / rate_hz``); default 640x480 at 10 Hz. Deprojection uses the intrinsics on ``camera_info``.
+        detector: any Detector; None: a :class:`~akc_drake.core.sim_detector.SimulatedDetector` seeded with
+            ``seed`` (needs the ``landmarks_true_C`` input).
+        period_s: sampling period (default: the camera period).
+        stage_offset_s: the per-stage offset (updates at ``t_k + timing.stage_offset("extractor", ...)``).
+        seed: seed of the default simulated detector.
+        window: depth-lookup window (odd, pixels). min_depth, max_depth: valid depth range (metres).
+        surface_offset_m: per-landmark surface-to-centre depth offsets, as
+            :func:`~akc_drake.core.landmark_extraction.surface_offsets` takes them (None: the defaults).
     """
 
-    def __init__(
-        self,
-        intrinsics: CameraIntrinsics | None = None,
-        detector: Detector | None = None,
-        *,
-        period_s: float | None = None,
-        stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
-        seed: int = 0,
-        window: int = 5,
-        min_depth: float = 0.2,
-        max_depth: float = 10.0,
-        surface_offset_m=None,
-    ):
-        """Args:
-        intrinsics: the camera; sets the image size of the input models and the default period
-            (``1 / rate_hz``); default 640x480 at 10 Hz. Deprojection uses the intrinsics that arrive on
-            ``camera_info``.
-        detector: any Detector (``detect(CameraFrame) -> Detection2D``); None: a
-            :class:`~akc_drake.core.sim_detector.SimulatedDetector` seeded with ``seed`` (needs the
-            ``landmarks_true_C`` input).
-        period_s: sampling period (default: the camera period).
-        stage_offset_s: the per-stage offset; the extractor updates at
-            ``t_k + timing.stage_offset("extractor", stage_offset_s)``.
-        seed: seed of the default simulated detector.
-        window: depth-lookup window (odd, pixels).
-        min_depth, max_depth: valid depth range (metres).
-        surface_offset_m: per-landmark surface-to-centre depth offsets (see :func:`surface_offsets`:
-            None for the typical-adult defaults, 0 to turn the correction off, a number, 12 numbers or a
-            mapping by joint).
-        """
+    def __init__(self, intrinsics: CameraIntrinsics | None = None, detector: Detector | None = None, *,
+                 period_s: float | None = None, stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
+                 seed: int = 0, window: int = 5, min_depth: float = 0.2, max_depth: float = 10.0,
+                 surface_offset_m=None):
         super().__init__()
         if detector is None:
             from akc_drake.core.sim_detector import SimulatedDetector
 
             detector = SimulatedDetector(seed=seed)
-        if not isinstance(detector, Detector):
-            raise ValueError(
-                f"detector must implement the Detector protocol (name, detect), got {detector!r}"
-            )
-        if intrinsics is not None and not isinstance(intrinsics, CameraIntrinsics):
-            raise ValueError(f"intrinsics must be a CameraIntrinsics, got {type(intrinsics).__name__}")
-        if not isinstance(window, (int, np.integer)) or window < 1 or window % 2 == 0:
-            raise ValueError(f"window must be a positive odd integer, got {window!r}")
+        self._period = check_extractor_options(detector, intrinsics, window, period_s)
         K = intrinsics or CameraIntrinsics()
-        period = 1.0 / K.rate_hz if period_s is None else float(period_s)
-        if not period > 0:
-            raise ValueError(f"period_s must be positive, got {period_s!r}")
         self._detector = detector
         self._window = int(window)
         self._offsets = surface_offsets(surface_offset_m)
         self._range = (float(min_depth), float(max_depth))
-        self._period = period
         self._offset = timing.stage_offset("extractor", stage_offset_s)
         W, H = K.width, K.height
         self._color = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U(W, H)))
@@ -257,10 +88,9 @@ class LandmarkExtractor(LeafSystem):
         self._label = self.DeclareAbstractInputPort("label_image", AbstractValue.Make(ImageLabel16I(W, H)))
         self._truth = self.DeclareVectorInputPort("landmarks_true_C", 3 * NUM_LANDMARKS)
         self._K_default = K
-        n3, n2 = 3 * NUM_LANDMARKS, 2 * NUM_LANDMARKS
-        self._s_points = self.DeclareDiscreteState(BasicVector(np.full(n3, np.nan)))
+        self._s_points = self.DeclareDiscreteState(BasicVector(np.full(3 * NUM_LANDMARKS, np.nan)))
         self._s_vis = self.DeclareDiscreteState(BasicVector(np.zeros(NUM_LANDMARKS)))
-        self._s_pix = self.DeclareDiscreteState(BasicVector(np.full(n2, np.nan)))
+        self._s_pix = self.DeclareDiscreteState(BasicVector(np.full(2 * NUM_LANDMARKS, np.nan)))
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, self._offset, self._update)
         self.DeclareStateOutputPort("landmarks_C", self._s_points)
         self.DeclareStateOutputPort("visibility", self._s_vis)
@@ -275,49 +105,23 @@ class LandmarkExtractor(LeafSystem):
         """The ``(12,)`` surface-to-centre offsets this extractor applies (a copy)."""
         return self._offsets.copy()
 
-    def _black(self, K: CameraIntrinsics) -> np.ndarray:
-        img = getattr(self, "_black_image", None)
-        if img is None or img.shape[:2] != (K.height, K.width):
-            img = np.zeros((K.height, K.width, 3), dtype=np.uint8)
-            img.flags.writeable = False
-            self._black_image = img
-        return img
-
     def frame_from_inputs(self, context) -> CameraFrame:
         """The :class:`CameraFrame` the inputs describe (frame time = context time - the stage offset)."""
         K = self._info.Eval(context) if self._info.HasValue(context) else self._K_default
-        if not isinstance(K, CameraIntrinsics):
-            raise ValueError(f"camera_info must hold a CameraIntrinsics, got {type(K).__name__}")
         # Copies: the frame owns its arrays (a detector may keep frames; the inputs change next frame).
-        if getattr(self._detector, "needs_color", True) or not self._color.HasValue(context):
-            color = (np.ascontiguousarray(self._color.Eval(context).data[:, :, :3]) if self._color.HasValue(context)
-                     else self._black(K))
-        else:
-            # A detector that does not look at colour (the simulated one) gets a shared black image: no copy.
-            color = self._black(K)
+        # A detector that does not look at colour (the simulated one) gets a shared black image: no copy.
+        color = None
+        if self._color.HasValue(context) and getattr(self._detector, "needs_color", True):
+            color = np.ascontiguousarray(self._color.Eval(context).data[:, :, :3])
         depth = self._depth.Eval(context).data[:, :, 0].copy()
-        if depth.shape != (K.height, K.width) or color.shape[:2] != (K.height, K.width):
-            raise ValueError(
-                f"image size {depth.shape[1]}x{depth.shape[0]} (depth), "
-                f"{color.shape[1]}x{color.shape[0]} (colour) "
-                f"does not match camera_info {K.width}x{K.height}"
-            )
         label = self._label.Eval(context).data[:, :, 0].copy() if self._label.HasValue(context) else None
         truth = self._truth.Eval(context).reshape(NUM_LANDMARKS, 3) if self._truth.HasValue(context) else None
-        t = context.get_time() - self._offset
-        return CameraFrame(color=color, depth_m=depth, t=t, intrinsics=K, truth_C=truth, label=label)
+        return camera_frame(color, depth, context.get_time() - self._offset, K, truth, label)
 
     def _update(self, context, discrete_state):
-        frame = self.frame_from_inputs(context)
         lo, hi = self._range
-        points, vis, uv = extract_landmarks(
-            frame,
-            self._detector,
-            window=self._window,
-            min_depth=lo,
-            max_depth=hi,
-            surface_offset_m=self._offsets,
-        )
+        points, vis, uv = extract_landmarks(self.frame_from_inputs(context), self._detector, window=self._window,
+                                            min_depth=lo, max_depth=hi, surface_offset_m=self._offsets)
         discrete_state.get_mutable_vector(self._s_points).SetFromVector(points.ravel())
         discrete_state.get_mutable_vector(self._s_vis).SetFromVector(vis)
         discrete_state.get_mutable_vector(self._s_pix).SetFromVector(uv.ravel())
@@ -334,3 +138,7 @@ def AddLandmarkExtractor(builder, source, detector: Detector | None = None, **kw
         if source.HasOutputPort(name):
             builder.Connect(source.GetOutputPort(name), extractor.GetInputPort(name))
     return extractor
+
+
+__all__ = ["DEFAULT_SURFACE_OFFSET_M", "AddLandmarkExtractor", "LandmarkExtractor", "extract_landmarks",
+           "surface_offsets", "surface_to_centre_depth"]

@@ -127,7 +127,7 @@ def render_session(
     One :class:`DepthCameraSource` and one context are reused; each frame (``t_k = k / rate``) is rendered
     once, corrupted with the same noise the diagram would apply, passed to ``detector`` and through the
     extractor's depth lookup, surface-to-centre correction and deprojection
-    (:func:`~akc_drake.systems.landmark_extractor.extract_landmarks`).
+    (:func:`~akc_drake.core.landmark_extraction.extract_landmarks`).
     The values equal what the mocap diagram's LandmarkExtractor computes for the same frames.
 
     Args:
@@ -148,14 +148,14 @@ def render_session(
         background_wall_m: see :class:`DepthCameraSource`.
         window: depth-lookup window (pixels).
         surface_offset_m: the extractor's surface-to-centre depth offsets
-            (:func:`~akc_drake.systems.landmark_extractor.surface_offsets`; None: the same defaults as
+            (:func:`~akc_drake.core.landmark_extraction.surface_offsets`; None: the same defaults as
             :class:`~akc_drake.systems.landmark_extractor.LandmarkExtractor`, 0: off).
 
     Returns:
         A :class:`Session`.
     """
+    from akc_drake.core.landmark_extraction import extract_landmarks, surface_offsets
     from akc_drake.systems.depth_camera_source import DepthCameraSource
-    from akc_drake.systems.landmark_extractor import extract_landmarks, surface_offsets
 
     K = intrinsics or CameraIntrinsics()
     offsets = surface_offsets(surface_offset_m)

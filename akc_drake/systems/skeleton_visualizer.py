@@ -4,7 +4,8 @@ The skeletons stand beside the robot, facing the way it faces, mirrored as the t
 left arm, which drives the robot's left arm, is on the robot's left): the camera frame C is turned so that the
 operator's forward (-z_C) is world +x, left (+x_C) world +y and up (-y_C) world +z, and placed so that the hip
 midpoint of the first frame that shows both hips stands at :data:`SKELETON_HIPS_W` (to the robot's left, at a
-person's hip height). Later frames move with the operator.
+person's hip height). Later frames move with the operator. The geometry (bones, bone frames, the anchor) is
+:mod:`akc_drake.core.skeleton_drawing`.
 """
 
 from __future__ import annotations
@@ -14,29 +15,15 @@ from pydrake.geometry import Cylinder, Meshcat, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS
-
-#: Bones drawn, as pairs of landmark names.
-BONES: tuple[tuple[str, str], ...] = (
-    ("left_shoulder", "right_shoulder"),
-    ("left_shoulder", "left_elbow"),
-    ("left_elbow", "left_wrist"),
-    ("right_shoulder", "right_elbow"),
-    ("right_elbow", "right_wrist"),
-    ("left_wrist", "left_index"),
-    ("left_wrist", "left_pinky"),
-    ("right_wrist", "right_index"),
-    ("right_wrist", "right_pinky"),
-    ("left_shoulder", "left_hip"),
-    ("right_shoulder", "right_hip"),
-    ("left_hip", "right_hip"),
+from akc_drake.core.skeleton import NUM_LANDMARKS
+from akc_drake.core.skeleton_drawing import (
+    BONE_INDEX,
+    BONES,
+    R_WC_FACING_X,
+    SKELETON_HIPS_W,
+    anchor_position,
+    bone_frame,
 )
-_BONE_IDX = np.array([[INDEX[a], INDEX[b]] for a, b in BONES])
-
-#: Where the skeletons' hip midpoint is placed (world, metres): 1.4 m to the robot's left, 0.95 m up.
-SKELETON_HIPS_W = (-0.1, 1.4, 0.95)
-#: Rotation of the camera frame C in the world for the skeletons (operator facing world +x, upright).
-R_WC_FACING_X = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 RED = Rgba(0.85, 0.15, 0.15, 1.0)
 BLUE = Rgba(0.15, 0.35, 0.9, 1.0)
@@ -47,23 +34,16 @@ def default_X_WC(distance_m: float = 1.8, height_m: float = 1.3, y_m: float = 1.
 
     The camera frame C is x right, y down, z forward; the operator faces the camera (-z_C).
     """
-    R_WC = RotationMatrix(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]))
-    return RigidTransform(R_WC, [distance_m, y_m, height_m])
+    return RigidTransform(RotationMatrix(R_WC_FACING_X), [distance_m, y_m, height_m])
 
 
 def _bone_pose(a: np.ndarray, b: np.ndarray) -> tuple[RigidTransform, float] | None:
-    d = b - a
-    L = float(np.linalg.norm(d))
-    if not np.isfinite(L) or L < 1e-9:
+    """The pose of a bone's unit cylinder and its length (:func:`~akc_drake.core.skeleton_drawing.bone_frame`)."""
+    frame = bone_frame(a, b)
+    if frame is None:
         return None
-    z = d / L
-    # Any x perpendicular to z completes the frame (the cylinder is symmetric about z).
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    R = RotationMatrix(np.column_stack([x, y, z]))
-    return RigidTransform(R, 0.5 * (a + b)), L
+    R, centre, L = frame
+    return RigidTransform(RotationMatrix(R), centre), L
 
 
 class SkeletonVisualizer(LeafSystem):
@@ -122,11 +102,10 @@ class SkeletonVisualizer(LeafSystem):
         """Place the skeletons on the first pose with both hips; False while there is none yet."""
         if self._X_WC is not None:
             return True
-        hips = P[[INDEX["left_hip"], INDEX["right_hip"]]]
-        if not np.all(np.isfinite(hips)):
+        p_WC = anchor_position(P)
+        if p_WC is None:
             return False
-        p_C = hips.mean(axis=0)
-        self._X_WC = RigidTransform(RotationMatrix(R_WC_FACING_X), np.asarray(SKELETON_HIPS_W) - R_WC_FACING_X @ p_C)
+        self._X_WC = RigidTransform(RotationMatrix(R_WC_FACING_X), p_WC)
         self._meshcat.SetTransform(self._prefix, self._X_WC, t)
         self._meshcat.SetProperty(self._prefix, "visible", True, t)
         return True
@@ -142,7 +121,7 @@ class SkeletonVisualizer(LeafSystem):
             if not self._anchor(P, t):
                 continue
             base = f"{self._prefix}/{name}"
-            for b, (i, j) in enumerate(_BONE_IDX):
+            for b, (i, j) in enumerate(BONE_INDEX):
                 path = f"{base}/bone{b}"
                 pose = _bone_pose(P[i], P[j])
                 if pose is None:
@@ -158,3 +137,6 @@ class SkeletonVisualizer(LeafSystem):
                 self._meshcat.SetProperty(path, "visible", ok, t)
                 if ok:
                     self._meshcat.SetTransform(path, RigidTransform(P[j]), t)
+
+
+__all__ = ["BLUE", "BONES", "R_WC_FACING_X", "RED", "SKELETON_HIPS_W", "SkeletonVisualizer", "default_X_WC"]
