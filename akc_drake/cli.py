@@ -85,6 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--task", choices=("pick-place",), help="also run a task and score it per corrector")
     p.add_argument("--seeds", type=int, default=5, metavar="N", help="seeded runs of --task per corrector (default 5)")
+    p.add_argument("--hand-model", metavar="PATH",
+                   help="MediaPipe hand_landmarker .task file (the gripper's hand channel with --detector mediapipe)")
     # The main job shows the real pipeline: MediaPipe on the rendered skinned body (--body primitive --detector sim:
     # the fast simulated path).
     _body_detector(p, body="skinned", detector="mediapipe")

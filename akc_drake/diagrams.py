@@ -493,7 +493,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                          meshcat=None, lcm=None, time_step: float = 0.005, ik_time_step: float = 0.01,
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
                          torso_model=None, smoothing: bool = True, workspace: bool = True,
-                         hand_dropout=None) -> TeleopDiagram:
+                         hand_dropout=None, hand_apertures=None, hand_detector=None) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
@@ -516,6 +516,11 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
             with the wrist frames' hand vector rebuilt and kept off their mirror (``robust_wrist``).
         workspace: clip each target into its arm's :class:`~akc_drake.core.frames.Workspace`.
         hand_dropout: ``(frames,)`` bool, frames in which the hand channel is blanked too (``--dropout``).
+        hand_apertures: ``(frames, 2)`` measured thumb-index distances to replay as the hand channel (e.g.
+            MediaPipe Hands run on the rendered frames, with ``replay``).
+        hand_detector: the hand detector on the camera's frames (rendered or ``frame_source``; default: MediaPipe
+            Hands, :class:`~akc_drake.io.hand_detector.HandDetector`, when ``cfg.detector`` is ``mediapipe`` or
+            the frames are real).
 
     When ``motion`` has a hand closure (:attr:`~akc_drake.operator.motions.OperatorMotion.hand_closed`, e.g. the
     pick-and-place motion), the grippers are commanded from the hands: a
@@ -535,8 +540,11 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     dims = dims if dims is not None else resolve_dims(cfg)
     period = camera_period(cfg)
     builder = DiagramBuilder()
-    source = AddMeasurementSource(builder, cfg, replay=replay, frame_source=frame_source, detector=detector,
-                                  motion=motion)
+    from akc_drake.systems.skinned_body import hands_follow
+
+    with hands_follow(motion):  # a rendered skinned body closes its hands as the motion does
+        source = AddMeasurementSource(builder, cfg, replay=replay, frame_source=frame_source, detector=detector,
+                                      motion=motion)
     ports = AddMocapPipeline(builder, cfg, dims, source, teleop=True)
     loggers = AddStageLoggers(builder, ports, period) if log_stages else {}
 
@@ -547,7 +555,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                     wrist_smoothing=sm.WRIST_SMOOTHING if smoothing else None,
                     torso_smoothing=sm.TORSO_SMOOTHING if smoothing else None,
                     workspace={s: Workspace.for_side(s) for s in ("left", "right")} if workspace else None,
-                    robust_wrist=smoothing)
+                    robust_wrist=smoothing, torso_hold=sm.TORSO_HOLD if smoothing else None)
     )
     mapper.set_name("FrameMapper")
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))
@@ -576,14 +584,31 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     builder.Connect(station.robot_state_output, monitor.GetInputPort("robot_state"))
 
     gripper = None
-    if motion is not None and getattr(motion, "hand_closed", None) is not None:
+    src = source["systems"]["source"]
+    camera_hands = replay is None and hand_apertures is None and src.HasOutputPort("color_image") and (
+        hand_detector is not None or frame_source is not None or cfg.detector == "mediapipe")
+    if camera_hands or (motion is not None and getattr(motion, "hand_closed", None) is not None):
         from akc_drake.systems.gripper_command import GripperCommand, HandApertureSource
 
-        hands = builder.AddSystem(HandApertureSource(motion, period, seed=cfg.seed, dropout=hand_dropout))
-        hands.set_name("HandApertureSource")
+        if camera_hands:  # the hands measured on the camera's frames (MediaPipe Hands)
+            from akc_drake.systems.hand_aperture import HandApertureDetector
+
+            if hand_detector is None:
+                from akc_drake.io.hand_detector import HandDetector
+
+                hand_detector = HandDetector()
+            hands = builder.AddSystem(HandApertureDetector(hand_detector, source["intrinsics"], period,
+                                                           timing.stage_offset("extractor", cfg.stage_offset_s)))
+            hands.set_name("HandApertureDetector")
+            for name in ("color_image", "depth_image"):
+                builder.Connect(src.GetOutputPort(name), hands.GetInputPort(name))
+        else:
+            hands = builder.AddSystem(HandApertureSource(motion, period, seed=cfg.seed, dropout=hand_dropout,
+                                                         apertures=hand_apertures))
+            hands.set_name("HandApertureSource")
         gripper = builder.AddSystem(GripperCommand(period, timing.stage_offset("mapper", cfg.stage_offset_s)))
         gripper.set_name("GripperCommand")
-        builder.Connect(hands.get_output_port(), gripper.GetInputPort("thumb_index_m"))
+        builder.Connect(hands.GetOutputPort("thumb_index_m"), gripper.GetInputPort("thumb_index_m"))
         for side in ("left", "right"):
             builder.Connect(gripper.GetOutputPort(f"{side}_opening"), station.gripper_input[side])
 

@@ -53,6 +53,7 @@ def options_from_args(args):
         seeds=getattr(args, "seeds", 5),
         body=getattr(args, "body", "primitive"),
         detector=getattr(args, "detector", "sim"),
+        hand_model=getattr(args, "hand_model", None),
         progress=sys.stderr.isatty(),
     ).validate()
 

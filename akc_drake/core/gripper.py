@@ -3,8 +3,10 @@
 The 12 pose landmarks (BlazePose's) have no fingertips: ``*_index`` and ``*_pinky`` are knuckles, which barely
 move when a hand closes. The gripper is therefore commanded from a separate hand channel, the distance between
 the thumb tip and the index fingertip of each hand (MediaPipe Hands' landmarks 4 and 8 on a real camera; on the
-simulated operator, :class:`~akc_drake.systems.hand_aperture.HandApertureSource` makes it from the motion's
-hand closure with detector noise).
+simulated operator, :class:`~akc_drake.systems.gripper_command.HandApertureSource` makes it from the motion's
+hand closure with detector noise). :func:`pinch_distance_m` measures it from a hand landmarker's 21 landmarks and
+the depth image (:class:`~akc_drake.io.hand_detector.HandDetector`); :func:`hand_sides` tells the operator's left
+hand from the right.
 
 A pinch closes the gripper when the distance falls below ``close_below_m`` and opens it when the distance rises
 above ``open_above_m``; in between the gripper keeps its state (hysteresis, so noise around one threshold does not
@@ -19,9 +21,101 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from akc_drake.core.camera import CameraIntrinsics, depth_lookup
+
 #: Thumb-index tip distance of an open hand and of a pinch (metres), for the simulated hand channel.
 OPEN_HAND_APERTURE_M = 0.09
 PINCH_APERTURE_M = 0.015
+#: MediaPipe Hands' 21 landmarks: the wrist, the thumb tip, the index fingertip, and the palm (the wrist and the
+#: four finger knuckles, MCP), where the depth camera measures the hand's distance.
+NUM_HAND_LANDMARKS = 21
+HAND_WRIST, THUMB_TIP, INDEX_TIP, MIDDLE_MCP = 0, 4, 8, 9
+PALM_LANDMARKS = (0, 5, 9, 13, 17)
+#: A detected hand is the pose's wrist's when its wrist is within this many hand lengths (wrist to middle
+#: knuckle, in pixels) of it.
+WRIST_GATE_HAND_LENGTHS = 1.5
+
+
+def pinch_distance_m(hand_px, depth_m, intrinsics: CameraIntrinsics, window: int = 5) -> float:
+    """The thumb-tip to index-fingertip distance (metres) of one detected hand, from its landmarks and the depth.
+
+    The hand's shape comes from the landmarker: pixels ``u, v`` and its relative depth ``z`` (MediaPipe's ``z``,
+    same scale as ``x``, converted to pixels); the metric scale from the depth camera, the median depth of the
+    palm's landmarks (:data:`PALM_LANDMARKS`). The fingertips' own depth pixels are not used: a fingertip covers a
+    few pixels, often straddles the hand's silhouette, and a stereo camera's noise there (centimetres at 2 m) is
+    the size of the pinch itself; the palm's landmarks sit on a broad patch of skin. A pixel offset ``d`` at depth
+    ``Z`` is ``d * Z / f`` metres, and the relative depth keeps a pinch seen end-on from looking closed.
+
+    Args:
+        hand_px: ``(21, 3)`` ``u, v`` (pixels, our convention: origin at the top-left pixel's centre) and ``z``
+            (pixels) of MediaPipe Hands' landmarks.
+        depth_m: ``(H, W)`` depth image in metres (0 or NaN where invalid), aligned to the colour image.
+        intrinsics: the camera.
+        window: depth-lookup patch (pixels) per palm landmark.
+
+    Returns:
+        The distance in metres; NaN when the palm has no valid depth or a tip is missing.
+    """
+    h = np.asarray(hand_px, dtype=float)
+    if h.shape != (NUM_HAND_LANDMARKS, 3):
+        raise ValueError(f"hand_px must be ({NUM_HAND_LANDMARKS}, 3), got {h.shape}")
+    z = depth_lookup(depth_m, h[list(PALM_LANDMARKS), :2], window=window)
+    if not np.any(np.isfinite(z)):
+        return math.nan
+    Z = float(np.nanmedian(z))
+    d = h[THUMB_TIP] - h[INDEX_TIP]
+    K = intrinsics
+    return float(Z * math.sqrt((d[0] / K.fx) ** 2 + (d[1] / K.fy) ** 2 + (d[2] / K.fx) ** 2))
+
+
+def hand_sides(labels, hand_px, pose_wrists_px=None, *, mirrored: bool = False) -> dict[str, int]:
+    """Which detected hand is the operator's left and which the right: ``{"left": index, "right": index}``.
+
+    With the pose detector's wrists (``pose_wrists_px``, ``(2, 2)`` left, right; NaN where unknown), each pose
+    wrist takes the detected hand whose wrist is nearest (the pairing with the smallest total distance), if within
+    :data:`WRIST_GATE_HAND_LENGTHS` hand lengths: the body's detector sees the arms, which says more about which
+    hand is which than a hand's own look. Otherwise the landmarker's handedness labels: MediaPipe's Tasks API
+    (0.10.15 and later) labels the person's own hands in an unmirrored image (a camera looking at the person);
+    ``mirrored`` swaps them (a selfie view). Two hands with one label: the first (highest score) keeps it.
+
+    Args:
+        labels: per detected hand, ``"Left"`` or ``"Right"`` (best first among equals).
+        hand_px: per detected hand, ``(21, 3)`` landmarks in pixels (see :func:`pinch_distance_m`).
+        pose_wrists_px: optional ``(2, 2)`` pose wrists' pixels.
+        mirrored: the image is mirrored (swap the labels).
+
+    Returns:
+        The sides found, each with the index of its hand in ``labels``.
+    """
+    n = len(labels)
+    sides: dict[str, int] = {}
+    if pose_wrists_px is not None and n:
+        P = np.asarray(pose_wrists_px, dtype=float).reshape(2, 2)
+        H = np.asarray(hand_px, dtype=float).reshape(n, NUM_HAND_LANDMARKS, 3)
+        wrists = H[:, HAND_WRIST, :2]
+        gate = WRIST_GATE_HAND_LENGTHS * np.linalg.norm(H[:, MIDDLE_MCP, :2] - wrists, axis=1)
+        dist = np.linalg.norm(P[:, None, :] - wrists[None, :, :], axis=2)  # (side, hand)
+        ok = np.isfinite(dist) & (dist <= gate[None, :])
+        pairs = [((0, i), (1, j)) for i in range(n) for j in range(n) if i != j]
+        pairs += [((0, i),) for i in range(n)] + [((1, j),) for j in range(n)]
+        best, best_cost = (), math.inf
+        for cand in pairs:
+            if not all(ok[s, h] for s, h in cand):
+                continue
+            # more hands matched first, then the smaller total distance
+            cost = -1e9 * len(cand) + sum(dist[s, h] for s, h in cand)
+            if cost < best_cost:
+                best, best_cost = cand, cost
+        if best:
+            return {("left", "right")[s]: h for s, h in best}
+    for k, label in enumerate(labels):
+        lab = str(label).lower()
+        if lab not in ("left", "right"):
+            continue
+        if mirrored:
+            lab = "right" if lab == "left" else "left"
+        sides.setdefault(lab, k)
+    return sides
 
 
 @dataclass(frozen=True)
@@ -76,3 +170,58 @@ def aperture_from_closure(closure, rng: np.random.Generator | None = None, noise
     if rng is not None and noise_m > 0:
         d = d + rng.normal(0.0, noise_m, d.shape)
     return np.maximum(d, 0.0)
+
+
+def gripper_states(apertures, hysteresis: GripperHysteresis | None = None, closed: bool = False) -> np.ndarray:
+    """``(T, 2)`` bool gripper states (True: closed) the hysteresis gives for ``(T, 2)`` thumb-index distances
+    (NaN: unknown, the state is kept), starting from ``closed``."""
+    h = hysteresis or GripperHysteresis()
+    A = np.asarray(apertures, dtype=float).reshape(-1, 2)
+    out = np.zeros(A.shape, dtype=bool)
+    state = [bool(closed), bool(closed)]
+    for k, row in enumerate(A):
+        state = [h.step(c, float(a)) for c, a in zip(state, row, strict=True)]
+        out[k] = state
+    return out
+
+
+def hand_channel_report(apertures, truth_m, intended_closed, times, hysteresis: GripperHysteresis | None = None):
+    """How well a measured hand channel commands the grippers, per hand (plain JSON types).
+
+    Args:
+        apertures: ``(T, 2)`` measured thumb-index distances (NaN: hand not found).
+        truth_m: ``(T, 2)`` the true distances.
+        intended_closed: ``(T, 2)`` bool, the gripper state the operator means (e.g. hand closure > 0.5).
+        times: ``(T,)`` frame times, seconds.
+
+    Returns:
+        ``{"left": {...}, "right": {...}}`` with ``found`` (share of frames with a measurement),
+        ``aperture_error_cm`` (median and p95 of the absolute error over found frames), ``state_agreement``
+        (share of frames whose gripper state is the intended one) and ``switch_delay_s`` (per intended switch,
+        the delay until the gripper reaches that state; None if it does not before the next switch).
+    """
+    A = np.asarray(apertures, dtype=float).reshape(-1, 2)
+    T = np.asarray(truth_m, dtype=float).reshape(-1, 2)
+    want = np.asarray(intended_closed, dtype=bool).reshape(-1, 2)
+    t = np.asarray(times, dtype=float)
+    got = gripper_states(A, hysteresis, closed=False)
+    out = {}
+    for s, side in enumerate(("left", "right")):
+        found = np.isfinite(A[:, s])
+        err = 100.0 * np.abs(A[found, s] - T[found, s])
+        switches = np.flatnonzero(np.diff(want[:, s].astype(int))) + 1
+        delays = []
+        for i, k in enumerate(switches):
+            end = switches[i + 1] if i + 1 < len(switches) else len(t)
+            hit = np.flatnonzero(got[k:end, s] == want[k, s])
+            delays.append(float(t[k + hit[0]] - t[k]) if hit.size else None)
+        out[side] = {
+            "found": float(np.mean(found)) if len(found) else math.nan,
+            "aperture_error_cm": {
+                "median": float(np.median(err)) if err.size else math.nan,
+                "p95": float(np.percentile(err, 95)) if err.size else math.nan,
+            },
+            "state_agreement": float(np.mean(got[:, s] == want[:, s])) if len(t) else math.nan,
+            "switch_delay_s": delays,
+        }
+    return out

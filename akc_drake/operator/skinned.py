@@ -79,6 +79,10 @@ _FINGERTIP_GROUPS = {"thumb_tip": "joint-{s}-finger-1-4", "index_tip": "joint-{s
 FINGER_FLEXION_DEG = 75.0
 #: Distance of the thumb tip and the index fingertip joints in a pinch (finger pads touching), metres.
 PINCH_GAP_M = 0.015
+#: An open hand (closure 0): the fingers straightened and the thumb spread away from the index, from the rig's
+#: relaxed rest (whose thumb lies along the index), as an operator opens the hand to open the gripper.
+OPEN_FINGER_EXTENSION_DEG = 10.0
+OPEN_THUMB_SPREAD_DEG = 30.0
 
 #: Clothing regions, in the order of the geometries.
 REGIONS = ("skin", "shirt", "trousers")
@@ -396,13 +400,20 @@ class SkinnedOperator:
         nu, nw = np.linalg.norm(u), np.linalg.norm(w)
         c = (nu**2 + nw**2 - PINCH_GAP_M**2) / (2.0 * nu * nw)
         turn = full if c >= 1.0 else full - math.acos(max(c, -1.0))
-        return p_f, axis, flex, p_t, axis_t, turn, tip_i, tip_t
+        # The open hand's thumb spreads in the palm's plane (about its normal), away from the index.
+        normal = np.cross(tip_i - p_f, axis)
+        spread = math.radians(OPEN_THUMB_SPREAD_DEG)
+        normal = max((normal, -normal), key=lambda n: np.linalg.norm(p_t + _axis_angle(n, spread) @ u - tip_i))
+        return p_f, axis, flex, p_t, (axis_t, normal), turn, tip_i, tip_t
 
     def _closure_rotations(self, side: str, closure: float) -> tuple[np.ndarray, np.ndarray]:
-        """The fingers' and the thumb's rotations (rest, about their pivots) for a closure in [0, 1]."""
-        _, axis, flex, _, axis_t, turn, _, _ = self._pinch[side]
+        """The fingers' and the thumb's rotations (rest, about their pivots) for a closure in [0, 1] (0: an open
+        hand, :data:`OPEN_FINGER_EXTENSION_DEG`, :data:`OPEN_THUMB_SPREAD_DEG`; 1: the pinch)."""
+        _, axis, flex, _, (axis_t, normal), turn, _, _ = self._pinch[side]
         c = min(max(float(closure), 0.0), 1.0)
-        return _axis_angle(axis, c * flex), _axis_angle(axis_t, c * turn)
+        f0, spread = -math.radians(OPEN_FINGER_EXTENSION_DEG), math.radians(OPEN_THUMB_SPREAD_DEG)
+        R_t = _axis_angle(axis_t, c * turn) @ _axis_angle(normal, (1.0 - c) * spread)
+        return _axis_angle(axis, f0 + c * (flex - f0)), R_t
 
     def pinch_aperture(self, closure) -> np.ndarray:
         """``(2,)`` true thumb-tip to index-fingertip distance (left, right; metres) for closures ``(2,)``.
@@ -498,7 +509,7 @@ class SkinnedOperator:
         """``(B, 3, 4)`` rest -> posed bone maps for one pose ``q = [q_left, q_right]`` (10,).
 
         ``closure``: optional ``(2,)`` hand closure (left, right; 0 open, 1 a pinch, :meth:`pinch_aperture`);
-        None keeps the rig's relaxed hands.
+        None keeps the rig's relaxed hands (thumb along the index: neither open nor closed).
         """
         maps = np.zeros((len(self.assets.bones), 3, 4))
         maps[:, :, :3] = np.eye(3)

@@ -23,20 +23,30 @@ class HandApertureSource(LeafSystem):
     (:attr:`~akc_drake.operator.motions.OperatorMotion.hand_closed`) turned into a distance
     (:func:`~akc_drake.core.gripper.aperture_from_closure`) with 4 mm of seeded Gaussian noise; NaN in frames
     the ``dropout`` mask blanks (the person lost). ``thumb_index_m`` is ``[left, right]`` in metres, held
-    between camera frames.
+    between camera frames. With ``apertures`` (a hand detector's measurements per frame, e.g. MediaPipe Hands on
+    the rendered frames, :class:`~akc_drake.io.hand_detector.HandDetector`) it replays those instead.
 
     Args:
         motion: the :class:`~akc_drake.operator.motions.OperatorMotion`.
         period_s: camera period; frame ``k`` is the motion at ``motion.start + k * period_s``.
         seed: noise seed; noise_m: noise standard deviation.
         dropout: optional ``(frames,)`` bool mask of blanked frames.
+        apertures: optional ``(frames, 2)`` measured thumb-index distances (NaN: hand not found) to replay.
     """
 
-    def __init__(self, motion, period_s: float, *, seed: int = 0, noise_m: float = 0.004, dropout=None):
+    def __init__(
+        self, motion, period_s: float, *, seed: int = 0, noise_m: float = 0.004, dropout=None, apertures=None
+    ):
         super().__init__()
         times = motion.frame_times(1.0 / period_s)
-        rng = np.random.default_rng([int(seed), 0x4A7D])
-        self._values = aperture_from_closure(motion.closure(times), rng, noise_m)
+        if apertures is not None:
+            self._values = np.array(apertures, dtype=float).reshape(-1, 2)
+            if len(self._values) == 0:
+                raise ValueError("HandApertureSource: apertures has no frames")
+            times = times[: len(self._values)]
+        else:
+            rng = np.random.default_rng([int(seed), 0x4A7D])
+            self._values = aperture_from_closure(motion.closure(times), rng, noise_m)
         if dropout is not None:
             mask = np.asarray(dropout, dtype=bool)[: len(times)]
             self._values[np.flatnonzero(mask)] = np.nan

@@ -9,6 +9,9 @@ configuration port, and outputs the true landmarks (the rig's joint centres) in 
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
@@ -31,6 +34,19 @@ from akc_drake.operator.skinned import REGIONS, SkinnedOperator
 REGION_LABEL_BASE = 100
 #: SceneGraph's resolution hint for the shells (only used by proximity queries, which we do not register).
 _RESOLUTION_HINT = 0.05
+#: The motion whose hand closure a SkinnedBody built without one follows (set by :func:`hands_follow`).
+_HANDS_MOTION: contextvars.ContextVar = contextvars.ContextVar("akc_drake_skinned_hands", default=None)
+
+
+@contextlib.contextmanager
+def hands_follow(motion):
+    """Within this block, a :class:`SkinnedBody` built without a ``motion`` closes its hands as ``motion``'s
+    ``hand_closed`` says (for sources that build the body themselves, e.g. a whole-motion render of ``motion``)."""
+    token = _HANDS_MOTION.set(motion)
+    try:
+        yield
+    finally:
+        _HANDS_MOTION.reset(token)
 
 
 def register_skinned_body(
@@ -93,13 +109,13 @@ class SkinnedBody(LeafSystem):
         geometry_ids: ``{region: GeometryId}`` from :func:`register_skinned_body`.
         X_WO: pose of the operator frame O in the world (default identity).
         motion: the :class:`~akc_drake.operator.motions.OperatorMotion` whose ``hand_closed`` closes the hands
-            (None, or a motion without one: the rig's relaxed hands); may be set later with
-            :meth:`follow_hands` (before a context is used).
+            (None, or a motion without one: the rig's relaxed hands; None inside :func:`hands_follow`: its
+            motion); may be set later with :meth:`follow_hands`.
         """
         super().__init__()
         self.body = body
         self._motion = None
-        self.follow_hands(motion)
+        self.follow_hands(motion if motion is not None else _HANDS_MOTION.get())
         self._ids = dict(geometry_ids)
         X = X_WO if X_WO is not None else RigidTransform()
         self._R = X.rotation().matrix()

@@ -82,6 +82,8 @@ class DemoOptions:
     seeds: int = 5
     body: str = "skinned"
     detector: str = "mediapipe"
+    #: MediaPipe Hands' model file (None: the packaged one), for the hand channel with ``detector`` mediapipe.
+    hand_model: str | None = None
 
     def validate(self) -> DemoOptions:
         """Check the options; raises UserError naming the option."""
@@ -105,6 +107,10 @@ class DemoOptions:
             raise UserError(f"--task must be pick-place, got {self.task!r}")
         if isinstance(self.seeds, bool) or not isinstance(self.seeds, int) or self.seeds < 1:
             raise UserError(f"--seeds must be a positive integer, got {self.seeds!r}")
+        if self.hand_model is not None:  # a wrong path fails now, not after the demo's runs
+            from akc_drake.io.hand_detector import find_hand_model
+
+            find_hand_model(self.hand_model)
         return self
 
     @property
@@ -286,6 +292,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
             log=log,
             meshcat=meshcat,
             start_time=rec_time,
+            hand_model=opts.hand_model,
         )
     outputs: dict[str, object] = {}
     if meshcat is not None:

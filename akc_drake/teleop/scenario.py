@@ -63,8 +63,11 @@ def truncate_motion(motion, max_frames: int, rate_hz: float):
     return OperatorMotion(motion.times[:m], motion.q_left[:m], motion.q_right[:m], motion.name, cycles)
 
 
-def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False):
+def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False, frame_callback=None):
     """Render ``motion`` with the camera of ``cfg`` (:func:`~akc_drake.diagrams.sim_camera`), with a tqdm bar.
+
+    A skinned body's hands close as the motion's ``hand_closed`` says; ``frame_callback`` is called with each
+    :class:`~akc_drake.core.camera.CameraFrame` (e.g. to run the hand detector on it).
 
     Returns:
         The :class:`~akc_drake.systems.depth_camera_source.Session`.
@@ -73,6 +76,7 @@ def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False):
 
     from akc_drake.diagrams import sim_camera
     from akc_drake.systems.depth_camera_source import render_session
+    from akc_drake.systems.skinned_body import hands_follow
 
     intrinsics, placement, noise = sim_camera(cfg)
     n = len(motion.frame_times(intrinsics.rate_hz))
@@ -83,7 +87,7 @@ def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False):
         file=sys.stderr,
         disable=not progress,
         leave=False,
-    ) as bar:
+    ) as bar, hands_follow(motion):
         return render_session(
             motion,
             intrinsics,
@@ -93,6 +97,7 @@ def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False):
             detector=getattr(cfg, "detector", None),
             body=getattr(cfg, "body", "primitive"),
             progress=lambda k, total: bar.update(1),
+            frame_callback=frame_callback,
         )
 
 
@@ -383,9 +388,10 @@ def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_mode
         return out
     data = log.FindLog(sim.get_context())
     times, values = data.sample_times(), data.data().T
-    tracker = ControlFrameTracker(
-        td.mapper.mapping, torso_model=torso_model, wrist_smoothing=None, torso_smoothing=None
-    )
+    # The same torso (smoothed and held) as the FrameMapper's, so the difference is the wrist smoothing alone.
+    mine = td.mapper.tracker
+    tracker = ControlFrameTracker(td.mapper.mapping, torso_model=torso_model, wrist_smoothing=None,
+                                  torso_smoothing=mine.torso_smoothing, torso_hold=mine.torso_hold)
     state = tracker.initial_state()
     for k in range(n):
         j = int(np.searchsorted(times, start + (k + 1) * period - 1e-9))

@@ -7,6 +7,12 @@ holds its last targets for :data:`SETTLE_S` so the box comes to rest, and the ru
 (:func:`score_box`): **success** when the box's centre ends within :data:`SUCCESS_RADIUS_M` (horizontally) of the
 target's centre, resting on the table, **upright** (a face down: one of its axes within
 :data:`UPRIGHT_TOL_DEG` of vertical) and **released** (no robot body touching it).
+
+The hand channel: with ``--detector sim`` the simulated one (the motion's closure + noise,
+:class:`~akc_drake.systems.gripper_command.HandApertureSource`); with ``--detector mediapipe`` MediaPipe Hands
+(:class:`~akc_drake.io.hand_detector.HandDetector`) measures each rendered frame's hands (on the skinned body, whose
+hands close with the motion) and those measurements command the grippers; the result then also reports the hand
+channel against the truth (:func:`~akc_drake.core.gripper.hand_channel_report`).
 """
 
 from __future__ import annotations
@@ -100,6 +106,34 @@ def score_box(X_WB, target_W, start_W, contacts, *, seed: int = 0, corrector: st
     return TaskOutcome(seed, corrector, ok, 100 * err, 100 * height, upright, released, moved, tuple(contacts), tilt)
 
 
+class HandRecorder:
+    """A render's frame callback: the hand detector on each frame, the thumb-index distances collected.
+
+    Args:
+        detector: a :class:`~akc_drake.io.hand_detector.HandDetector`.
+    """
+
+    def __init__(self, detector):
+        self.detector = detector
+        self.rows: list[np.ndarray] = []
+
+    def __call__(self, frame) -> None:
+        self.rows.append(self.detector.detect(frame).aperture_m)
+
+    @property
+    def apertures(self) -> np.ndarray:
+        """``(frames, 2)`` thumb-index distances (left, right; metres; NaN: not found)."""
+        return np.array(self.rows, dtype=float).reshape(-1, 2)
+
+
+def hand_truth(motion, times, params=None) -> np.ndarray:
+    """``(T, 2)`` the skinned operator's true thumb-index distances at ``times`` (seconds from the start)."""
+    from akc_drake.operator.skinned import skinned_operator
+
+    body = skinned_operator(params)
+    return np.array([body.pinch_aperture(c) for c in motion.closure(motion.start + np.asarray(times))])
+
+
 def _world_from_T(p_T) -> np.ndarray:
     """A point of the robot torso frame T in the world (the base is welded at the origin, T at 1.10 m)."""
     return np.asarray(p_T, dtype=float) + np.array([0.0, 0.0, 1.10])
@@ -115,6 +149,7 @@ def run_pick_place(
     log: Callable[[str], None] = print,
     meshcat=None,
     start_time: float = 0.0,
+    hand_model=None,
 ) -> dict:
     """Run the task ``seeds`` times per corrector.
 
@@ -123,23 +158,44 @@ def run_pick_place(
         seeds: number of seeded runs (seeds 0 .. seeds - 1).
         meshcat, start_time: draw (and record) the first seed's AKC(KF) run in this Meshcat, starting at this
             simulation time (after the demo's recorded runs).
+        hand_model: MediaPipe Hands' ``.task`` file (None: the packaged one), used when ``cfg.detector`` is
+            mediapipe.
 
     Returns:
-        ``{"runs": [outcome dicts], "success_rate": {corrector: share}, "wall_s": ...}``.
+        ``{"runs": [outcome dicts], "success_rate": {corrector: share}, "wall_s": ...}``; with MediaPipe
+        (``cfg.detector``) also ``"hands"``: per seed, the hand channel's report.
     """
     from akc_drake.core.frames import calibrated_mapping
+    from akc_drake.core.gripper import hand_channel_report
     from akc_drake.diagrams import Measurements
     from akc_drake.operator.motions import PICK_BOX_T, PLACE_TARGET_T, pick_place
 
     t0 = time.perf_counter()
     target_W, start_W = _world_from_T(PLACE_TARGET_T), _world_from_T(PICK_BOX_T)
     outcomes: list[TaskOutcome] = []
+    hands = []
+    hand_detector = None
+    if getattr(cfg, "detector", "sim") == "mediapipe":
+        from akc_drake.io.hand_detector import HandDetector
+
+        hand_detector = HandDetector(hand_model)
     with quiet_drake_warnings():
         for seed in range(int(seeds)):
             # The operator works with the mapping the pipeline uses (calibrated from the T-pose).
             motion = pick_place(seed, mapping=calibrated_mapping(calib.dims))
-            session = render_motion(motion, cfg, seed=seed, progress=progress)
+            recorder = HandRecorder(hand_detector) if hand_detector is not None else None
+            session = render_motion(motion, cfg, seed=seed, progress=progress, frame_callback=recorder)
             meas = Measurements.from_session(session)
+            apertures = None
+            if recorder is not None:
+                apertures = recorder.apertures
+                truth = hand_truth(motion, session.t) if getattr(cfg, "body", "") == "skinned" else np.full(
+                    apertures.shape, np.nan)
+                intended = motion.closure(motion.start + session.t) > 0.5
+                hands.append({"seed": seed, **hand_channel_report(apertures, truth, intended, session.t)})
+                r = hands[-1]["right"]
+                log(f"  pick-place seed {seed} hands (MediaPipe): right found {100 * r['found']:.0f} %, gripper "
+                    f"state as intended {100 * r['state_agreement']:.0f} %, switch delays {r['switch_delay_s']} s")
             for corrector in correctors:
                 record = meshcat is not None and seed == 0 and corrector == MAIN_CORRECTOR
                 run, _ = run_teleop(
@@ -153,6 +209,7 @@ def run_pick_place(
                     progress=progress,
                     meshcat=meshcat if record else None,
                     start_time=start_time if record else 0.0,
+                    hand_apertures=apertures,
                 )
                 out = score_box(run.box_pose, target_W, start_W, run.box_contacts, seed=seed, corrector=corrector)
                 outcomes.append(out)
@@ -161,8 +218,12 @@ def run_pick_place(
                     f"(box {out.box_error_cm:.1f} cm from the target, {out.box_height_cm:+.1f} cm high, "
                     f"tilt {out.tilt_deg:.0f} deg, {'released' if out.released else 'held'})"
                 )
+    if hand_detector is not None:
+        hand_detector.close()
     rates = {c: float(np.mean([o.success for o in outcomes if o.corrector == c])) for c in correctors}
+    extra = {"hands": hands} if hands else {}
     return {
+        **extra,
         "task": "pick-place",
         "seeds": int(seeds),
         "target_W": target_W.tolist(),
