@@ -186,24 +186,14 @@ def test_noise_is_applied_and_reproducible():
     assert np.count_nonzero((a == 0) & (ideal > 0)) > 0  # edge pixels invalid
 
 
-def test_camera_placement():
-    X = CameraPlacement().X_OC()
-    R = X.rotation().matrix()
-    np.testing.assert_allclose(R[:, 2], [-1, 0, 0], atol=1e-12)  # optical axis along -x of O
-    np.testing.assert_allclose(R[:, 0], [0, 1, 0], atol=1e-12)  # image right = the operator's left
-    np.testing.assert_allclose(R[:, 1], [0, 0, -1], atol=1e-12)  # image down = down
-    tilted = CameraPlacement(distance_m=1.5, height_m=1.0, look_at_O=(0.0, 0.0, 0.3)).X_OC()
-    z = tilted.rotation().matrix()[:, 2]
-    assert z[2] < 0 and z[0] < 0
-    with pytest.raises(ValueError, match="distance_m"):
-        CameraPlacement(distance_m=0.1)
-    with pytest.raises(ValueError, match="look_at_O"):
-        CameraPlacement(look_at_O=(2.0, 0.0, 0.45)).X_OC()
+def test_camera_pose_and_motion_are_checked_and_a_rigid_transform_is_taken_as_is():
+    X = CameraPlacement(lateral_m=0.1).X_OC()
     with pytest.raises(ValueError, match="camera_pose"):
         DepthCameraSource(tpose(1.0), camera_pose="front")
     with pytest.raises(ValueError, match="OperatorMotion"):
         DepthCameraSource("II")
-    # A RigidTransform is accepted as is.
+    with pytest.raises(ValueError, match="body must be one of"):
+        DepthCameraSource(tpose(1.0), body="robot")
     source = DepthCameraSource(tpose(1.0), intrinsics=SMALL, camera_pose=RigidTransform(X.GetAsMatrix4()))
     np.testing.assert_allclose(source.X_OC.GetAsMatrix4(), X.GetAsMatrix4())
 
