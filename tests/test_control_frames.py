@@ -137,3 +137,55 @@ def test_hand_vector_sign_from_the_forearm():
     # A forearm in the image plane says nothing about the depth sign: the previous frame's is kept.
     h = F.reconstruct_hand_vector([0.03, 0.0, -0.05], 0.07, prev, np.array([0.0, 1.0, 0.0]))
     assert h[2] > 0
+
+
+def test_a_wrist_hidden_by_its_own_hand_is_put_behind_the_hand():
+    from akc_drake.core.control_frames import wrist_behind_hand
+
+    # Forearm pointing at the camera, the hand continuing it: knuckles 8.5 cm nearer than the wrist, 2 cm
+    # aside in the image. The depth camera reads the back of the hand at the wrist's pixel (1 cm behind the
+    # knuckles); the wrist goes back on its pixel ray to sqrt(8.5^2 - 2^2) cm behind them.
+    w = np.array([0.10, 0.05, 1.50])
+    e = w + [0.0, 0.02, 0.28]
+    c = w + [0.02, 0.0, -np.sqrt(0.085**2 - 0.02**2)]
+    i, p = c + [0.0, 0.035, 0.0], c - [0.0, 0.035, 0.0]
+    seen = w * (c[2] + 0.01) / w[2]  # the back of the hand, on the wrist's ray
+    fixed = wrist_behind_hand(e, seen, i, p, 0.085)
+    assert np.linalg.norm(seen - w) > 0.07
+    # Within 2 mm (the image part is read at the nearer point of the ray, 1.4 mm off here).
+    np.testing.assert_allclose(fixed, w, atol=2e-3)
+    np.testing.assert_allclose(np.cross(fixed, w), 0.0, atol=1e-12)  # on the wrist's pixel ray
+    # A wrist seen behind its knuckles, a forearm across the image, a hand seen side-on: unchanged.
+    np.testing.assert_array_equal(wrist_behind_hand(e, w, i, p, 0.085), w)
+    np.testing.assert_array_equal(wrist_behind_hand(w + [0.28, 0.0, 0.0], seen, i, p, 0.085), seen)
+    side_on = seen + [0.0, 0.0, 0.0]
+    np.testing.assert_array_equal(wrist_behind_hand(e, side_on, seen + [0.09, 0.035, 0.0], seen + [0.09, -0.035, 0.0],
+                                                    0.085), side_on)
+
+
+def test_the_torso_is_held_while_the_detector_moves_the_hips_and_follows_a_step():
+    """The detector moves its hips 6 cm up while the arms rise (the operator stands still): the targets do not
+    move. The operator steps 0.4 m aside: the torso follows, at a bounded speed, and is held again."""
+    pose = camera_pose()
+    model = F.TorsoModel.calibrate(np.stack([pose] * 3))
+    m = F.RobotMapping.default()
+    t = ControlFrameTracker(m, torso_model=model, wrist_smoothing=None, torso_smoothing=sm.TORSO_SMOOTHING,
+                            torso_hold=sm.TORSO_HOLD)
+    s, first, _, _ = t.step(t.initial_state(), 0.0, pose)
+    shifted = pose.copy()
+    shifted[[INDEX["left_hip"], INDEX["right_hip"]], 1] -= 0.06  # 6 cm up in the image (y_C down)
+    for k in range(1, 60):
+        s, X, _, _ = t.step(s, 0.1 * k, shifted)
+        for a, b in zip(X, first, strict=True):
+            np.testing.assert_allclose(a, b, atol=1e-12)
+    stepped = camera_pose(shift=(0.4, 0.0, 0.0))
+    moves = []
+    for k in range(60, 200):
+        s, X, _, _ = t.step(s, 0.1 * k, stepped)
+        if X[0] is not None:  # None: the first frame of the step, stopped by the speed gate
+            moves.append(X[0][:3, 3].copy())
+    steps = np.linalg.norm(np.diff(moves, axis=0), axis=1)
+    assert steps.max() <= m.scale * sm.TORSO_HOLD.speed_m_s * 0.1 + 1e-9  # never a jump
+    expected = F.robot_targets(stepped, m, torso=model.torso(stepped))[0]
+    np.testing.assert_allclose(moves[-1], expected[:3, 3], atol=m.scale * sm.TORSO_HOLD.settle_m + 1e-6)
+    assert s[-1] == 0.0  # held again

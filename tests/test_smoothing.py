@@ -133,3 +133,34 @@ def test_low_lag_wrist_rotation_lags_a_turn_by_under_60_ms_and_a_one_frame_flip_
     steps = [rotation_angle(a.T @ b) for a, b in zip(out[:-1], out[1:], strict=True)]
     assert max(steps) <= 1.0 + 1e-9 and sum(s > 0.5 for s in steps) == 3  # pi in 3 steps
     assert rotation_angle((R0 @ np.diag([-1.0, 1.0, -1.0])).T @ out[-1]) < 0.1
+
+
+def test_hold_keeps_a_frame_still_within_its_radius_and_follows_a_lasting_move_at_bounded_speed():
+    prm = sm.HoldParams(radius_m=0.1, angle_rad=0.2, persist_s=1.0, speed_m_s=0.3, speed_rad_s=0.5)
+    h = sm.SE3Hold(prm)
+    R0 = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
+    s, R, p = h.step(h.initial_state(), 0.0, R0, np.zeros(3))
+    rng = np.random.default_rng(0)
+    for k in range(1, 30):  # wander inside the radius: nothing moves
+        dR = Rotation.from_rotvec(rng.normal(0.0, 0.05, 3)).as_matrix()
+        s, R, p = h.step(s, k * DT, R0 @ dR, rng.uniform(-0.05, 0.05, 3))
+        np.testing.assert_allclose(R, R0, atol=1e-12)
+        np.testing.assert_array_equal(p, np.zeros(3))
+    # A short excursion (0.5 s) beyond the radius: still held.
+    for k in range(30, 35):
+        s, R, p = h.step(s, k * DT, R0, np.array([0.3, 0.0, 0.0]))
+        np.testing.assert_array_equal(p, np.zeros(3))
+    s, R, p = h.step(s, 3.5, R0, np.zeros(3))
+    # A lasting move: held for persist_s, then followed at <= 0.3 m/s, then held at the new place.
+    target = np.array([0.5, 0.0, 0.0])
+    ps = []
+    for k in range(36, 80):
+        s, R, p = h.step(s, k * DT, R0, target)
+        ps.append(p.copy())
+    ps = np.array(ps)
+    assert np.all(ps[:10] == 0.0)
+    assert np.max(np.linalg.norm(np.diff(ps, axis=0), axis=1)) <= 0.3 * DT + 1e-12
+    np.testing.assert_allclose(ps[-1], target, atol=1e-12)
+    assert s[-1] == 0.0
+    with pytest.raises(ValueError, match="radius_m"):
+        sm.HoldParams(radius_m=0.0, angle_rad=0.2, persist_s=1.0, speed_m_s=0.3, speed_rad_s=0.5)

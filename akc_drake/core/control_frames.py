@@ -5,8 +5,10 @@ frame:
 
 1. **Torso**: from the hips through a calibrated :class:`~akc_drake.core.frames.TorsoModel` when one is given
    (the shoulders are the most occluded landmarks in teleoperation), else eq. (17) from the shoulders and
-   hips; then smoothed on SE(3) (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard).
-   Missing: the last torso is held.
+   hips; then smoothed on SE(3) (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard),
+   then held still while it stays within 10 cm / 10 deg of its settled pose (``torso_hold``,
+   :data:`~akc_drake.core.smoothing.TORSO_HOLD`: the detector's hips move with the arms, a standing operator's
+   do not; a step or a turn is followed). Missing: the last torso is held.
 2. **Wrists** (eq. 17) in the camera frame, with the hand vector ``p_i - p_p`` rebuilt from its image-plane
    part and the hand's learnt width (:func:`~akc_drake.core.frames.reconstruct_hand_vector`: the knuckles'
    depths are the noisiest inputs of eq. 17); a frame whose hand vector is unreliable is kept on the side of
@@ -45,6 +47,48 @@ from akc_drake.core.frames import (
 )
 from akc_drake.core.skeleton import INDEX, SIDES
 
+#: Initial estimate of the wrist-to-knuckle-midpoint distance (metres) before it is learnt from the operator
+#: (MediaPipe's wrist to the midpoint of its index and pinky knuckles: 8-8.5 cm measured on the rendered adult).
+DEFAULT_HAND_LENGTH_M = 0.085
+#: The forearm points toward the camera when the wrist is nearer than the elbow by at least this share of the
+#: forearm's length (about 35 deg out of the image plane).
+TOWARD_CAMERA_SHARE = 0.6
+
+
+def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
+    """The wrist moved back along its pixel ray when its own hand hides it from the camera.
+
+    When the forearm points toward the camera, the hand is in front of the wrist: the depth camera reads the back
+    of the hand at the wrist's pixel, up to a hand's length (10-15 cm measured) nearer than the wrist. The hand's
+    length is a constant (``hand_length_m``, wrist to the knuckles' midpoint ``c``), and its image part is
+    measured, so the wrist lies ``dz = sqrt(L^2 - |(p_w - c)_xy|^2)`` behind ``c``. A wrist measured less than
+    half of that behind ``c`` while the forearm points toward the camera (:data:`TOWARD_CAMERA_SHARE`) is put at
+    that depth, on its pixel ray. The correction is bounded by the hand's foreshortening: a hand seen side-on
+    (``|(p_w - c)_xy| ~ L``) is left as it is, as is a wrist nearer than its elbow by less.
+
+    Args:
+        p_e, p_w, p_i, p_p: ``(3,)`` elbow, wrist, index and pinky knuckles in the camera frame C (z forward).
+        hand_length_m: the wrist-to-knuckle-midpoint distance.
+
+    Returns:
+        The wrist, ``(3,)`` (a copy of ``p_w`` when unchanged).
+    """
+    p_w = np.array(p_w, dtype=float)
+    f = p_w - np.asarray(p_e, dtype=float)
+    nf = float(np.linalg.norm(f))
+    if not (nf > 1e-6 and f[2] < -TOWARD_CAMERA_SHARE * nf and p_w[2] > 1e-6):
+        return p_w
+    c = 0.5 * (np.asarray(p_i, dtype=float) + np.asarray(p_p, dtype=float))
+    d = p_w - c
+    dxy2 = float(d[0] ** 2 + d[1] ** 2)
+    if dxy2 >= hand_length_m**2:
+        return p_w
+    dz = math.sqrt(hand_length_m**2 - dxy2)
+    if d[2] >= 0.5 * dz:
+        return p_w
+    return p_w * ((c[2] + dz) / p_w[2])  # on the wrist's pixel ray, at the depth behind its hand
+
+
 _S = smoothing.STATE_SIZE
 _GATED = {side: [INDEX[n] for n in SPEED_GATED_LANDMARKS[side]] for side in SIDES}
 _NG = 3 * len(_GATED["left"]) + 1  # gated positions + time
@@ -61,6 +105,7 @@ class ControlFrameTracker:
         max_landmark_speed: the speed gate, m/s (None: off).
         robust_wrist: rebuild the hand vector and keep the wrist frame off its mirror (step 2); False: eq. (17)
             on the landmarks as they are.
+        torso_hold: :class:`~akc_drake.core.smoothing.HoldParams` of the torso anchor (None: off).
     """
 
     def __init__(
@@ -73,8 +118,11 @@ class ControlFrameTracker:
         workspace: dict | None = None,
         max_landmark_speed: float | None = DEFAULT_MAX_LANDMARK_SPEED,
         robust_wrist: bool = True,
+        torso_hold: smoothing.HoldParams | None = None,
     ):
         self.mapping = mapping
+        self.torso_smoothing, self.torso_hold = torso_smoothing, torso_hold
+        self._hold = smoothing.SE3Hold(torso_hold) if torso_hold is not None else None
         self.robust_wrist = bool(robust_wrist)
         self.torso_model = torso_model
         self._torso_f = smoothing.SE3OneEuro(torso_smoothing) if torso_smoothing is not None else None
@@ -82,9 +130,10 @@ class ControlFrameTracker:
         self.workspace = workspace
         self.max_speed = max_landmark_speed
         # Layout: torso filter | torso R (9) + origin (3) | per side: wrist filter, previous R_C (9), gate,
-        # hand width estimate (1), previous hand vector (3).
-        self._side = _S + 9 + _NG + 4
-        self.state_size = _S + 12 + 2 * self._side
+        # hand width estimate (1), previous hand vector (3), hand length estimate (1).
+        self._side = _S + 9 + _NG + 5
+        self._hold_at = _S + 12 + 2 * self._side  # the torso anchor's state, last
+        self.state_size = self._hold_at + smoothing.HOLD_STATE_SIZE
 
     def initial_state(self) -> np.ndarray:
         return np.full(self.state_size, np.nan)
@@ -96,6 +145,9 @@ class ControlFrameTracker:
                 state[:_S], R, o, _ = self._torso_f.step(state[:_S], t, *measured)
             else:
                 R, o = measured
+            if self._hold is not None:
+                h = slice(self._hold_at, self._hold_at + smoothing.HOLD_STATE_SIZE)
+                state[h], R, o = self._hold.step(state[h], t, R, o)
             state[_S : _S + 9] = R.ravel()
             state[_S + 9 : _S + 12] = o
         v = state[_S : _S + 12]
@@ -114,6 +166,17 @@ class ControlFrameTracker:
         out = reconstruct_hand_vector(h, width, v[1:4] if np.all(np.isfinite(v[1:4])) else None, forearm)
         state[sl] = np.concatenate([[width], out])
         return out
+
+    def _wrist(self, state: np.ndarray, j: int, p_e, p_w, p_i, p_p) -> np.ndarray:
+        """The wrist, moved behind its hand when the hand hides it (:func:`wrist_behind_hand`); the hand's length
+        is learnt from frames whose wrist-to-knuckles vector lies mostly in the image plane (exponential average)."""
+        length = state[j] if np.isfinite(state[j]) else DEFAULT_HAND_LENGTH_M
+        d = p_w - 0.5 * (p_i + p_p)
+        n = float(np.linalg.norm(d))
+        if 0.04 < n < 0.15 and float(np.linalg.norm(d[:2])) >= 0.9 * n:
+            length += 0.1 * (n - length)
+        state[j] = length
+        return wrist_behind_hand(p_e, p_w, p_i, p_p, length)
 
     def step(self, state, t: float, pose) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
         """One camera frame.
@@ -138,10 +201,12 @@ class ControlFrameTracker:
         for k, side in enumerate(SIDES):
             b = _S + 12 + k * self._side
             f_sl, prev_sl = slice(b, b + _S), slice(b + _S, b + _S + 9)
-            gate_sl, hand_sl = slice(b + _S + 9, b + _S + 9 + _NG), slice(b + _S + 9 + _NG, b + self._side)
+            gate_sl, hand_sl = slice(b + _S + 9, b + _S + 9 + _NG), slice(b + _S + 9 + _NG, b + self._side - 1)
             p_e, p_w, p_i, p_p = (pose[INDEX[f"{side}_{n}"]] for n in ("elbow", "wrist", "index", "pinky"))
             R_w = None
             if np.all(np.isfinite([p_e, p_w, p_i, p_p])):
+                if self.robust_wrist:
+                    p_w = self._wrist(state, b + self._side - 1, p_e, p_w, p_i, p_p)
                 h = self._hand_vector(state, hand_sl, p_i - p_p, p_e - p_w) if self.robust_wrist else p_i - p_p
                 R_w = wrist_frame(p_e, p_w, p_p + h, p_p)
             if R_w is None:

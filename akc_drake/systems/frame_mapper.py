@@ -84,6 +84,8 @@ class FrameMapper(LeafSystem):
         robust_wrist: rebuild the hand vector from its image part and keep the wrist frame off its mirror
             (:class:`~akc_drake.core.control_frames.ControlFrameTracker`); off here (eq. 17 as it is), on in the
             teleop diagram.
+        torso_hold: :class:`~akc_drake.core.smoothing.HoldParams`: the torso held still while the operator stands
+            (None: off; the teleop diagram uses :data:`~akc_drake.core.smoothing.TORSO_HOLD`).
     """
 
     def __init__(
@@ -100,6 +102,7 @@ class FrameMapper(LeafSystem):
         torso_smoothing: smoothing.SE3SmoothingParams | None = None,
         workspace: dict | None = None,
         robust_wrist: bool = False,
+        torso_hold: smoothing.HoldParams | None = None,
     ):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0.0):
@@ -116,6 +119,7 @@ class FrameMapper(LeafSystem):
             workspace=workspace,
             max_landmark_speed=None if v is None else float(v),
             robust_wrist=robust_wrist,
+            torso_hold=torso_hold,
         )
         homes = {"left": X_TE_home_left, "right": X_TE_home_right}
         self._home = {}
