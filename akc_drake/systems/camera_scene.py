@@ -42,17 +42,6 @@ from akc_drake.operator.sdf import add_operator, operator_position_indices
 
 RENDERER_NAME = "akc_vtk"
 
-#: The operator bodies a simulated camera can render (``--body``).
-BODIES = ("primitive", "skinned")
-
-
-def check_body(body: str) -> str:
-    """``body`` if it names one of :data:`BODIES`, else a ValueError naming the choices."""
-    if body not in BODIES:
-        raise ValueError(f"body must be one of {', '.join(BODIES)}, got {body!r}")
-    return body
-
-
 @dataclass(frozen=True)
 class CameraPlacement:
     """Where the camera is, relative to the operator frame O (pelvis; x forward, y left, z up).
@@ -116,6 +105,17 @@ def as_X_OC(camera_pose) -> RigidTransform:
     raise ValueError(
         f"camera_pose must be a CameraPlacement, a RigidTransform or a 4x4 matrix, got {camera_pose!r}"
     )
+
+
+#: The operator bodies a simulated camera can render (``--body``).
+BODIES = ("primitive", "skinned")
+
+
+def check_body(body: str) -> str:
+    """``body`` if it names one of :data:`BODIES`, else a ValueError naming the choices."""
+    if body not in BODIES:
+        raise ValueError(f"body must be one of {', '.join(BODIES)}, got {body!r}")
+    return body
 
 
 def intrinsics_from_config(camera_cfg) -> CameraIntrinsics:
