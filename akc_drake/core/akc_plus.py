@@ -247,6 +247,7 @@ class ArmKinematicCorrectorPlus:
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = None
+        self._cur_var = None
         self.reset()
 
     @property
@@ -344,14 +345,21 @@ class ArmKinematicCorrectorPlus:
                         nis[i] = (1.0 - a) * nis[i] + a * (r * r / d)
                     i += 1
 
-    def _arm_var(self, side):
-        """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS."""
+    def _arm_var(self, side, m):
+        """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
+
+        The running NIS measures the filter's error against its model while it is measured; an axis not
+        measured this frame is extrapolated, and its variance may be inflated by it but never shrunk.
+        """
         var, nis, fl = self._var, self._nis, self.config.nis_floor
         out = []
         i = 9 * side
         for o in self._offsets[side]:
             for ax in range(3):
-                out.append(var[o + ax] * max(nis[i], fl))
+                k = nis[i]
+                if m is None or m[o + ax] != m[o + ax]:
+                    k = max(k, 1.0)
+                out.append(var[o + ax] * max(k, fl))
                 i += 1
         return out
 
@@ -359,6 +367,10 @@ class ArmKinematicCorrectorPlus:
         """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
         if k in self._no_prior:
             return 0.0
+        vs = self._cur_var
+        if vs is not None:
+            # The filter's own (covariance-matched) depth variance of the joint.
+            return 1.0 / max(vs[5 if k % 2 == 0 else 2], 1e-12)
         cfg = self.config
         # Drift: the frames without a depth (unless the estimate still fits the calibrated length) and twice
         # the distance the filter's depth has travelled since it was lost.
@@ -401,6 +413,7 @@ class ArmKinematicCorrectorPlus:
         if joints is None:
             return None
         sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
+        self._cur_var = self._arm_var(side, m) if self._var is not None else None
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
         self._no_prior = set()
@@ -427,11 +440,22 @@ class ArmKinematicCorrectorPlus:
             # (Only when the filter has moved it away from our last output by more than jump_m: a holding
             # filter's estimate is kept.)
             # Our own last output is no evidence: the filter prior is then left out of the candidate choice.
-            jump = self.config.jump_m
-            if not exy and _hypot(ex - prev[3], ey - prev[4], ez - prev[5]) > jump:
+            # With the filter's covariance: when the filter knows the joint less well than a measurement would
+            # (its depth variance above the measurement's: no constraint informs it) and has moved it, blind, by
+            # more than the measurement's standard deviation since its depth was last seen (a hold is the
+            # filter's own best knowledge; a moving blind estimate is an extrapolated velocity, which a
+            # zero-velocity hold beats).
+            vs = self._cur_var
+            if vs is None:
+                jump, f0e, f0s = self.config.jump_m, prev[3:6], prev[0:3]
+            else:
+                jump, f0e, f0s = self.config.depth_sigma_m, self._f0[ke] or prev[3:6], self._f0[ks] or prev[0:3]
+            if (not exy and (vs is None or vs[5] > self._r_z)
+                    and _hypot(ex - f0e[0], ey - f0e[1], ez - f0e[2]) > jump):
                 ex, ey, ez = prev[3], prev[4], prev[5]
                 self._no_prior.add(2 * side)
-            if not sxy and _hypot(sx - prev[0], sy - prev[1], sz - prev[2]) > jump:
+            if (not sxy and (vs is None or vs[2] > self._r_z)
+                    and _hypot(sx - f0s[0], sy - f0s[1], sz - f0s[2]) > jump):
                 sx, sy, sz = prev[0], prev[1], prev[2]
                 self._no_prior.add(2 * side + 1)
         # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
@@ -465,7 +489,7 @@ class ArmKinematicCorrectorPlus:
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         w = (wx, wy, wz)
         s = e = None
-        vs = self._arm_var(side) if self._var is not None else None
+        vs = self._cur_var
         # With the filter's covariance: a depth not seen this frame that the filter still knows as well as a
         # measurement would (its error variance within the measurement's) counts as seen here.
         if vs is not None and (me or vs[5] <= self._r_z) and (ms or vs[2] <= self._r_z):
