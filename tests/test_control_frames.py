@@ -171,10 +171,12 @@ def test_the_torso_is_held_while_the_detector_moves_the_hips_and_follows_a_step(
     m = F.RobotMapping.default()
     t = ControlFrameTracker(m, torso_model=model, wrist_smoothing=None, torso_smoothing=sm.TORSO_SMOOTHING,
                             torso_hold=sm.TORSO_HOLD)
-    s, first, _, _ = t.step(t.initial_state(), 0.0, pose)
+    s = t.initial_state()
+    for k in range(20):  # the operator stands still: the torso is settled (the mean of its first second)
+        s, first, _, _ = t.step(s, 0.1 * k, pose)
     shifted = pose.copy()
     shifted[[INDEX["left_hip"], INDEX["right_hip"]], 1] -= 0.06  # 6 cm up in the image (y_C down)
-    for k in range(1, 60):
+    for k in range(20, 60):
         s, X, _, _ = t.step(s, 0.1 * k, shifted)
         for a, b in zip(X, first, strict=True):
             np.testing.assert_allclose(a, b, atol=1e-12)
@@ -185,7 +187,9 @@ def test_the_torso_is_held_while_the_detector_moves_the_hips_and_follows_a_step(
         if X[0] is not None:  # None: the first frame of the step, stopped by the speed gate
             moves.append(X[0][:3, 3].copy())
     steps = np.linalg.norm(np.diff(moves, axis=0), axis=1)
-    assert steps.max() <= m.scale * sm.TORSO_HOLD.speed_m_s * 0.1 + 1e-9  # never a jump
+    # Never a jump: the hold moves at 0.3 m/s; the One Euro filter after it may briefly outpace it (cutoff rising).
+    assert steps.max() <= 1.5 * m.scale * sm.TORSO_HOLD.speed_m_s * 0.1
+    assert np.count_nonzero(steps > 1e-6) >= 0.4 / (sm.TORSO_HOLD.speed_m_s * 0.1)
     expected = F.robot_targets(stepped, m, torso=model.torso(stepped))[0]
     np.testing.assert_allclose(moves[-1], expected[:3, 3], atol=m.scale * sm.TORSO_HOLD.settle_m + 1e-6)
-    assert s[-1] == 0.0  # held again
+    assert s[t.state_size - sm.HOLD_STATE_SIZE + 9] == 0.0  # held again

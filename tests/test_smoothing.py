@@ -136,7 +136,7 @@ def test_low_lag_wrist_rotation_lags_a_turn_by_under_60_ms_and_a_one_frame_flip_
 
 
 def test_hold_keeps_a_frame_still_within_its_radius_and_follows_a_lasting_move_at_bounded_speed():
-    prm = sm.HoldParams(radius_m=0.1, angle_rad=0.2, persist_s=1.0, speed_m_s=0.3, speed_rad_s=0.5)
+    prm = sm.HoldParams(radius_m=0.1, angle_rad=0.2, persist_s=1.0, speed_m_s=0.3, speed_rad_s=0.5, average_s=0.05)
     h = sm.SE3Hold(prm)
     R0 = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
     s, R, p = h.step(h.initial_state(), 0.0, R0, np.zeros(3))
@@ -161,6 +161,13 @@ def test_hold_keeps_a_frame_still_within_its_radius_and_follows_a_lasting_move_a
     assert np.all(ps[:10] == 0.0)
     assert np.max(np.linalg.norm(np.diff(ps, axis=0), axis=1)) <= 0.3 * DT + 1e-12
     np.testing.assert_allclose(ps[-1], target, atol=1e-12)
-    assert s[-1] == 0.0
+    assert s[9] == 0.0  # holding again
+    # Averaging: for average_s after it is first held, the held frame is the mean of the measurements.
+    h = sm.SE3Hold(sm.HoldParams(radius_m=0.1, angle_rad=0.2, persist_s=1.0, speed_m_s=0.3, speed_rad_s=0.5))
+    s = h.initial_state()
+    noise = rng.normal(0.0, 0.01, (30, 3))
+    for k in range(30):
+        s, R, p = h.step(s, k * DT, R0, noise[k])
+    np.testing.assert_allclose(p, noise[:10].mean(axis=0), atol=1e-12)  # the first second's mean, then held
     with pytest.raises(ValueError, match="radius_m"):
         sm.HoldParams(radius_m=0.0, angle_rad=0.2, persist_s=1.0, speed_m_s=0.3, speed_rad_s=0.5)

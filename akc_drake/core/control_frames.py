@@ -5,10 +5,10 @@ frame:
 
 1. **Torso**: from the hips through a calibrated :class:`~akc_drake.core.frames.TorsoModel` when one is given
    (the shoulders are the most occluded landmarks in teleoperation), else eq. (17) from the shoulders and
-   hips; then smoothed on SE(3) (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard),
-   then held still while it stays within 10 cm / 10 deg of its settled pose (``torso_hold``,
-   :data:`~akc_drake.core.smoothing.TORSO_HOLD`: the detector's hips move with the arms, a standing operator's
-   do not; a step or a turn is followed). Missing: the last torso is held.
+   hips; held still while it stays within 10 cm / 10 deg of its settled pose (``torso_hold``,
+   :data:`~akc_drake.core.smoothing.TORSO_HOLD`, the mean of its first second: the detector's hips move with the
+   arms, a standing operator's do not; a step or a turn is followed); then smoothed on SE(3)
+   (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard). Missing: the last torso is held.
 2. **Wrists** (eq. 17) in the camera frame, with the hand vector ``p_i - p_p`` rebuilt from its image-plane
    part and the hand's learnt width (:func:`~akc_drake.core.frames.reconstruct_hand_vector`: the knuckles'
    depths are the noisiest inputs of eq. 17); a frame whose hand vector is unreliable is kept on the side of
@@ -141,13 +141,12 @@ class ControlFrameTracker:
     def _torso(self, state: np.ndarray, t: float, pose: np.ndarray):
         measured = self.torso_model.torso(pose) if self.torso_model is not None else torso_of(pose)
         if measured is not None:
-            if self._torso_f is not None:
-                state[:_S], R, o, _ = self._torso_f.step(state[:_S], t, *measured)
-            else:
-                R, o = measured
-            if self._hold is not None:
+            R, o = measured
+            if self._hold is not None:  # held first: the One Euro filter then smooths the hold's moves
                 h = slice(self._hold_at, self._hold_at + smoothing.HOLD_STATE_SIZE)
                 state[h], R, o = self._hold.step(state[h], t, R, o)
+            if self._torso_f is not None:
+                state[:_S], R, o, _ = self._torso_f.step(state[:_S], t, R, o)
             state[_S : _S + 9] = R.ravel()
             state[_S + 9 : _S + 12] = o
         v = state[_S : _S + 12]

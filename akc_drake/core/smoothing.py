@@ -263,6 +263,8 @@ class HoldParams:
         speed_m_s, speed_rad_s: how fast the held frame moves toward the measurement while following (never a
             jump).
         settle_m, settle_rad: following ends when the held frame is this close to the measurement.
+        average_s: for this long after the frame is first held (and after each move), the held frame is the mean
+            of the measurements (the first sample alone would freeze its noise).
     """
 
     radius_m: float
@@ -272,9 +274,11 @@ class HoldParams:
     speed_rad_s: float
     settle_m: float = 0.01
     settle_rad: float = 0.02
+    average_s: float = 1.0
 
     def __post_init__(self):
-        for name in ("radius_m", "angle_rad", "persist_s", "speed_m_s", "speed_rad_s", "settle_m", "settle_rad"):
+        for name in ("radius_m", "angle_rad", "persist_s", "speed_m_s", "speed_rad_s", "settle_m", "settle_rad",
+                     "average_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"HoldParams.{name} must be a number > 0, got {v!r}")
@@ -293,8 +297,9 @@ TORSO_HOLD = HoldParams(radius_m=0.10, angle_rad=math.radians(10.0), persist_s=1
                         speed_rad_s=0.5)
 
 #: Layout of :class:`SE3Hold`'s state: held rotation (quaternion x, y, z, w), held position (3), time of the
-#: last sample, time since which the measurement has been away (NaN: near), following (1.0) or holding (0.0).
-HOLD_STATE_SIZE = 10
+#: last sample, time since which the measurement has been away (NaN: near), following (1.0) or holding (0.0),
+#: time the hold began, samples averaged into it.
+HOLD_STATE_SIZE = 12
 
 
 class SE3Hold:
@@ -318,22 +323,29 @@ class SE3Hold:
         s = np.asarray(state, dtype=float)
         R = np.asarray(R, dtype=float)
         p = np.asarray(p, dtype=float)
+        t = float(t)
         rot = Rotation.from_matrix(R)
         if not math.isfinite(s[7]):
-            return np.concatenate([rot.as_quat(), p, [t, math.nan, 0.0]]), R.copy(), p.copy()
+            return np.concatenate([rot.as_quat(), p, [t, math.nan, 0.0, t, 1.0]]), R.copy(), p.copy()
         rot0, p0, t0, away, following = Rotation.from_quat(s[:4]), s[4:7], s[7], s[8], s[9] > 0.5
-        dt = max(float(t) - t0, 0.0)
+        since, count = s[10], s[11]
+        dt = max(t - t0, 0.0)
         delta = (rot0.inv() * rot).as_rotvec()
         ang, dist = float(np.linalg.norm(delta)), float(np.linalg.norm(p - p0))
         if not following:
             if dist <= prm.radius_m and ang <= prm.angle_rad:
-                return np.concatenate([s[:7], [t, math.nan, 0.0]]), rot0.as_matrix(), p0.copy()
-            away = float(t) if not math.isfinite(away) else away
-            if float(t) - away < prm.persist_s:
-                return np.concatenate([s[:7], [t, away, 0.0]]), rot0.as_matrix(), p0.copy()
-        # Following: move toward the measurement at bounded speeds; hold again once there.
+                if t - since < prm.average_s:  # still settling: the running mean of the measurements
+                    count += 1.0
+                    rot0 = rot0 * Rotation.from_rotvec(delta / count)
+                    p0 = p0 + (p - p0) / count
+                out = np.concatenate([rot0.as_quat(), p0, [t, math.nan, 0.0, since, count]])
+                return out, rot0.as_matrix(), p0.copy()
+            away = t if not math.isfinite(away) else away
+            if t - away < prm.persist_s:
+                return np.concatenate([s[:7], [t, away, 0.0, since, count]]), rot0.as_matrix(), p0.copy()
+        # Following: move toward the measurement at bounded speeds; hold again (and re-average) once there.
         p_new = p0 + (p - p0) * min(1.0, prm.speed_m_s * dt / dist) if dist > 0 else p0.copy()
         rot_new = rot0 * Rotation.from_rotvec(delta * min(1.0, prm.speed_rad_s * dt / ang)) if ang > 0 else rot0
         settled = float(np.linalg.norm(p - p_new)) <= prm.settle_m and (rot_new.inv() * rot).magnitude() <= prm.settle_rad
-        out = np.concatenate([rot_new.as_quat(), p_new, [t, math.nan, 0.0 if settled else 1.0]])
-        return out, rot_new.as_matrix(), p_new
+        tail = [t, math.nan, 0.0, t, 1.0] if settled else [t, math.nan, 1.0, math.nan, 0.0]
+        return np.concatenate([rot_new.as_quat(), p_new, tail]), rot_new.as_matrix(), p_new
