@@ -20,8 +20,9 @@ a stale session is never served.
 
 Where it lives: ``$AKC_DRAKE_CACHE`` when set, else ``$XDG_CACHE_HOME/akc-drake``, else ``~/.cache/akc-drake``;
 sessions are ``renders/<k[:2]>/<k>.npz`` (the evaluation's no-pickle :class:`Session` format) with the spec
-beside them as ``<k>.json``. Set ``AKC_DRAKE_CACHE=off`` to never read or write it. Clear it with
-``akc-drake cache --clear`` (or ``rm -rf`` the folder); ``akc-drake cache`` prints where it is and its size.
+beside them as ``<k>.json`` (with the renderer's fingerprint and the dependencies, to tell why a key changed).
+Set ``AKC_DRAKE_CACHE=off`` to never read or write it. Clear it with ``akc-drake cache --clear`` (or ``rm -rf``
+the folder); ``akc-drake cache`` prints where it is and its size.
 On a cluster, point ``AKC_DRAKE_CACHE`` of every worker at a shared folder to share renders between machines
 (each entry is written atomically, so concurrent writers of the same key are safe).
 """
@@ -454,5 +455,7 @@ def cached_render(
             return session, True
     session = render(spec, progress)
     session.save_npz(npz)
-    atomic_write_text(meta, json.dumps({"key": key, "spec": spec}, indent=1, sort_keys=True) + "\n")
+    record = {"key": key, "spec": spec, "renderer": renderer_fingerprint(),
+              "dependencies": dependency_fingerprint(spec)}
+    atomic_write_text(meta, json.dumps(record, indent=1, sort_keys=True) + "\n")
     return session, False
