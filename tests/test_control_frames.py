@@ -62,14 +62,15 @@ def test_calibrated_mapping_scales_the_operator_reach_to_the_robot():
 def test_tracker_without_smoothing_is_the_plain_mapping_and_with_it_converges():
     pose = camera_pose()
     m = F.RobotMapping.default()
-    plain = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None)
+    plain = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None, robust_wrist=False)
     _, targets, lost, clipped = plain.step(plain.initial_state(), 0.0, pose)
     expected = F.robot_targets(pose, m)
     for X, E in zip(targets, expected, strict=True):
         np.testing.assert_allclose(X, E, atol=1e-12)
     np.testing.assert_array_equal(lost, [0.0, 0.0])
     np.testing.assert_array_equal(clipped, [0.0, 0.0])
-    smooth = ControlFrameTracker(m, wrist_smoothing=sm.WRIST_SMOOTHING, torso_smoothing=sm.TORSO_SMOOTHING)
+    smooth = ControlFrameTracker(m, wrist_smoothing=sm.WRIST_SMOOTHING, torso_smoothing=sm.TORSO_SMOOTHING,
+                                 robust_wrist=False)
     s = smooth.initial_state()
     moved = camera_pose()
     moved[INDEX["left_wrist"]] += [0.0, -0.05, 0.0]
@@ -158,6 +159,8 @@ def test_a_wrist_hidden_by_its_own_hand_is_put_behind_the_hand():
     # A wrist seen behind its knuckles, a forearm across the image, a hand seen side-on: unchanged.
     np.testing.assert_array_equal(wrist_behind_hand(e, w, i, p, 0.085), w)
     np.testing.assert_array_equal(wrist_behind_hand(w + [0.28, 0.0, 0.0], seen, i, p, 0.085), seen)
+    # Knuckles read 20 cm behind the wrist (their depth hit the body behind): their depth failed, no move.
+    np.testing.assert_array_equal(wrist_behind_hand(e, seen, i + [0, 0, 0.3], p + [0, 0, 0.3], 0.085), seen)
     side_on = seen + [0.0, 0.0, 0.0]
     np.testing.assert_array_equal(wrist_behind_hand(e, side_on, seen + [0.09, 0.035, 0.0], seen + [0.09, -0.035, 0.0],
                                                     0.085), side_on)
@@ -170,7 +173,7 @@ def test_the_torso_is_held_while_the_detector_moves_the_hips_and_follows_a_step(
     model = F.TorsoModel.calibrate(np.stack([pose] * 3))
     m = F.RobotMapping.default()
     t = ControlFrameTracker(m, torso_model=model, wrist_smoothing=None, torso_smoothing=sm.TORSO_SMOOTHING,
-                            torso_hold=sm.TORSO_HOLD)
+                            torso_hold=sm.TORSO_HOLD, robust_wrist=False)
     s = t.initial_state()
     for k in range(20):  # the operator stands still: the torso is settled (the mean of its first second)
         s, first, _, _ = t.step(s, 0.1 * k, pose)

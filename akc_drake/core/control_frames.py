@@ -50,9 +50,9 @@ from akc_drake.core.skeleton import INDEX, SIDES
 #: Initial estimate of the wrist-to-knuckle-midpoint distance (metres) before it is learnt from the operator
 #: (MediaPipe's wrist to the midpoint of its index and pinky knuckles: 8-8.5 cm measured on the rendered adult).
 DEFAULT_HAND_LENGTH_M = 0.085
-#: The forearm points toward the camera when the wrist is nearer than the elbow by at least this share of the
-#: forearm's length (about 35 deg out of the image plane).
-TOWARD_CAMERA_SHARE = 0.6
+#: The forearm's share along the camera ray (``-f_z / |f|``, wrist nearer than the elbow) from which the hand is
+#: taken to hide the wrist (0.5, 30 deg out of the image plane; none below) and to fully hide it (0.8, 53 deg).
+TOWARD_CAMERA_SHARE = (0.5, 0.8)
 
 
 def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
@@ -61,10 +61,13 @@ def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
     When the forearm points toward the camera, the hand is in front of the wrist: the depth camera reads the back
     of the hand at the wrist's pixel, up to a hand's length (10-15 cm measured) nearer than the wrist. The hand's
     length is a constant (``hand_length_m``, wrist to the knuckles' midpoint ``c``), and its image part is
-    measured, so the wrist lies ``dz = sqrt(L^2 - |(p_w - c)_xy|^2)`` behind ``c``. A wrist measured less than
-    half of that behind ``c`` while the forearm points toward the camera (:data:`TOWARD_CAMERA_SHARE`) is put at
-    that depth, on its pixel ray. The correction is bounded by the hand's foreshortening: a hand seen side-on
-    (``|(p_w - c)_xy| ~ L``) is left as it is, as is a wrist nearer than its elbow by less.
+    measured, so the wrist lies ``dz = sqrt(L^2 - |(p_w - c)_xy|^2)`` behind ``c``. A wrist measured nearer than
+    that is moved back toward that depth on its pixel ray, by a weight that grows from 0 to 1 as the forearm turns
+    toward the camera (:data:`TOWARD_CAMERA_SHARE`). Every step is continuous in the landmarks (no switch, so
+    no jump from one frame to the next), and the correction is bounded by the hand's foreshortening: a hand seen
+    side-on (``|(p_w - c)_xy| >= L``), a forearm across the image, or a wrist already behind its knuckles is left
+    as it is; so is a wrist whose knuckles read more than a hand's length behind it (their depth failed), and the
+    move is at most a hand's length.
 
     Args:
         p_e, p_w, p_i, p_p: ``(3,)`` elbow, wrist, index and pinky knuckles in the camera frame C (z forward).
@@ -76,17 +79,18 @@ def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
     p_w = np.array(p_w, dtype=float)
     f = p_w - np.asarray(p_e, dtype=float)
     nf = float(np.linalg.norm(f))
-    if not (nf > 1e-6 and f[2] < -TOWARD_CAMERA_SHARE * nf and p_w[2] > 1e-6):
+    lo, hi = TOWARD_CAMERA_SHARE
+    weight = min(max((-float(f[2]) / nf - lo) / (hi - lo), 0.0), 1.0) if nf > 1e-6 else 0.0
+    if weight == 0.0 or p_w[2] <= 1e-6:
         return p_w
     c = 0.5 * (np.asarray(p_i, dtype=float) + np.asarray(p_p, dtype=float))
     d = p_w - c
-    dxy2 = float(d[0] ** 2 + d[1] ** 2)
-    if dxy2 >= hand_length_m**2:
+    dz = math.sqrt(max(hand_length_m**2 - float(d[0] ** 2 + d[1] ** 2), 0.0))
+    deficit = c[2] + dz - p_w[2]
+    if deficit <= 0.0 or c[2] - p_w[2] > hand_length_m:  # knuckles a hand's length behind the wrist: their depth failed
         return p_w
-    dz = math.sqrt(hand_length_m**2 - dxy2)
-    if d[2] >= 0.5 * dz:
-        return p_w
-    return p_w * ((c[2] + dz) / p_w[2])  # on the wrist's pixel ray, at the depth behind its hand
+    deficit = min(deficit, hand_length_m)  # the hand hides the wrist from at most its own length in front
+    return p_w * ((p_w[2] + weight * deficit) / p_w[2])  # on the wrist's pixel ray, toward behind its hand
 
 
 _S = smoothing.STATE_SIZE
