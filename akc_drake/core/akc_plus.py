@@ -61,9 +61,11 @@ _sqrt = math.sqrt
 _hypot = math.hypot
 _isfinite = math.isfinite
 _NAN = float("nan")
-_BIG = 1e6
-#: m5's hyperextension penalty (a squared standard deviation): a sign test on noisy, nearly straight arms
-#: is no veto; a filter estimate that fits the lengths and a continuous configuration can outweigh it.
+#: The anatomical tests' penalty (a squared standard deviation) for a folded (below elbow_min_deg) or a
+#: hyperextended (m5) elbow: both are tests on noisy positions near their limits (a tight but real fold
+#: whose filtered elbow depth is a few cm off reads below the limit; a nearly straight arm's direction of
+#: bend is noise), so they are strong evidence, no veto: a filter estimate that fits the lengths and a
+#: continuous configuration can outweigh them, a mirror candidate tens of cm away cannot.
 _BACKWARDS = 25.0
 
 _LHIP_Z = 3 * INDEX["left_hip"] + 2
@@ -395,12 +397,12 @@ class ArmKinematicCorrectorPlus:
         return best, best_j
 
     def _penalty(self, s, e, w, lu, lf, axes):
-        """Large when the arm's elbow is folded below elbow_min_deg; _BACKWARDS when hyperextended (m5, our sign)."""
+        """_BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign)."""
         ux, uy, uz = s[0] - e[0], s[1] - e[1], s[2] - e[2]
         fx, fy, fz = w[0] - e[0], w[1] - e[1], w[2] - e[2]
         cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
         if cos_t > self._cos_min:
-            return _BIG
+            return _BACKWARDS
         if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
             return _BACKWARDS
         return 0.0
