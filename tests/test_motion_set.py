@@ -130,13 +130,16 @@ def test_motion_dir_renders_each_clip_once_through_the_cache(tmp_path):
     assert len(entries()) == 4
 
 
-def test_a_bad_clip_fails_alone(tmp_path):
+def test_a_bad_clip_fails_alone(tmp_path, capsys):
     from akc_drake.evaluation.motion_set import evaluate_motion_dir
 
     shutil.copy(DATA / "upper_body.bvh", tmp_path / "a.bvh")
     (tmp_path / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
-    r = evaluate_motion_dir(tmp_path, methods=["KF"], seed=0, protocol="ours", cache=False, progress=False,
+    r = evaluate_motion_dir(tmp_path, methods=["KF"], seed=0, protocol="ours", cache=False, progress=True,
                             tpose_seconds=1.0)
+    err = capsys.readouterr().err
+    assert "T-pose: " in err and "11frame" in err.replace(" ", "")  # the T-pose's 11 frames
+    assert "  a: 0frame" in err  # in-process: a bar over the clip's frames (cleared when it ends)
     assert [c["name"] for c in r["clips"]] == ["a"]
     assert len(r["failures"]) == 1 and r["failures"][0].startswith("broken:") and "\n" not in r["failures"][0]
     assert r["render_cache"] == {"dir": None, "hits": 0, "misses": 2}

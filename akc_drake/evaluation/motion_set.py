@@ -170,8 +170,9 @@ def evaluate_clip(item: dict) -> dict:
     Args:
         item: ``{"clip": find_clips() entry, "dims": {segment: metres}, "methods": [...], "seed": int,
             "protocol": "paper" | "ours", "weights": "Wa" | "Wb" | "Wc"}``, optionally ``"body"``
-            ("primitive" | "skinned"), ``"detector"`` ("sim" | "mediapipe") and ``"cache"`` (None: the default
-            render cache, False: off, or a folder).
+            ("primitive" | "skinned"), ``"detector"`` ("sim" | "mediapipe"), ``"cache"`` (None: the default
+            render cache, False: off, or a folder) and ``"frame_progress"`` (a progress bar over the clip's
+            frames as they render, on stderr).
 
     Returns:
         ``{"name", "frames", "duration_s", "lost_share": {joint: share}, "render": {"key", "cached",
@@ -190,7 +191,13 @@ def evaluate_clip(item: dict) -> dict:
     spec = clip_spec(clip, protocol=protocol, seed=int(item.get("seed", 0)), body=item.get("body", "primitive"),
                      detector=item.get("detector", "sim"))
     t0 = time.perf_counter()
-    session, hit = render_clip(spec, cache=item.get("cache"))
+    if item.get("frame_progress"):  # in-process only: a worker's stderr is not the user's terminal
+        from tqdm import tqdm
+
+        with tqdm(desc=f"  {clip['name']}", unit="frame", file=sys.stderr, leave=False, dynamic_ncols=True) as bar:
+            session, hit = render_clip(spec, cache=item.get("cache"), progress=lambda n, _name: bar.update(n))
+    else:
+        session, hit = render_clip(spec, cache=item.get("cache"))
     render_s = time.perf_counter() - t0
     dims = BodyDimensions(**item["dims"])
     runner = MethodRunner(session, dims, item.get("weights", "Wb"), method_options(protocol))
@@ -312,7 +319,7 @@ def evaluate_motion_dir(
         scheduler: "inprocess", "local" or "tcp://HOST:PORT" (:func:`~akc_drake.evaluation.executor.run_tasks`).
         n_workers: local worker processes (default: one per core).
         cache: the render cache (None: the default folder, False: off, or a folder).
-        progress: show the progress bar over clips.
+        progress: show the progress bars: over the clips, and in-process over each clip's frames too.
         tpose_seconds: length of the calibration T-pose.
 
     Returns:
@@ -337,7 +344,8 @@ def evaluate_motion_dir(
     cache_arg = None if cache is None else (False if cache is False else str(cache))
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
-         "weights": weights, "body": body, "detector": detector, "cache": cache_arg}
+         "weights": weights, "body": body, "detector": detector, "cache": cache_arg,
+         "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
     raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
