@@ -154,3 +154,20 @@ def test_motion_dir_command_options(tmp_path, capsys):
     assert "--detector both: not with --motion-dir" in capsys.readouterr().err
     assert cli_main(base + ["--workers", "0"]) == 2
     assert "--workers must be at least 1" in capsys.readouterr().err
+
+
+def test_motion_dir_same_numbers_in_process_and_on_two_local_workers(tmp_path):
+    from akc_drake.evaluation.motion_set import evaluate_motion_dir
+
+    shutil.copy(DATA / "upper_body.bvh", tmp_path / "a.bvh")
+    text = (DATA / "upper_body.bvh").read_text()
+    (tmp_path / "b.bvh").write_text(text.replace("Frame Time: 0.025", "Frame Time: 0.05"))
+    kw = dict(methods=["KF", "AKC+(KF)"], seed=1, protocol="paper", cache=tmp_path / "cache", progress=False,
+              tpose_seconds=1.0)
+    here = evaluate_motion_dir(tmp_path, scheduler="inprocess", **kw)
+    there = evaluate_motion_dir(tmp_path, scheduler="local", n_workers=2, **kw)
+    assert there["render_cache"]["hits"] == 3  # the workers read what the first run stored
+    assert _tables_bytes(here) == _tables_bytes(there)
+    for a, b in zip(here["clips"], there["clips"], strict=True):
+        for m in kw["methods"]:
+            assert json.dumps(a["methods"][m]["sse_m2"]) == json.dumps(b["methods"][m]["sse_m2"])
