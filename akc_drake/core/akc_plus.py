@@ -365,6 +365,21 @@ class ArmKinematicCorrectorPlus:
                 i += 1
         return out
 
+    def _hold_blind(self, p, vs, base, f0, prev, k):
+        """A joint the detector lost altogether: each axis the filter extrapolates (see ``_arm``) is held at
+        our last output; if the depth is, the filter prior of joint ``k`` is left out of the candidate choice."""
+        if f0 is None:
+            f0 = prev[base : base + 3]
+        out = list(p)
+        rr = self._r_axes
+        for ax in range(3):
+            r = rr[ax]
+            if vs[base + ax] > r and (p[ax] - f0[ax]) ** 2 > r and ax == 2:
+                out[ax] = prev[base + ax]
+                if ax == 2:
+                    self._no_prior.add(k)
+        return out
+
     def _inv_f2(self, k):
         """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
         if k in self._no_prior:
@@ -415,7 +430,27 @@ class ArmKinematicCorrectorPlus:
         if joints is None:
             return None
         sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
-        self._cur_var = self._arm_var(side, m) if self._var is not None else None
+        self._cur_var = vs = self._arm_var(side, m) if self._var is not None else None
+        if vs is not None and m is not None:
+            # A measured coordinate that passes the innovation test, of a filter whose covariance-matched error
+            # variance exceeds the measurement's (a lagging filter on a fast joint): the measurement is the
+            # better estimate of the two, and replaces the filter's (with the measurement's variance).
+            f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
+            var, rr, g2 = self._var, self._r_axes, self._gate2
+            changed = False
+            for j, o in enumerate(offsets):
+                for ax in range(3):
+                    i = 3 * j + ax
+                    r = rr[ax]
+                    if vs[i] > r:
+                        z = m[o + ax]
+                        d = z - f[i]
+                        if z == z and d * d <= g2 * max(r - var[o + ax], 0.0) + 1e-12:
+                            f[i] = z
+                            vs[i] = r
+                            changed = True
+            if changed:
+                sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
         self._no_prior = set()
@@ -442,24 +477,25 @@ class ArmKinematicCorrectorPlus:
             # (Only when the filter has moved it away from our last output by more than jump_m: a holding
             # filter's estimate is kept.)
             # Our own last output is no evidence: the filter prior is then left out of the candidate choice.
-            # With the filter's covariance: when the filter knows the joint less well than a measurement would
-            # (its depth variance above the measurement's: no constraint informs it) and has moved it, blind, by
-            # more than the measurement's standard deviation since its depth was last seen (a hold is the
-            # filter's own best knowledge; a moving blind estimate is an extrapolated velocity, which a
-            # zero-velocity hold beats).
+            # With the filter's covariance, axis by axis: where the filter knows the joint less well than a
+            # measurement would (its variance above the measurement's: no constraint informs it) and has moved
+            # it, blind, by more than the measurement's standard deviation since its depth was last seen (a
+            # hold is the filter's own best knowledge; a moving blind estimate is an extrapolated velocity,
+            # which a zero-velocity hold beats).
             vs = self._cur_var
             if vs is None:
-                jump, f0e, f0s = self.config.jump_m, prev[3:6], prev[0:3]
+                jump = self.config.jump_m
+                if not exy and _hypot(ex - prev[3], ey - prev[4], ez - prev[5]) > jump:
+                    ex, ey, ez = prev[3], prev[4], prev[5]
+                    self._no_prior.add(2 * side)
+                if not sxy and _hypot(sx - prev[0], sy - prev[1], sz - prev[2]) > jump:
+                    sx, sy, sz = prev[0], prev[1], prev[2]
+                    self._no_prior.add(2 * side + 1)
             else:
-                jump, f0e, f0s = self.config.depth_sigma_m, self._f0[ke] or prev[3:6], self._f0[ks] or prev[0:3]
-            if (not exy and (vs is None or vs[5] > self._r_z)
-                    and _hypot(ex - f0e[0], ey - f0e[1], ez - f0e[2]) > jump):
-                ex, ey, ez = prev[3], prev[4], prev[5]
-                self._no_prior.add(2 * side)
-            if (not sxy and (vs is None or vs[2] > self._r_z)
-                    and _hypot(sx - f0s[0], sy - f0s[1], sz - f0s[2]) > jump):
-                sx, sy, sz = prev[0], prev[1], prev[2]
-                self._no_prior.add(2 * side + 1)
+                if not exy:
+                    ex, ey, ez = self._hold_blind((ex, ey, ez), vs, 3, self._f0[ke], prev, 2 * side)
+                if not sxy:
+                    sx, sy, sz = self._hold_blind((sx, sy, sz), vs, 0, self._f0[ks], prev, 2 * side + 1)
         # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
         # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface.
         r2 = self.config.occlusion_radius_m ** 2
