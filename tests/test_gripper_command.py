@@ -64,3 +64,25 @@ def test_the_hand_channel_counts_frames_from_any_start_time():
     sim.AdvanceTo(41.25)
     out = hands.get_output_port().Eval(hands.GetMyContextFromRoot(sim.get_context()))
     np.testing.assert_allclose(out, [OPEN_HAND_APERTURE_M, PINCH_APERTURE_M])
+
+
+def test_measured_apertures_are_replayed_and_a_missing_hand_keeps_the_gripper():
+    """A hand detector's measurements (NaN: the hand not found) replace the simulated channel."""
+    ap = np.full((12, 2), 0.10)
+    ap[4:9, 1] = 0.015  # the right hand pinches in frames 4-8 ...
+    ap[6:8, 1] = np.nan  # ... and is lost in frames 6 and 7: the gripper stays closed
+    ap[3:6, 0] = np.nan  # the open left hand lost: stays open
+    builder = DiagramBuilder()
+    hands = builder.AddSystem(HandApertureSource(_motion(), 0.1, apertures=ap))
+    cmd = builder.AddSystem(GripperCommand(0.1, 0.004))
+    builder.Connect(hands.get_output_port(), cmd.GetInputPort("thumb_index_m"))
+    sim = Simulator(builder.Build())
+    closed = []
+    for k in range(12):
+        sim.AdvanceTo(k * 0.1 + 0.05)
+        ctx = sim.get_context()
+        np.testing.assert_array_equal(hands.get_output_port().Eval(hands.GetMyContextFromRoot(ctx)), ap[k])
+        closed.append(cmd.GetOutputPort("closed").Eval(cmd.GetMyContextFromRoot(ctx)).copy())
+    closed = np.array(closed)
+    np.testing.assert_array_equal(closed[:, 0], 0.0)
+    np.testing.assert_array_equal(closed[:, 1], [0, 0, 0, 0, 1, 1, 1, 1, 1, 0, 0, 0])

@@ -52,7 +52,7 @@ class HandApertureSource(LeafSystem):
             self._values[np.flatnonzero(mask)] = np.nan
         # Frame 0 from the start; each update moves to the next frame (counted, so a run may start at any time).
         self._state = self.DeclareDiscreteState(self._values[0])
-        self._frame = self.DeclareDiscreteState(np.zeros(1))
+        self._frame = self.DeclareDiscreteState(np.array([-1.0]))  # the first update (at the start) shows frame 0
         self.DeclareStateOutputPort("thumb_index_m", self._state)
         self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
 

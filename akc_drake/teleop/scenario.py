@@ -63,11 +63,12 @@ def truncate_motion(motion, max_frames: int, rate_hz: float):
     return OperatorMotion(motion.times[:m], motion.q_left[:m], motion.q_right[:m], motion.name, cycles)
 
 
-def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False, frame_callback=None):
+def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False, frame_callback=None, detector=None):
     """Render ``motion`` with the camera of ``cfg`` (:func:`~akc_drake.diagrams.sim_camera`), with a tqdm bar.
 
     A skinned body's hands close as the motion's ``hand_closed`` says; ``frame_callback`` is called with each
-    :class:`~akc_drake.core.camera.CameraFrame` (e.g. to run the hand detector on it).
+    :class:`~akc_drake.core.camera.CameraFrame` (e.g. to run the hand detector on it); ``detector``: a pose
+    detector object to use instead of ``cfg.detector``'s (the caller closes it).
 
     Returns:
         The :class:`~akc_drake.systems.depth_camera_source.Session`.
@@ -94,7 +95,7 @@ def render_motion(motion, cfg, *, seed: int = 0, progress: bool = False, frame_c
             placement,
             noise,
             seed=seed,
-            detector=getattr(cfg, "detector", None),
+            detector=detector if detector is not None else getattr(cfg, "detector", None),
             body=getattr(cfg, "body", "primitive"),
             progress=lambda k, total: bar.update(1),
             frame_callback=frame_callback,

@@ -106,19 +106,47 @@ def score_box(X_WB, target_W, start_W, contacts, *, seed: int = 0, corrector: st
     return TaskOutcome(seed, corrector, ok, 100 * err, 100 * height, upright, released, moved, tuple(contacts), tilt)
 
 
+class RememberingDetector:
+    """A pose detector that keeps its last detection, so the hand channel can tell the hands apart by the pose's
+    wrists (:func:`~akc_drake.core.gripper.hand_sides`)."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.name = inner.name
+        self.last = None
+
+    def __getattr__(self, name):  # needs_color, needs_label, close, ...
+        return getattr(self.inner, name)
+
+    def detect(self, frame):
+        self.last = self.inner.detect(frame)
+        return self.last
+
+    def wrists_px(self):
+        """``(2, 2)`` the last detection's left and right wrist pixels (None: nobody found)."""
+        from akc_drake.core.skeleton import LANDMARKS
+
+        if self.last is None or not self.last.person_found:
+            return None
+        return np.asarray(self.last.uv)[[LANDMARKS.index("left_wrist"), LANDMARKS.index("right_wrist")]]
+
+
 class HandRecorder:
     """A render's frame callback: the hand detector on each frame, the thumb-index distances collected.
 
     Args:
         detector: a :class:`~akc_drake.io.hand_detector.HandDetector`.
+        pose: the render's :class:`RememberingDetector` (its wrists tell the hands apart), or None.
     """
 
-    def __init__(self, detector):
+    def __init__(self, detector, pose: RememberingDetector | None = None):
         self.detector = detector
+        self.pose = pose
         self.rows: list[np.ndarray] = []
 
     def __call__(self, frame) -> None:
-        self.rows.append(self.detector.detect(frame).aperture_m)
+        wrists = self.pose.wrists_px() if self.pose is not None else None
+        self.rows.append(self.detector.detect(frame, wrists).aperture_m)
 
     @property
     def apertures(self) -> np.ndarray:
@@ -150,6 +178,7 @@ def run_pick_place(
     meshcat=None,
     start_time: float = 0.0,
     hand_model=None,
+    hands: str | None = None,
 ) -> dict:
     """Run the task ``seeds`` times per corrector.
 
@@ -158,12 +187,13 @@ def run_pick_place(
         seeds: number of seeded runs (seeds 0 .. seeds - 1).
         meshcat, start_time: draw (and record) the first seed's AKC(KF) run in this Meshcat, starting at this
             simulation time (after the demo's recorded runs).
-        hand_model: MediaPipe Hands' ``.task`` file (None: the packaged one), used when ``cfg.detector`` is
-            mediapipe.
+        hand_model: MediaPipe Hands' ``.task`` file (None: the packaged one).
+        hands: the hand channel, "sim" (the motion's closure + noise) or "mediapipe" (MediaPipe Hands on the
+            rendered frames); None: "mediapipe" when ``cfg.detector`` is, else "sim".
 
     Returns:
-        ``{"runs": [outcome dicts], "success_rate": {corrector: share}, "wall_s": ...}``; with MediaPipe
-        (``cfg.detector``) also ``"hands"``: per seed, the hand channel's report.
+        ``{"runs": [outcome dicts], "success_rate": {corrector: share}, "wall_s": ...}``; with MediaPipe's
+        hand channel also ``"hands"``: per seed, the hand channel's report.
     """
     from akc_drake.core.frames import calibrated_mapping
     from akc_drake.core.gripper import hand_channel_report
@@ -173,9 +203,12 @@ def run_pick_place(
     t0 = time.perf_counter()
     target_W, start_W = _world_from_T(PLACE_TARGET_T), _world_from_T(PICK_BOX_T)
     outcomes: list[TaskOutcome] = []
-    hands = []
+    reports = []
+    hands = hands or ("mediapipe" if getattr(cfg, "detector", "sim") == "mediapipe" else "sim")
+    if hands not in ("sim", "mediapipe"):
+        raise ValueError(f"hands must be sim or mediapipe, got {hands!r}")
     hand_detector = None
-    if getattr(cfg, "detector", "sim") == "mediapipe":
+    if hands == "mediapipe":
         from akc_drake.io.hand_detector import HandDetector
 
         hand_detector = HandDetector(hand_model)
@@ -183,8 +216,16 @@ def run_pick_place(
         for seed in range(int(seeds)):
             # The operator works with the mapping the pipeline uses (calibrated from the T-pose).
             motion = pick_place(seed, mapping=calibrated_mapping(calib.dims))
-            recorder = HandRecorder(hand_detector) if hand_detector is not None else None
-            session = render_motion(motion, cfg, seed=seed, progress=progress, frame_callback=recorder)
+            recorder = pose = None
+            if hand_detector is not None:
+                from akc_drake.systems.session_render import make_detector
+
+                # the render's own pose detector (as render_session would make it), remembered for its wrists
+                pose = RememberingDetector(make_detector(getattr(cfg, "detector", None), seed))
+                recorder = HandRecorder(hand_detector, pose)
+            session = render_motion(motion, cfg, seed=seed, progress=progress, frame_callback=recorder, detector=pose)
+            if pose is not None and hasattr(pose.inner, "close"):
+                pose.inner.close()
             meas = Measurements.from_session(session)
             apertures = None
             if recorder is not None:
@@ -192,8 +233,8 @@ def run_pick_place(
                 truth = hand_truth(motion, session.t) if getattr(cfg, "body", "") == "skinned" else np.full(
                     apertures.shape, np.nan)
                 intended = motion.closure(motion.start + session.t) > 0.5
-                hands.append({"seed": seed, **hand_channel_report(apertures, truth, intended, session.t)})
-                r = hands[-1]["right"]
+                reports.append({"seed": seed, **hand_channel_report(apertures, truth, intended, session.t)})
+                r = reports[-1]["right"]
                 log(f"  pick-place seed {seed} hands (MediaPipe): right found {100 * r['found']:.0f} %, gripper "
                     f"state as intended {100 * r['state_agreement']:.0f} %, switch delays {r['switch_delay_s']} s")
             for corrector in correctors:
@@ -221,9 +262,8 @@ def run_pick_place(
     if hand_detector is not None:
         hand_detector.close()
     rates = {c: float(np.mean([o.success for o in outcomes if o.corrector == c])) for c in correctors}
-    extra = {"hands": hands} if hands else {}
     return {
-        **extra,
+        **({"hands": reports} if reports else {}),
         "task": "pick-place",
         "seeds": int(seeds),
         "target_W": target_W.tolist(),

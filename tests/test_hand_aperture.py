@@ -1,0 +1,76 @@
+"""HandApertureDetector (akc_drake.systems.hand_aperture): a hand detector on each camera frame, in a diagram."""
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
+from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
+
+from akc_drake.core.camera import CameraIntrinsics
+from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS
+from akc_drake.io.hand_detector import HandMeasurement
+from akc_drake.systems.gripper_command import GripperCommand
+from akc_drake.systems.hand_aperture import HandApertureDetector
+
+
+class _FakeHands:
+    """Answers with a pinch on the right hand from frame 3 on, the left hand never found; records its inputs."""
+
+    def __init__(self):
+        self.calls = []
+
+    def detect(self, frame, wrists=None):
+        self.calls.append((frame.t, frame.color.shape, float(frame.depth_m[0, 0]), wrists))
+        m = HandMeasurement.empty()
+        m.found[1] = True
+        m.aperture_m[1] = 0.015 if len(self.calls) > 3 else 0.1
+        return m
+
+
+def _diagram(K, with_pixels):
+    builder = DiagramBuilder()
+    det = _FakeHands()
+    hands = builder.AddSystem(HandApertureDetector(det, K, 0.1, 0.001))
+    color = ImageRgba8U(K.width, K.height)
+    depth = ImageDepth32F(K.width, K.height)
+    depth.mutable_data[:] = 1.5
+    c = builder.AddSystem(ConstantValueSource(AbstractValue.Make(color)))
+    d = builder.AddSystem(ConstantValueSource(AbstractValue.Make(depth)))
+    builder.Connect(c.get_output_port(), hands.GetInputPort("color_image"))
+    builder.Connect(d.get_output_port(), hands.GetInputPort("depth_image"))
+    if with_pixels:
+        px = np.arange(2 * NUM_LANDMARKS, dtype=float)
+        p = builder.AddSystem(ConstantVectorSource(px))
+        builder.Connect(p.get_output_port(), hands.GetInputPort("pixels"))
+    cmd = builder.AddSystem(GripperCommand(0.1, 0.004))
+    builder.Connect(hands.GetOutputPort("thumb_index_m"), cmd.GetInputPort("thumb_index_m"))
+    return builder.Build(), det, hands, cmd
+
+
+def test_measures_each_frame_and_the_gripper_follows():
+    K = CameraIntrinsics(width=64, height=48)
+    diagram, det, hands, cmd = _diagram(K, with_pixels=False)
+    sim = Simulator(diagram)
+    sim.AdvanceTo(0.25)
+    ctx = sim.get_context()
+    hctx = hands.GetMyContextFromRoot(ctx)
+    # three frames (t = 0, 0.1, 0.2, at the 1 ms offset), each the whole RGB image and the depth
+    assert [round(c[0], 3) for c in det.calls] == [0.001, 0.101, 0.201]
+    assert det.calls[0][1:] == ((48, 64, 3), 1.5, None)
+    out = hands.GetOutputPort("thumb_index_m").Eval(hctx)
+    assert np.isnan(out[0]) and out[1] == 0.1
+    np.testing.assert_array_equal(hands.GetOutputPort("hands_found").Eval(hctx), [0.0, 1.0])
+    np.testing.assert_array_equal(cmd.GetOutputPort("closed").Eval(cmd.GetMyContextFromRoot(ctx)), [0.0, 0.0])
+    sim.AdvanceTo(0.45)
+    np.testing.assert_array_equal(cmd.GetOutputPort("closed").Eval(cmd.GetMyContextFromRoot(sim.get_context())),
+                                  [0.0, 1.0])
+
+
+def test_the_pose_wrists_are_passed_when_connected():
+    K = CameraIntrinsics(width=64, height=48)
+    diagram, det, _, _ = _diagram(K, with_pixels=True)
+    Simulator(diagram).AdvanceTo(0.05)
+    wrists = det.calls[0][3]
+    px = np.arange(2 * NUM_LANDMARKS, dtype=float).reshape(NUM_LANDMARKS, 2)
+    np.testing.assert_array_equal(wrists, px[[LANDMARKS.index("left_wrist"), LANDMARKS.index("right_wrist")]])
