@@ -35,8 +35,9 @@ from scipy.spatial.transform import Rotation
 
 #: Layout of :class:`SE3OneEuro`'s state vector: position (3), linear speed estimate (3), rotation as a
 #: quaternion x, y, z, w (4), angular velocity estimate (3), time of the last accepted sample, time since which
-#: samples have been rejected (NaN: none).
-STATE_SIZE = 15
+#: samples have been rejected (NaN: none), the last two (clipped) angular rates of the innovation (2 x 3, for the
+#: robust derivative).
+STATE_SIZE = 21
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,12 @@ class SE3SmoothingParams:
         reacquire_s: a rejected change that persists this long is accepted.
         slew: how it is accepted: False, the estimate jumps to it; True, the estimate turns toward it at
             ``max_angular_speed`` (a commanded wrist never turns half a turn in one step).
+        max_innovation_rad_s: a Huber-like clip of the rotation's innovation (the sample relative to the
+            estimate) to this angular rate times ``dt`` before the One Euro step (None: off). A mirror flip or an
+            outlier then moves the estimate by at most ``alpha * max_innovation_rad_s * dt``, whatever its size,
+            while a turn slower than this passes unclipped.
+        robust_derivative: the speed that sets the rotation's cutoff is the component-wise median of the last
+            three innovation rates (instead of the last one), so one outlier does not open the filter.
     """
 
     position: OneEuroParams
@@ -87,17 +94,29 @@ class SE3SmoothingParams:
     max_angular_speed: float | None = None
     reacquire_s: float = 0.5
     slew: bool = False
+    max_innovation_rad_s: float | None = None
+    robust_derivative: bool = False
 
 
 #: Wrist targets (robot frame T). Position: cutoff 2 Hz at rest rising by 10 Hz per m/s (a hand moving at
-#: 0.5 m/s is followed at 7 Hz: about 20 ms of lag). Rotation: 0.3 Hz at rest rising by 0.02 Hz per rad/s, no
-#: guard (mirror flips are resolved before the filter: :func:`akc_drake.core.frames.reconstruct_hand_vector`,
-#: :func:`akc_drake.core.frames.resolve_wrist_flip`). This adds 250-350 ms of lag to the rotation (more during
-#: a flip episode): :data:`WRIST_SMOOTHING_LOW_LAG` is the alternative, measured worse (README, demo section).
+#: 0.5 m/s is followed at 7 Hz: about 20 ms of lag). Rotation, for <= 50 ms of lag at the operator's speeds
+#: (10 Hz camera): One Euro at 2 Hz at rest (a first-order filter lags 1 / (2 pi fc) = 80 ms at rest, less once
+#: the cutoff rises) + 1 Hz per rad/s, its speed the median of the last three innovation rates (one outlier does
+#: not open it), and each innovation clipped to 2 rad/s x dt: the wrist frame's errors are mostly mirror flips
+#: of 150-175 deg in one frame and MediaPipe's knuckle outliers (measured on the demo: 80-90 % of the squared
+#: angular speed), which then move the estimate by at most ~0.15 rad instead of following them, while the
+#: operator's wrist (RMS 0.8 rad/s) passes unclipped. The price is a rate limit: a turn faster than ~1.5 rad/s
+#: is followed at that rate (see ``tests/test_smoothing.py`` for the ramp and step lags). No flip guard (mirror
+#: flips are also resolved before the filter: :func:`akc_drake.core.frames.reconstruct_hand_vector`,
+#: :func:`akc_drake.core.frames.resolve_wrist_flip`). Chosen on the demo's recordings of both detectors, seed 0
+#: (``--body skinned --detector mediapipe`` and ``--body primitive --detector sim``), among min cutoffs 1-2.5 Hz,
+#: betas 0.5-2, clips 1.5-3 rad/s; the previous setting (0.3 Hz + 0.02 Hz per rad/s) lagged 250-350 ms.
 WRIST_SMOOTHING = SE3SmoothingParams(
     position=OneEuroParams(min_cutoff_hz=2.0, beta=10.0, d_cutoff_hz=1.0),
-    rotation=OneEuroParams(min_cutoff_hz=0.3, beta=0.02, d_cutoff_hz=1.0),
+    rotation=OneEuroParams(min_cutoff_hz=2.0, beta=1.0, d_cutoff_hz=1.0),
     max_angular_speed=None,
+    max_innovation_rad_s=2.0,
+    robust_derivative=True,
 )
 #: The wrist smoothing set from the measured noise for <= 50 ms of rotation lag (the rendered bench, 10 Hz camera):
 #: the per-frame error of the rebuilt wrist rotation is broadband (its power spread evenly up to the 5 Hz Nyquist
@@ -114,7 +133,8 @@ WRIST_SMOOTHING = SE3SmoothingParams(
 #:
 #: Measured on the demo (two seeds): 45-50 ms of rotation lag in most runs, but 1.4-2.4x the operator's angular
 #: jitter and, on one seed, 2-2.7 % IK failures (the 2 Hz rotation passes the residual noise to the IK): not the
-#: default.
+#: default. (A guard that rejects and then slews through a flip that persists turns the frame at 10 rad/s for
+#: several frames; :data:`WRIST_SMOOTHING` clips every innovation instead.)
 WRIST_SMOOTHING_LOW_LAG = SE3SmoothingParams(
     position=OneEuroParams(min_cutoff_hz=2.0, beta=10.0, d_cutoff_hz=1.0),
     rotation=OneEuroParams(min_cutoff_hz=2.0, beta=0.1, d_cutoff_hz=1.0),
@@ -143,8 +163,8 @@ def _unpack(state: np.ndarray):
     return s[0:3], s[3:6], s[6:10], s[10:13], float(s[13]), float(s[14])
 
 
-def _pack(p, v, q, w, t, rejected_since) -> np.ndarray:
-    return np.concatenate([p, v, q, w, [t, rejected_since]])
+def _pack(p, v, q, w, t, rejected_since, rates=None) -> np.ndarray:
+    return np.concatenate([p, v, q, w, [t, rejected_since], np.full(6, np.nan) if rates is None else rates])
 
 
 class SE3OneEuro:
@@ -212,20 +232,37 @@ class SE3OneEuro:
             n = float(np.linalg.norm(delta))
             rot_new = rot0 * Rotation.from_rotvec(delta * min(1.0, prm.max_angular_speed * dt / n))
             return _pack(p_new, v, rot_new.as_quat(), np.zeros(3), t, since), rot_new.as_matrix(), p_new, True
-        w = w0 + alpha(prm.rotation.d_cutoff_hz, dt) * (delta / dt - w0)
+        n = float(np.linalg.norm(delta))
+        if prm.max_innovation_rad_s is not None and n > prm.max_innovation_rad_s * dt:
+            delta = delta * (prm.max_innovation_rad_s * dt / n)  # an outlier pulls no harder than a fast turn
+        rate = delta / dt
+        rates = np.asarray(state, dtype=float)[15:21]
+        if prm.robust_derivative and np.all(np.isfinite(rates)):
+            rate_d = np.median(np.stack([rates[:3], rates[3:], rate]), axis=0)
+        else:
+            rate_d = rate
+        w = w0 + alpha(prm.rotation.d_cutoff_hz, dt) * (rate_d - w0)
         fc_r = prm.rotation.min_cutoff_hz + prm.rotation.beta * float(np.linalg.norm(w))
         rot_new = rot0 * Rotation.from_rotvec(alpha(fc_r, dt) * delta)
-        return _pack(p_new, v, rot_new.as_quat(), w, t, math.nan), rot_new.as_matrix(), p_new, accepted
+        new_rates = np.concatenate([rates[3:], rate])
+        return _pack(p_new, v, rot_new.as_quat(), w, t, math.nan, new_rates), rot_new.as_matrix(), p_new, accepted
 
 
-def estimate_lag(x_ref: np.ndarray, x_lagged: np.ndarray, dt: float, max_lag_s: float = 0.5) -> float:
-    """Delay (seconds) of ``x_lagged`` behind ``x_ref``: the shift ``tau`` minimising the mean squared distance
-    between ``x_lagged(t)`` and ``x_ref(t - tau)`` (linear interpolation, 5 ms steps, rows with NaN skipped).
+def estimate_lag(x_ref: np.ndarray, x_lagged: np.ndarray, dt: float, max_lag_s: float = 0.5,
+                 robust: bool = False) -> float:
+    """Delay (seconds) of ``x_lagged`` behind ``x_ref``: the shift ``tau`` minimising the mean (``robust``: the
+    median) squared distance between ``x_lagged(t)`` and ``x_ref(t - tau)`` (linear interpolation, 5 ms steps,
+    rows with NaN skipped).
+
+    ``robust``: frames where the two differ for another reason than the delay (e.g. a mirror flip in the
+    reference that the filter rejected) are a minority and do not move the median, while they dominate a mean.
 
     Args:
-        x_ref, x_lagged: ``(T, d)`` (or ``(T,)``) signals sampled every ``dt`` seconds at the same times.
+        x_ref, x_lagged: ``(T, d)`` (or ``(T,)``) signals sampled every ``dt`` seconds at the same times (for
+            rotations: the nine entries of each matrix, continuous where a rotation vector wraps at pi).
         dt: the sample period.
         max_lag_s: the largest delay searched.
+        robust: median instead of mean.
 
     Returns:
         The delay in seconds (``>= 0``); NaN when fewer than 3 rows are finite in both.
@@ -243,7 +280,8 @@ def estimate_lag(x_ref: np.ndarray, x_lagged: np.ndarray, dt: float, max_lag_s: 
         ok = np.all(np.isfinite(shifted), axis=1) & np.all(np.isfinite(b), axis=1)
         if np.count_nonzero(ok) < 3:
             continue
-        err = float(np.mean(np.sum((shifted[ok] - b[ok]) ** 2, axis=1)))
+        sq = np.sum((shifted[ok] - b[ok]) ** 2, axis=1)
+        err = float(np.median(sq) if robust else np.mean(sq))
         if err < best_err - 1e-15:
             best, best_err = float(tau), err
     return best

@@ -134,21 +134,11 @@ def _share(num: int, den: int) -> float | None:
     return float(num) / float(den) if den else None
 
 
-def _rotation_vectors(X: np.ndarray) -> np.ndarray:
-    """``(T, 3)`` rotation vectors of ``X``'s rotations relative to its first finite one (NaN rows kept)."""
-    from scipy.spatial.transform import Rotation
-
-    out = np.full((len(X), 3), np.nan)
-    ok = np.flatnonzero(np.all(np.isfinite(X), axis=(1, 2)))
-    if ok.size:
-        R0 = X[ok[0], :3, :3]
-        out[ok] = Rotation.from_matrix(np.einsum("ji,kjl->kil", R0, X[ok, :3, :3])).as_rotvec()
-    return out
-
-
 def _added_latency_ms(runs, side: str, after, rotation: bool = False) -> float | None:
-    """Delay (ms) the smoothing adds: :func:`~akc_drake.core.smoothing.estimate_lag` of the target positions
-    (``rotation``: rotation vectors) behind the unsmoothed ones, frames weighted over the runs."""
+    """Delay (ms) the smoothing adds: :func:`~akc_drake.core.smoothing.estimate_lag` (robust: the shift that
+    minimises the *median* squared distance, so the frames where the filter rejected a flip of its input do not
+    count as lag) of the target positions (``rotation``: the nine entries of the rotation matrices) behind the
+    unsmoothed ones, frames weighted over the runs."""
     from akc_drake.core.smoothing import estimate_lag
 
     lags, weights = [], []
@@ -157,11 +147,11 @@ def _added_latency_ms(runs, side: str, after, rotation: bool = False) -> float |
         if raw is None:
             continue
         if rotation:
-            both = np.concatenate([raw[a], r.target[side][a]])
-            rv = _rotation_vectors(both)
-            lag = estimate_lag(rv[: len(rv) // 2], rv[len(rv) // 2 :], r.period_s, max_lag_s=1.5)
+            n = int(np.count_nonzero(a))
+            lag = estimate_lag(raw[a][:, :3, :3].reshape(n, 9), r.target[side][a][:, :3, :3].reshape(n, 9),
+                               r.period_s, max_lag_s=1.5, robust=True)
         else:
-            lag = estimate_lag(raw[a][:, :3, 3], r.target[side][a][:, :3, 3], r.period_s, max_lag_s=0.5)
+            lag = estimate_lag(raw[a][:, :3, 3], r.target[side][a][:, :3, 3], r.period_s, max_lag_s=0.5, robust=True)
         if math.isfinite(lag):
             lags.append(lag)
             weights.append(int(np.count_nonzero(a)))

@@ -379,7 +379,7 @@ def _clipped_frames(td, sim, n: int) -> dict[str, np.ndarray]:
 
 
 def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_model) -> dict[str, np.ndarray]:
-    """Per side ``(n, 4, 4)``: the targets the same tracker gives without smoothing and clipping, from the
+    """Per side ``(n, 4, 4)``: the targets the same tracker gives without the wrist smoothing, from the
     corrected landmarks the diagram logged (for the smoothing's added latency); NaN when unknown."""
     from akc_drake.core.control_frames import ControlFrameTracker
 
@@ -389,10 +389,12 @@ def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_mode
         return out
     data = log.FindLog(sim.get_context())
     times, values = data.sample_times(), data.data().T
-    # The same torso (smoothed and held) as the FrameMapper's, so the difference is the wrist smoothing alone.
+    # The same torso (smoothed and held) and workspace clip as the FrameMapper's: the difference is the wrist
+    # smoothing alone.
     mine = td.mapper.tracker
     tracker = ControlFrameTracker(td.mapper.mapping, torso_model=torso_model, wrist_smoothing=None,
-                                  torso_smoothing=mine.torso_smoothing, torso_hold=mine.torso_hold)
+                                  torso_smoothing=mine.torso_smoothing, torso_hold=mine.torso_hold,
+                                  workspace=mine.workspace, robust_wrist=mine.robust_wrist)
     state = tracker.initial_state()
     for k in range(n):
         j = int(np.searchsorted(times, start + (k + 1) * period - 1e-9))
