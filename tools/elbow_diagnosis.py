@@ -15,7 +15,11 @@ green left, magenta right), and checks the truth against the mesh: the rig elbow
 upper-arm and forearm centre lines and to the skin in the worst frames, and whether the first surface on
 the camera ray to a "visible" elbow is the elbow's own skin (``summary.md``).
 
-Usage: .venv/bin/python tools/elbow_diagnosis.py OUT_DIR [--cycles N]   (about 40 s for one cycle)
+``--lights`` renders under another light set than the renderer's default (Drake's single white headlight at
+the camera) to show how much the end-on elbow depends on shading cues; it replaces the renderer's parameters
+in this process only (an experiment, not the project's scene).
+
+Usage: .venv/bin/python tools/elbow_diagnosis.py OUT_DIR [--cycles N] [--lights NAME]   (about 40 s a cycle)
 """
 
 from __future__ import annotations
@@ -38,6 +42,41 @@ from akc_drake.operator.skinned import skinned_operator
 from akc_drake.systems.session_render import render_session
 
 _D = math.pi / 180.0
+
+
+def _lights(name: str) -> list:
+    """Directional light sets (world = the operator frame O: x toward the camera, z up)."""
+    from pydrake.geometry import LightParameter, Rgba
+
+    def light(d, i, frame="world"):
+        return LightParameter(type="directional", color=Rgba(1, 1, 1), intensity=i, frame=frame, direction=d)
+
+    head = [0.0, 0.0, 1.0]  # along the camera's view
+    return {
+        "headlight": [],  # the renderer's default: one white light at the camera
+        "overhead": [light([0, 0, -1], 1.0), light(head, 0.4, "camera")],
+        "overhead_front": [light([-0.5, 0, -0.866], 1.0), light(head, 0.4, "camera")],
+        "two_ceiling": [light([-0.5, 0.5, -0.707], 0.6), light([-0.5, -0.5, -0.707], 0.6), light(head, 0.3, "camera")],
+    }[name]
+
+
+LIGHT_SETS = ("headlight", "overhead", "overhead_front", "two_ceiling")
+
+
+def use_lights(name: str) -> None:
+    """Make this process's renderers use the light set ``name`` (see :func:`_lights`)."""
+    if name == "headlight":
+        return
+    from pydrake.geometry import RenderEngineVtkParams
+
+    import akc_drake.systems.camera_scene as scene
+
+    def params():
+        p = RenderEngineVtkParams()
+        p.lights = _lights(name)
+        return p
+
+    scene.RenderEngineVtkParams = params
 
 
 def sweep_motion(flexion_deg: float, seconds: float = 8.0) -> OperatorMotion:
@@ -190,7 +229,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path)
     ap.add_argument("--cycles", type=int, default=1)
+    ap.add_argument("--lights", choices=LIGHT_SETS, default="headlight")
     args = ap.parse_args()
+    use_lights(args.lights)
     K = CameraIntrinsics()
     runs = [render(sweep_motion(90.0)), render(sweep_motion(45.0))]
     runs += [render(make_motion(name, cycles=args.cycles, seed=0)) for name in ("I", "II")]
@@ -206,7 +247,7 @@ def main() -> int:
     )
     angle_figure(rows, args.out / "elbow_vs_angle.png")
     md = [
-        "# MediaPipe's elbow on the skinned body\n",
+        f"# MediaPipe's elbow on the skinned body (lights: {args.lights})\n",
         "Visible elbows, px median (frames) by the upper arm's angle to the camera ray:\n",
         "| run | 0-10 deg | 10-30 deg | 30-60 deg | >= 60 deg |",
         "|---|---|---|---|---|",
