@@ -169,3 +169,153 @@ def test_lost_shoulder_stays_with_a_filter_that_fits_the_lengths():
     for _ in range(60):
         out = akc.correct(p, measured=meas).pose
         np.testing.assert_allclose(out[[LS, LE, LW]], p[[LS, LE, LW]], atol=1e-9)
+
+
+# ------------------------------------------------------------------ with the filter's covariance
+def kf_var(xy=1e-5, z=1.5e-3) -> np.ndarray:
+    """A steady-state KF posterior variance (x, y 3 mm, z 3.9 cm) for every coordinate."""
+    v = np.full((12, 3), xy)
+    v[:, 2] = z
+    return v
+
+
+def test_unoccluded_noise_free_arm_is_unchanged_with_the_covariance():
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(5):
+        r = akc.correct(p, measured=p, variance=kf_var())
+        np.testing.assert_allclose(r.pose, p, atol=1e-9, rtol=0)
+
+
+def test_seen_joint_within_its_covariance_moves_only_along_its_uncertain_axis():
+    # The filter's elbow is 3 cm off in depth (its sigma: 3.9 cm), the measurement agrees with the filter
+    # (innovation test passed): the projection onto the lengths moves the elbow's depth back, the x, y of every
+    # joint and the (surer) shoulder and wrist stay.
+    p, dims = arm_pose()
+    f = p.copy()
+    f[LE, 2] += 0.03
+    var = kf_var(xy=1e-7, z=1e-6)
+    var[LE, 2] = 1.5e-3
+    out = ArmKinematicCorrectorPlus(dims).correct(f, measured=f, variance=var).pose
+    np.testing.assert_allclose(out[[LS, LW]], p[[LS, LW]], atol=1e-4)
+    np.testing.assert_allclose(out[LE], p[LE], atol=2e-3)
+    assert np.abs(out[LE, :2] - f[LE, :2]).max() < 1e-3
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+
+
+def test_lagging_filter_yields_to_a_consistent_measurement_but_not_to_an_outlier():
+    # A fast hand: the filter's wrist lags 6 cm behind consistent measurements frame after frame; the running
+    # NIS shows the filter's error above the measurement's, and the measured wrist is used.
+    p, dims = arm_pose()
+    f = p.copy()
+    f[LW, 2] += 0.06
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(10):
+        out = akc.correct(f, measured=p, variance=kf_var()).pose
+    np.testing.assert_allclose(out[LW], p[LW], atol=1e-9)
+    np.testing.assert_allclose(out[LE], p[LE], atol=1e-6)
+    # An outlier (50 cm off: far outside the innovation test) is not used, however laggy the filter.
+    m = p.copy()
+    m[LW, 2] += 0.5
+    out = akc.correct(f, measured=m, variance=kf_var()).pose
+    assert abs(out[LW, 2] - m[LW, 2]) > 0.3
+
+
+def test_candidate_choice_does_not_flip_on_a_tempting_sequence_with_the_covariance():
+    # The lost elbow depth's filter estimate drifts past the mirror candidate while its variance grows as a
+    # blind KF's does: no flip.
+    p, dims = arm_pose()
+    r2 = dims.LLA**2 - np.sum((p[LE, :2] - p[LW, :2]) ** 2)
+    mirror_z = p[LW, 2] - math.sqrt(r2)
+    akc = ArmKinematicCorrectorPlus(dims)
+    akc.correct(p, measured=p, variance=kf_var())
+    meas = p.copy()
+    meas[LE, 2] = np.nan
+    zs = []
+    for k in range(30):
+        filt = p.copy()
+        filt[LE, 2] = p[LE, 2] + (mirror_z - 0.05 - p[LE, 2]) * (k + 1) / 30
+        var = kf_var()
+        var[LE, 2] = (0.04 + 0.03 * (k + 1)) ** 2
+        zs.append(akc.correct(filt, measured=meas, variance=var).pose[LE, 2])
+    np.testing.assert_allclose(zs, p[LE, 2], atol=1e-9)
+
+
+def test_fold_test_is_a_finite_penalty_that_a_far_mirror_does_not_beat():
+    # An elbow folded to 35 deg (below the 40 deg test; human flexion reaches ~30 deg) costs the same finite
+    # penalty as m5's hyperextension (5 sigma squared), no veto: a candidate at the filter's estimate with it
+    # still beats a mirror candidate 30 cm away (36 sigma squared at 5 cm).
+    from akc_drake.core.arm_geometry import DEFAULT_AXES
+
+    _, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    s, e = (0.18, 0.0, 2.0), (0.18, 0.29, 2.0)
+    a = math.radians(35.0)
+    w_fold = (0.18 + 0.26 * math.sin(a), 0.29 - 0.26 * math.cos(a), 2.0)
+    w_bent = (0.18 + 0.26, 0.29, 2.0)
+    pen_fold = akc._penalty(s, e, w_fold, 0.29, 0.26, DEFAULT_AXES)
+    assert 0.0 < pen_fold < 100.0
+    assert akc._penalty(s, e, w_bent, 0.29, 0.26, DEFAULT_AXES) == 0.0
+    right, mirror = (0.2, 0.1, 1.80), (0.2, 0.1, 2.10)
+    best, _ = akc._choose([right, mirror], 0.2, 0.1, 1.80, None, 0, extra=[pen_fold, 0.0])
+    assert best == right
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(finite, min_size=36, max_size=36), st.lists(finite, min_size=36, max_size=36),
+       st.lists(st.floats(1e-8, 1.0), min_size=36, max_size=36))
+def test_arm_lengths_exact_for_any_finite_input_with_the_covariance(flat, flat_m, flat_v):
+    _, dims = arm_pose()
+    pose = np.array(flat).reshape(12, 3)
+    meas = np.array(flat_m).reshape(12, 3)
+    var = np.array(flat_v).reshape(12, 3)
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(2):
+        out = akc.correct(pose, measured=meas, variance=var).pose
+        for s, e, w, lu, lf in ((LS, LE, LW, dims.LUA, dims.LLA), (RS, RE, RW, dims.RUA, dims.RLA)):
+            assert np.linalg.norm(out[e] - out[w]) == pytest.approx(lf, abs=1e-9)
+            assert np.linalg.norm(out[s] - out[e]) == pytest.approx(lu, abs=1e-9)
+
+
+def test_blind_extrapolation_is_held_but_a_holding_filter_is_followed():
+    # The elbow lost altogether (no x, y, z) for 5 frames. A filter extrapolating its depth at 3 cm/frame
+    # (variance growing past the measurement's) is not followed: our last output is held. A filter holding
+    # the depth where it was last seen is followed.
+    p, dims = arm_pose()
+    meas = p.copy()
+    meas[LE] = np.nan
+    for drift, want_held in ((0.03, True), (0.0, False)):
+        akc = ArmKinematicCorrectorPlus(dims)
+        first = akc.correct(p, measured=p, variance=kf_var()).pose
+        for k in range(5):
+            filt = p.copy()
+            filt[LE, 2] += drift * (k + 1)
+            var = kf_var()
+            var[LE] = [1e-4, 1e-4, (0.06 + 0.03 * k) ** 2]
+            out = akc.correct(filt, measured=meas, variance=var).pose
+        if want_held:
+            np.testing.assert_allclose(out[LE, 2], first[LE, 2], atol=2e-3)
+        else:
+            np.testing.assert_allclose(out[LE], p[LE], atol=1e-9)
+
+
+def test_state_round_trips_with_the_running_nis():
+    p, dims = arm_pose()
+    f = p.copy()
+    f[LW, 2] += 0.06
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(3):
+        akc.correct(f, measured=p, variance=kf_var())
+    v = akc.get_state_vector()
+    assert v.shape == (STATE_SIZE,) and v[-18:].max() > 1.0  # the lagging wrist's NIS
+    other = ArmKinematicCorrectorPlus(dims)
+    other.set_state_vector(v)
+    np.testing.assert_array_equal(other.get_state_vector(), v)
+    np.testing.assert_array_equal(other.correct(f, p, kf_var()).pose, akc.correct(f, p, kf_var()).pose)
+    bad = v.copy()
+    bad[-1] = -1.0
+    with pytest.raises(ValueError, match="NIS"):
+        other.set_state_vector(bad)
+    with pytest.raises(ValueError, match="variance"):
+        akc.correct(p, measured=p, variance=np.zeros((3, 3)))

@@ -126,3 +126,41 @@ def test_akc_plus_system_keeps_a_seen_arm():
     np.testing.assert_allclose(out[:6], pose[:6], atol=1e-9)
     with pytest.raises(ValueError, match="AKC or AKC\\+"):
         ArmKinematicCorrection(dims, corrector="XYZ")
+
+
+def test_akc_plus_system_uses_the_filter_variance_when_connected():
+    """The optional input landmarks_C_variance reaches the core: the system equals the core given the variance,
+    and differs from the core without it (a lagging filtered wrist that the variance marks)."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+
+    dims = BodyDimensions.paper_participant()
+    poses = [frame(k) for k in range(6)]
+    for p in poses:
+        p[INDEX["left_wrist"]] = [0.33, 0.05, 1.62]
+        p[INDEX["left_elbow"]] = [0.3, 0.2, 1.8]
+    measured = [p.copy() for p in poses]
+    for q in measured:
+        q[INDEX["left_wrist"], 2] = 1.66  # the filter's wrist lags 4 cm behind a consistent measurement
+    var = np.full((12, 3), 1e-5)
+    var[:, 2] = 1.5e-3
+    builder = DiagramBuilder()
+    sys_ = builder.AddSystem(ArmKinematicCorrection(dims, corrector="AKC+"))
+    for name in ("landmarks_C", "landmarks_C_measured", "landmarks_C_variance"):
+        builder.ExportInput(sys_.GetInputPort(name), name)
+    builder.ExportOutput(sys_.GetOutputPort("landmarks_C_corrected"), "out")
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    core, blind = ArmKinematicCorrectorPlus(dims), ArmKinematicCorrectorPlus(dims)
+    for k in range(6):
+        diagram.get_input_port(0).FixValue(ctx, poses[k].ravel())
+        diagram.get_input_port(1).FixValue(ctx, measured[k].ravel())
+        diagram.get_input_port(2).FixValue(ctx, var.ravel())
+        sim.AdvanceTo(0.1 * k + 0.05)
+        out = diagram.get_output_port(0).Eval(ctx).reshape(12, 3)
+        want = core.correct(poses[k], measured[k], var).pose
+        other = blind.correct(poses[k], measured[k]).pose
+        np.testing.assert_allclose(out, want, atol=1e-12, equal_nan=True)
+    assert np.nanmax(np.abs(want - other)) > 1e-3

@@ -36,6 +36,7 @@ class ArmKinematicCorrection(LeafSystem):
         input_ports:
         - landmarks_C
         - landmarks_C_measured (AKC+ only)
+        - landmarks_C_variance (AKC+ only, optional)
         output_ports:
         - landmarks_C_corrected
         - diagnostics
@@ -46,7 +47,7 @@ class ArmKinematicCorrection(LeafSystem):
     :class:`~akc_drake.core.akc.AKCResult`; chosen is -1 and cost NaN for a held arm).
 
     State (discrete, three groups): the corrector's state (previous corrected arm joints and validity
-    flags, 20), the last corrected pose (36) and the last diagnostics (8). A periodic discrete update at
+    flags: 20 for AKC, 54 for AKC+), the last corrected pose (36) and the last diagnostics (8). A periodic discrete update at
     the camera period, offset by ``timing.stage_offset("corrector")``, reads the input and the corrector
     state, runs :meth:`ArmKinematicCorrector.correct` and writes all three groups; the outputs are the
     state, so the system has no direct feedthrough. Before the first update the pose is NaN.
@@ -59,7 +60,10 @@ class ArmKinematicCorrection(LeafSystem):
         anatomical_check: hold an arm whose chosen configuration has an impossible elbow angle (see
             :class:`~akc_drake.core.akc.ArmKinematicCorrector`); on in the teleop diagram (paper AKC only).
         corrector: "AKC" (the paper's) or "AKC+" (ours; then the input ``landmarks_C_measured`` takes the
-            occlusion filter's output of the same frame, whose seen depths AKC+ keeps).
+            occlusion filter's output of the same frame, whose seen depths AKC+ keeps, and the optional input
+            ``landmarks_C_variance`` the filter's posterior variance of each coordinate of ``landmarks_C``
+            (36 numbers; left unconnected, AKC+ runs without the covariance, see
+            :class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`).
         plus_config: AKC+ settings (None: the defaults).
     """
 
@@ -89,6 +93,7 @@ class ArmKinematicCorrection(LeafSystem):
 
         self._u = self.DeclareVectorInputPort("landmarks_C", _POSE_SIZE)
         self._m = self.DeclareVectorInputPort("landmarks_C_measured", _POSE_SIZE) if self._plus else None
+        self._var = self.DeclareVectorInputPort("landmarks_C_variance", _POSE_SIZE) if self._plus else None
         self._x_akc = self.DeclareDiscreteState(BasicVector(self._akc.get_state_vector()))
         self._x_pose = self.DeclareDiscreteState(BasicVector(np.full(_POSE_SIZE, np.nan)))
         initial_diag = np.array([-1.0, -1.0, 0.0, 0.0, 1.0, 1.0, np.nan, np.nan])
@@ -114,7 +119,10 @@ class ArmKinematicCorrection(LeafSystem):
         pose = self._u.Eval(context).reshape(NUM_LANDMARKS, 3)
         self._akc.set_state_vector(context.get_discrete_state(self._x_akc).get_value())
         if self._plus:
-            r = self._akc.correct(pose, self._m.Eval(context).reshape(NUM_LANDMARKS, 3))
+            var = None
+            if self._var.HasValue(context):
+                var = self._var.Eval(context).reshape(NUM_LANDMARKS, 3)
+            r = self._akc.correct(pose, self._m.Eval(context).reshape(NUM_LANDMARKS, 3), var)
         else:
             r = self._akc.correct(pose)
         discrete_state.get_mutable_vector(self._x_akc).SetFromVector(self._akc.get_state_vector())
