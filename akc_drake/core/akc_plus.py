@@ -333,6 +333,10 @@ class ArmKinematicCorrectorPlus:
         d = mz - fz
         return d * d <= self._gate2 * max(self._r_z - var[o + 2], 0.0) + 1e-12
 
+    @staticmethod
+    def _depth_measured(m, o):
+        return m is not None and m[o + 2] == m[o + 2]
+
     def _update_nis(self, v, m):
         """The running mean of each arm joint's and axis's normalised innovation squared (see ``_measured``)."""
         var, nis, a = self._var, self._nis, self.config.nis_alpha
@@ -501,6 +505,13 @@ class ArmKinematicCorrectorPlus:
         r2 = self.config.occlusion_radius_m ** 2
         if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < r2:
             ms = False
+        if self._cur_var is not None:
+            # A depth measured this frame but rejected (innovation test, proximity): the filter fused it, so
+            # its estimate and (small) variance are no independent evidence; its prior is left out.
+            if not me and self._depth_measured(m, o_e):
+                self._no_prior.add(ke)
+            if not ms and self._depth_measured(m, o_s):
+                self._no_prior.add(ks)
         # A lost depth whose filtered estimate still fits the calibrated length (to the wrist, or to the
         # filtered elbow) within consistency_m shows no drift: its filter prior keeps its full weight.
         cons = self.config.consistency_m
@@ -528,9 +539,12 @@ class ArmKinematicCorrectorPlus:
         w = (wx, wy, wz)
         s = e = None
         vs = self._cur_var
-        # With the filter's covariance: a depth not seen this frame that the filter still knows as well as a
-        # measurement would (its error variance within the measurement's) counts as seen here.
-        if vs is not None and (me or vs[5] <= self._r_z) and (ms or vs[2] <= self._r_z):
+        # With the filter's covariance: a depth not measured this frame that the filter still knows as well as
+        # a measurement would (its error variance within the measurement's) counts as seen here (a measured
+        # depth that a test rejected does not).
+        if vs is not None and (me or vs[5] <= self._r_z and not self._depth_measured(m, o_e)) and (
+            ms or vs[2] <= self._r_z and not self._depth_measured(m, o_s)
+        ):
             # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its
             # covariance), the arm nearest it in that metric with the exact lengths (the joints move least
             # where the filter is surest, and mostly in depth).
