@@ -449,7 +449,10 @@ class ArmKinematicCorrectorPlus:
                     if vs[i] > r:
                         z = m[o + ax]
                         d = z - f[i]
-                        if z == z and d * d <= g2 * max(r - var[o + ax], 0.0) + 1e-12:
+                        # The residual's variance: the model's (R - P) plus the filter's excess error the
+                        # running NIS shows (its covariance-matched variance above P).
+                        p_ = var[o + ax]
+                        if z == z and d * d <= g2 * (max(r - p_, 0.0) + max(vs[i] - p_, 0.0)) + 1e-12:
                             f[i] = z
                             vs[i] = r
                             changed = True
@@ -461,6 +464,7 @@ class ArmKinematicCorrectorPlus:
         tol = self.config.length_tol_m
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
         me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
+        me_nis, ms_nis = me, ms
         geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
         geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
         if prev is not None and self._var is None:
@@ -506,11 +510,13 @@ class ArmKinematicCorrectorPlus:
         if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < r2:
             ms = False
         if self._cur_var is not None:
-            # A depth measured this frame but rejected (innovation test, proximity): the filter fused it, so
-            # its estimate and (small) variance are no independent evidence; its prior is left out.
-            if not me and self._depth_measured(m, o_e):
+            # A depth measured this frame that agrees with the filter (innovation test) but that another rule
+            # rejects (proximity): the filter followed it, so its estimate and (small) variance are no
+            # independent evidence; its prior is left out. (A filter that disagrees with a rejected depth did
+            # not follow it and stays a prior.)
+            if not me and me_nis:
                 self._no_prior.add(ke)
-            if not ms and self._depth_measured(m, o_s):
+            if not ms and ms_nis:
                 self._no_prior.add(ks)
         # A lost depth whose filtered estimate still fits the calibrated length (to the wrist, or to the
         # filtered elbow) within consistency_m shows no drift: its filter prior keeps its full weight.
