@@ -13,7 +13,8 @@ ray (``elbow_vs_angle.csv``, ``elbow_vs_angle.png``), overlays of the worst visi
 II and of the sweep at chosen angles (``overlay_*.png``: crosses the projected truth, circles MediaPipe,
 green left, magenta right), and checks the truth against the mesh: the rig elbow's distance to the mesh's
 upper-arm and forearm centre lines and to the skin in the worst frames, and whether the first surface on
-the camera ray to a "visible" elbow is the elbow's own skin (``summary.md``).
+the camera ray to a "visible" elbow is the elbow's own skin (``summary.md``); ``elbow_section.png`` cuts the
+mesh in the arm's plane at rest, extended and in the worst frame.
 
 ``--lights`` renders under another light set than the renderer's default (Drake's single white headlight at
 the camera) to show how much the end-on elbow depends on shading cues; it replaces the renderer's parameters
@@ -33,7 +34,7 @@ from matplotlib.figure import Figure
 
 from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.core.skeleton import INDEX, LANDMARKS, SIDES
-from akc_drake.core.skinning import distance_to_line, limb_axis
+from akc_drake.core.skinning import distance_to_line, limb_axis, plane_section
 from akc_drake.evaluation.detector_metrics import LANDMARK_RADIUS_M, _project, true_occlusion, upper_arm_ray_angle
 from akc_drake.evaluation.report import save_png
 from akc_drake.fileio import atomic_write_text
@@ -208,6 +209,45 @@ def _first_hit(P: np.ndarray, tri: np.ndarray, target: np.ndarray, body) -> tupl
     return float(t[i]), body.assets.bones[int(np.argmax(w[: len(body.assets.bones)]))]
 
 
+def section_figure(poses: list[tuple[str, np.ndarray | None]], path: Path, side: str = "left") -> None:
+    """The skinned mesh cut by the plane of the arm (shoulder, elbow, wrist), in the arm's own 2D frame (x along
+    the upper arm, origin at the elbow), with the rig's joint centres and the mesh's limb centre lines (dashed):
+    where the skin is around the truth's elbow, and whether it pinches. ``q`` None: the rest body."""
+    body = skinned_operator()
+    V, tri = body.num_vertices, body.triangles
+    fig = Figure(figsize=(3.2 * len(poses), 3.4), layout="constrained")
+    for n, (label, q) in enumerate(poses):
+        if q is None:
+            P = body.points_rest[:V]
+            S, E, W = body._rest_joints[side][:3]
+        else:
+            P = body.posed_points(q)[:V]
+            lm = body.landmarks_O(q[None])[0]
+            S, E, W = (lm[INDEX[f"{side}_{j}"]] for j in ("shoulder", "elbow", "wrist"))
+        u = (E - S) / np.linalg.norm(E - S)
+        nrm = np.cross(u, W - E)
+        nrm = nrm / np.linalg.norm(nrm) if np.linalg.norm(nrm) > 1e-9 else np.cross(u, [0.0, 0.0, 1.0])
+        nrm /= np.linalg.norm(nrm)
+        v = np.cross(nrm, u)
+        xy = lambda X, E=E, u=u, v=v: np.stack([(X - E) @ u, (X - E) @ v], axis=-1)  # noqa: E731
+        ax = fig.add_subplot(1, len(poses), n + 1)
+        for seg in xy(plane_section(P, tri, E, nrm)):
+            ax.plot(seg[:, 0], seg[:, 1], "k-", lw=0.7)
+        for (a, b, fr), c in (((S, E, (0.4, 0.5, 0.6, 0.7)), "b"), ((E, W, (0.3, 0.4, 0.5, 0.6)), "g")):
+            m, d = limb_axis(P, tri, a, b, fr)
+            ends = xy(np.array([m - 0.25 * d, m + 0.25 * d]))
+            ax.plot(ends[:, 0], ends[:, 1], "--", color=c, lw=0.8)
+        for X, c in ((S, "b"), (E, "r"), (W, "g")):
+            ax.plot(*xy(X), "o", color=c, ms=5)
+        ax.set_xlim(-0.33, 0.12)
+        ax.set_ylim(-0.12, 0.33)
+        ax.set_aspect("equal")
+        ax.grid(True, lw=0.3)
+        ax.set_title(label, fontsize=8)
+    fig.suptitle(f"{side} arm: skin in the arm's plane (m), rig shoulder/elbow/wrist, mesh centre lines", fontsize=9)
+    save_png(fig, path)
+
+
 def angle_figure(rows: list[dict], path: Path) -> None:
     fig = Figure(figsize=(7.5, 4.2), layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
@@ -278,9 +318,15 @@ def main() -> int:
         "|---|---|---|---|---|---|---|---|",
     ]
     md += mesh_checks(ii, sorted(worst)) + mesh_checks(sw, pick[-2:])
+    extended = int(np.argmin(ii["q"][len(ii["q"]) // 2 :, 3])) + len(ii["q"]) // 2
+    section_figure(
+        [("rest (reshaped)", None), (f"II frame {extended} (extended)", ii["q"][extended])]
+        + [(f"II frame {k} (worst)", ii["q"][k]) for k in sorted(worst)[:1]],
+        args.out / "elbow_section.png",
+    )
     atomic_write_text(args.out / "summary.md", "\n".join(md) + "\n")
     print("\n".join(md))
-    print(f"wrote {args.out}/summary.md, elbow_vs_angle.csv/.png, overlay_*.png")
+    print(f"wrote {args.out}/summary.md, elbow_vs_angle.csv/.png, overlay_*.png, elbow_section.png")
     return 0
 
 
