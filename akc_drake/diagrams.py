@@ -518,9 +518,9 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         hand_dropout: ``(frames,)`` bool, frames in which the hand channel is blanked too (``--dropout``).
         hand_apertures: ``(frames, 2)`` measured thumb-index distances to replay as the hand channel (e.g.
             MediaPipe Hands run on the rendered frames, with ``replay``).
-        hand_detector: the hand detector on the camera's frames (rendered or ``frame_source``; default: MediaPipe
-            Hands, :class:`~akc_drake.io.hand_detector.HandDetector`, when ``cfg.detector`` is ``mediapipe`` or
-            the frames are real).
+        hand_detector: the hand detector on the camera's frames (default: MediaPipe Hands,
+            :class:`~akc_drake.io.hand_detector.HandDetector`, on a ``frame_source``'s frames, or on the render of
+            a ``motion`` with a hand closure when ``cfg.detector`` is ``mediapipe``).
 
     When ``motion`` has a hand closure (:attr:`~akc_drake.operator.motions.OperatorMotion.hand_closed`, e.g. the
     pick-and-place motion), the grippers are commanded from the hands: a
@@ -585,9 +585,11 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
 
     gripper = None
     src = source["systems"]["source"]
+    closes = motion is not None and getattr(motion, "hand_closed", None) is not None
+    # Hands measured on the camera's frames: a real camera's, or a render of a motion whose hands close.
     camera_hands = replay is None and hand_apertures is None and src.HasOutputPort("color_image") and (
-        hand_detector is not None or frame_source is not None or cfg.detector == "mediapipe")
-    if camera_hands or (motion is not None and getattr(motion, "hand_closed", None) is not None):
+        hand_detector is not None or frame_source is not None or (closes and cfg.detector == "mediapipe"))
+    if camera_hands or closes:
         from akc_drake.systems.gripper_command import GripperCommand, HandApertureSource
 
         if camera_hands:  # the hands measured on the camera's frames (MediaPipe Hands)

@@ -74,3 +74,27 @@ def test_the_pose_wrists_are_passed_when_connected():
     wrists = det.calls[0][3]
     px = np.arange(2 * NUM_LANDMARKS, dtype=float).reshape(NUM_LANDMARKS, 2)
     np.testing.assert_array_equal(wrists, px[[LANDMARKS.index("left_wrist"), LANDMARKS.index("right_wrist")]])
+
+
+def test_the_teleop_diagram_takes_the_hands_from_the_camera_or_a_replay():
+    from akc_drake.config import CameraConfig, PipelineConfig
+    from akc_drake.core.skeleton import BodyDimensions
+    from akc_drake.diagrams import Measurements, build_teleop_diagram
+    from akc_drake.operator.motions import pick_place
+
+    cfg = PipelineConfig(camera=CameraConfig(width=160, height=120))
+    motion = pick_place(0)
+    dims = BodyDimensions.paper_participant()
+    names = lambda td: {s.get_name() for s in td.diagram.GetSystems()}  # noqa: E731
+    # rendered frames: the hand detector looks at the camera's images
+    td = build_teleop_diagram(cfg, motion=motion, dims=dims, hand_detector=_FakeHands(), log_stages=False)
+    assert "HandApertureDetector" in names(td) and "HandApertureSource" not in names(td)
+    # replayed frames: the measured apertures are replayed
+    n = 5
+    meas = Measurements(np.zeros((n, NUM_LANDMARKS, 3)), np.ones((n, NUM_LANDMARKS)), np.zeros((n, NUM_LANDMARKS, 2)))
+    ap = np.tile([0.1, 0.015], (n, 1))
+    td = build_teleop_diagram(cfg, replay=meas, motion=motion, dims=dims, hand_apertures=ap, log_stages=False)
+    assert "HandApertureSource" in names(td) and "HandApertureDetector" not in names(td)
+    src = next(s for s in td.diagram.GetSystems() if s.get_name() == "HandApertureSource")
+    ctx = td.diagram.CreateDefaultContext()
+    np.testing.assert_array_equal(src.get_output_port().Eval(src.GetMyContextFromRoot(ctx)), [0.1, 0.015])
