@@ -21,6 +21,14 @@ the cutoff). A genuine large turn is accepted once it has persisted for ``reacqu
 reset to the sample, or with ``slew`` turned toward it at ``max_angular_speed``), so the guard cannot lock a
 track out.
 
+For the wrist rotation the guard is replaced by a clip (:attr:`SE3SmoothingParams.max_innovation_rad_s`): every
+innovation is shortened to at most a set angular rate times ``dt``, so an outlier pulls the estimate no harder
+than a fast turn, and the speed that sets the cutoff is a median over the last three innovations
+(:attr:`SE3SmoothingParams.robust_derivative`), so one outlier does not open the filter either.
+
+:class:`SE3Hold` keeps a reference frame (the torso) still while its measurement stays within a radius of it and
+follows a move that persists (:data:`TORSO_HOLD`).
+
 Everything is numpy + scipy; the filter's state is a flat vector (:data:`STATE_SIZE`) so a Drake system can keep
 it in discrete state.
 """
