@@ -393,6 +393,11 @@ def _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, ren
             "simulated / wall-clock seconds; realtime_factor_replay is per corrector on "
             "replayed measurements (the recorded run draws to Meshcat too)",
             "dropout": "frames blanked in bursts in the replays (not in the rendered run)",
+            "smoothing_latency_ms": "per corrector and side: the delay of the smoothed targets behind the same "
+            "tracker's unsmoothed ones (same torso, same workspace clip), the shift minimising the median squared "
+            "distance of the positions (smoothing_rotation_latency_ms: of the rotation matrices' entries)",
+            "target_operator_error_cm": "per corrector and side: median (and _p95_cm) distance between the target "
+            "X_TE_desired and the operator's true wrist through the same mapping and workspace, after settling",
         },
         "calibration": {
             "pose": "tpose",
