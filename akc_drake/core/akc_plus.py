@@ -339,7 +339,7 @@ class ArmKinematicCorrectorPlus:
 
     def _update_nis(self, v, m):
         """The running mean of each arm joint's and axis's normalised innovation squared (see ``_measured``)."""
-        var, nis, a = self._var, self._nis, self.config.nis_alpha
+        var, nis, a, g2 = self._var, self._nis, self.config.nis_alpha, self._gate2
         rr = self._r_axes
         i = 0
         for side in (0, 1):
@@ -348,7 +348,9 @@ class ArmKinematicCorrectorPlus:
                     r = m[o + ax] - v[o + ax]
                     d = rr[ax] - var[o + ax]
                     if r == r and d > 0.0:  # measured (not NaN) and a finite residual variance
-                        nis[i] = (1.0 - a) * nis[i] + a * (r * r / d)
+                        # Each frame's NIS counts at most the gate (a robust, winsorised mean): one outlier
+                        # cannot make the filter look inconsistent and so vouch for itself.
+                        nis[i] = (1.0 - a) * nis[i] + a * min(r * r / d, g2)
                     i += 1
 
     def _arm_var(self, side, m):
