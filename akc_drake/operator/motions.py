@@ -350,17 +350,20 @@ ARM_RANGE = (
 )
 
 
-def _mapped_tool_pose(q_left, q_right, side, params, mapping) -> np.ndarray:
+def _mapped_tool_pose(q_left, q_right, side, params, mapping, landmarks=None) -> np.ndarray:
     from akc_drake.core.frames import map_to_robot, wrist_in_torso
 
-    pose = landmarks_from_q(np.atleast_2d(q_left), np.atleast_2d(q_right), params)[0]
+    if landmarks is not None:  # the body's own landmarks, e.g. the skinned rig's knuckles
+        pose = landmarks(np.concatenate([q_left, q_right])[None])[0]
+    else:
+        pose = landmarks_from_q(np.atleast_2d(q_left), np.atleast_2d(q_right), params)[0]
     X_l, X_r = wrist_in_torso(pose)
     X = X_l if side == "left" else X_r
     return map_to_robot(X, side, mapping)
 
 
 def solve_arm_for_tool_pose(
-    p_T, R_T, side: str, q_other: np.ndarray, q0: np.ndarray, params: OperatorParams, mapping
+    p_T, R_T, side: str, q_other: np.ndarray, q0: np.ndarray, params: OperatorParams, mapping, landmarks=None
 ) -> np.ndarray:
     """The operator's arm angles whose wrist frame, through ``mapping``, puts the robot's tool at ``p_T`` with
     rotation ``R_T`` (least squares, scipy): what an operator watching the robot does to put it there.
@@ -368,6 +371,8 @@ def solve_arm_for_tool_pose(
     Args:
         p_T: ``(3,)`` tool position in T; R_T: ``(3, 3)`` tool rotation in T (rotation error weighted 0.1 m/rad).
         side: the arm; q_other: the other arm's angles; q0: the starting guess.
+        landmarks: the body's landmarks for ``(T, 10)`` angles (default: the operator model's,
+            :func:`~akc_drake.operator.model.landmarks_from_q`).
     """
     from scipy.optimize import least_squares
 
@@ -377,7 +382,7 @@ def solve_arm_for_tool_pose(
 
     def residual(q):
         ql, qr = (q, q_other) if side == "left" else (q_other, q)
-        X = _mapped_tool_pose(ql, qr, side, params, mapping)
+        X = _mapped_tool_pose(ql, qr, side, params, mapping, landmarks)
         R_err = R_T.T @ X[:3, :3]
         axis = np.array([R_err[2, 1] - R_err[1, 2], R_err[0, 2] - R_err[2, 0], R_err[1, 0] - R_err[0, 1]])
         n = np.linalg.norm(axis)
@@ -397,6 +402,7 @@ def pick_place(
     box_T=PICK_BOX_T,
     target_T=PLACE_TARGET_T,
     variation: float = 1.0,
+    landmarks=None,
 ) -> OperatorMotion:
     """Pick and place with the right arm (about 16 s): rest, reach for the box with the arm toward the camera
     (the hand hides the elbow and shoulder), close the hand, lift, carry, lower onto the target, open, retreat.
@@ -414,6 +420,9 @@ def pick_place(
             (default: :func:`~akc_drake.core.frames.calibrated_mapping` of the operator's dimensions).
         box_T, target_T: the box's start and the target's centre in T.
         variation: scales the per-seed variation (0: none).
+        landmarks: the rendered body's landmarks for ``(T, 10)`` angles (e.g. the skinned operator's
+            :meth:`~akc_drake.operator.skinned.SkinnedOperator.landmarks_O`, whose knuckles are the rig's): the
+            operator holds *that* hand so the robot's tool is right (default: the operator model's).
     """
     from akc_drake.core.frames import calibrated_mapping
 
@@ -436,8 +445,10 @@ def pick_place(
     R_rest_r = np.column_stack([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     R_rest_l = np.column_stack([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
     guess = np.array([0.5 * math.pi, -0.8, 0.0, 1.2, NEUTRAL_FOREARM_ROLL])
-    rest = solve_arm_for_tool_pose([0.45, 0.22, -0.21], R_rest_l, "left", guess, guess, params, mapping)
-    rest_right = solve_arm_for_tool_pose([0.45, -0.22, -0.21], R_rest_r, "right", rest, guess, params, mapping)
+    rest = solve_arm_for_tool_pose([0.45, 0.22, -0.21], R_rest_l, "left", guess, guess, params, mapping, landmarks)
+    rest_right = solve_arm_for_tool_pose(
+        [0.45, -0.22, -0.21], R_rest_r, "right", rest, guess, params, mapping, landmarks
+    )
     waypoints = [
         # (time s, right-arm tool position in T or None for rest, hand closure)
         (0.0, None, 0.0),
@@ -463,7 +474,7 @@ def pick_place(
         elif isinstance(where, str):
             q = knots_q[-1]
         else:
-            q = solve_arm_for_tool_pose(where, R_grasp, "right", rest, q_prev, params, mapping)
+            q = solve_arm_for_tool_pose(where, R_grasp, "right", rest, q_prev, params, mapping, landmarks)
             q_prev = q
         knots_t.append(t)
         knots_q.append(np.asarray(q, dtype=float))

@@ -212,10 +212,17 @@ def run_pick_place(
         from akc_drake.io.hand_detector import HandDetector
 
         hand_detector = HandDetector(hand_model)
+    # The operator holds the hand the camera sees so that the robot's tool is right: on the skinned body, the rig's
+    # hand (its knuckles, which set the wrist frame, are not the operator model's).
+    landmarks = None
+    if getattr(cfg, "body", "primitive") == "skinned":
+        from akc_drake.operator.skinned import skinned_operator
+
+        landmarks = skinned_operator().landmarks_O
     with quiet_drake_warnings():
         for seed in range(int(seeds)):
             # The operator works with the mapping the pipeline uses (calibrated from the T-pose).
-            motion = pick_place(seed, mapping=calibrated_mapping(calib.dims))
+            motion = pick_place(seed, mapping=calibrated_mapping(calib.dims), landmarks=landmarks)
             recorder = pose = None
             if hand_detector is not None:
                 from akc_drake.systems.session_render import make_detector
