@@ -599,11 +599,13 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                 from akc_drake.io.hand_detector import HandDetector
 
                 hand_detector = HandDetector()
+            # after the extractor (its pose wrists of the same frame tell the hands apart), before the gripper
             hands = builder.AddSystem(HandApertureDetector(hand_detector, source["intrinsics"], period,
-                                                           timing.stage_offset("extractor", cfg.stage_offset_s)))
+                                                           timing.stage_offset("filter", cfg.stage_offset_s)))
             hands.set_name("HandApertureDetector")
             for name in ("color_image", "depth_image"):
                 builder.Connect(src.GetOutputPort(name), hands.GetInputPort(name))
+            builder.Connect(source["pixels"], hands.GetInputPort("pixels"))
         else:
             hands = builder.AddSystem(HandApertureSource(motion, period, seed=cfg.seed, dropout=hand_dropout,
                                                          apertures=hand_apertures))

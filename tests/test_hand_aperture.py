@@ -98,3 +98,25 @@ def test_the_teleop_diagram_takes_the_hands_from_the_camera_or_a_replay():
     src = next(s for s in td.diagram.GetSystems() if s.get_name() == "HandApertureSource")
     ctx = td.diagram.CreateDefaultContext()
     np.testing.assert_array_equal(src.get_output_port().Eval(src.GetMyContextFromRoot(ctx)), [0.1, 0.015])
+
+
+def test_the_rendered_teleop_run_gives_the_hand_detector_the_frame_and_its_pose_wrists():
+    """In the teleop diagram the hand detector runs after the extractor, on the same frame, with its wrists."""
+    from pydrake.systems.analysis import Simulator
+
+    from akc_drake.config import CameraConfig, PipelineConfig
+    from akc_drake.core.skeleton import BodyDimensions
+    from akc_drake.diagrams import build_teleop_diagram
+    from akc_drake.operator.motions import pick_place
+
+    cfg = PipelineConfig(camera=CameraConfig(width=160, height=120))
+    det = _FakeHands()
+    td = build_teleop_diagram(cfg, motion=pick_place(0), dims=BodyDimensions.paper_participant(), hand_detector=det,
+                              log_stages=False, keep_history=False)
+    sim = Simulator(td.diagram)
+    sim.AdvanceTo(0.15)
+    assert [round(c[0], 3) for c in det.calls] == [0.002, 0.102]
+    assert det.calls[0][1] == (120, 160, 3)
+    ext = td.ports.pixels
+    px = ext.Eval(ext.get_system().GetMyContextFromRoot(sim.get_context())).reshape(NUM_LANDMARKS, 2)
+    np.testing.assert_array_equal(det.calls[1][3], px[[LANDMARKS.index("left_wrist"), LANDMARKS.index("right_wrist")]])
