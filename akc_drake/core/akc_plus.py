@@ -250,11 +250,11 @@ class ArmKinematicCorrectorPlus:
         self._sub_index = tuple(
             tuple((i, j, self._r_axes[i % 3]) for i, j in enumerate(idx)) for idx in self._arm_index
         )
-        self._nis_index = tuple((9 * side + i, j, r) for side in (0, 1) for i, j, r in self._sub_index[side])
         self._gate2 = config.gate_sigma**2
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = None
+        self._v = None
         self._cur_var = None
         self.reset()
 
@@ -343,19 +343,6 @@ class ArmKinematicCorrectorPlus:
     def _depth_measured(m, o):
         return m is not None and m[o + 2] == m[o + 2]
 
-    def _update_nis(self, v, m):
-        """The running mean of each arm joint's and axis's normalised innovation squared (see ``_measured``)."""
-        var, nis, a, g2 = self._var, self._nis, self.config.nis_alpha, self._gate2
-        b = 1.0 - a
-        for i, j, rv in self._nis_index:
-            r = m[j] - v[j]
-            d = rv - var[j]
-            if r == r and d > 0.0:  # measured (not NaN) and a finite residual variance
-                # Each frame's NIS counts at most the gate (a robust, winsorised mean): one outlier
-                # cannot make the filter look inconsistent and so vouch for itself.
-                q = r * r / d
-                nis[i] = b * nis[i] + a * (q if q < g2 else g2)
-
     def _arm_var(self, side, m, f):
         """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
 
@@ -368,14 +355,25 @@ class ArmKinematicCorrectorPlus:
         measurement's variance. The test's residual variance is the model's (R - P) plus the filter's excess
         error the running NIS shows (its covariance-matched variance above P).
         """
-        var, fl, g2 = self._var, self.config.nis_floor, self._gate2
+        var, fl, g2, nis, v = self._var, self.config.nis_floor, self._gate2, self._nis, self._v
+        a = self.config.nis_alpha
+        b = 1.0 - a
         out = []
-        for (i, j, r), k in zip(self._sub_index[side], self._nis[9 * side : 9 * side + 9]):
+        n0 = 9 * side
+        for i, j, r in self._sub_index[side]:
             p = var[j]
+            k = nis[n0 + i]
             z = m[j] if m is not None else _NAN
             if z != z:  # not measured
                 out.append(p * (k if k > 1.0 else 1.0))
                 continue
+            d = r - p
+            if d > 0.0:
+                # This frame's NIS joins the running mean, winsorised at the gate (a robust mean: one outlier
+                # cannot make the filter look inconsistent and so vouch for itself).
+                q = z - v[j]
+                q = q * q / d
+                k = nis[n0 + i] = b * k + a * (q if q < g2 else g2)
             vi = p * (k if k > fl else fl)
             if vi > r:
                 d = z - f[i]
@@ -463,9 +461,9 @@ class ArmKinematicCorrectorPlus:
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
         me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
         me_nis, ms_nis = me, ms
-        geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
-        geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
         if prev is not None and self._var is None:
+            geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
+            geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
             # (With the filter's covariance the innovation test of ``_measured`` is this test.)
             # Consistent with the prediction (our last output): a seen depth that jumps by more than jump_m in
             # one frame is an occluder's until it fits the arm again or has stayed for gate_frames frames.
@@ -520,9 +518,11 @@ class ArmKinematicCorrectorPlus:
         # filtered elbow) within consistency_m shows no drift: its filter prior keeps its full weight.
         cons = self.config.consistency_m
         self._fits = set()
-        if not me and ke not in self._no_prior and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= cons:
+        if self._cur_var is None and not me and ke not in self._no_prior and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= cons:
             self._fits.add(ke)
-        if not ms and ks not in self._no_prior and abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons:
+        if self._cur_var is None and not ms and ks not in self._no_prior and abs(
+            _hypot(sx - ex, sy - ey, sz - ez) - lu
+        ) <= cons:
             self._fits.add(ks)
         # How far the filter's depth has travelled since the depth was lost, from the filter's depth in the
         # last frame it was seen (a filter that jumps to, or drifts towards, another depth while blind is no
@@ -556,6 +556,7 @@ class ArmKinematicCorrectorPlus:
                                      self._chi2_gate)
             if arm is not None:
                 return tuple(arm)
+        geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
         te = me and geo_f  # elbow seen and at the forearm length from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
         # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
@@ -689,8 +690,7 @@ class ArmKinematicCorrectorPlus:
             if c.shape != (NUM_LANDMARKS, 3):
                 raise ValueError(f"variance must have shape ({NUM_LANDMARKS}, 3), got {c.shape}")
             self._var = c.ravel().tolist()
-            if m is not None:
-                self._update_nis(v, m)
+        self._v = v
         axes = torso_axes(v)
         hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z])
         self._hip_z = hz if _isfinite(hz) else None
