@@ -2,46 +2,52 @@
 
 The paper's AKC (:mod:`akc_drake.core.akc`) replaces the elbow and shoulder depths of every frame by one of
 four Pythagorean candidates, even when the camera measured those depths well; on real motion that makes
-well-seen joints worse than the filter it corrects (a mirror candidate picked on a noisy frame, eq. 9 moving
-x and y). AKC+ was designed on real motion-capture clips (README, "Real motion"), and differs from the paper:
+well-seen joints worse than the filter it corrects. AKC+ was designed on a design half of real motion-capture
+clips (README, "Real motion"; the other half held out) and differs from the paper as follows.
 
-1. **Seen depths are kept.** A joint's depth is *seen* when, this frame, it was measured and passed the occlusion
-   filter (its ``measured`` row is finite), is within ``consistency_m`` of the filtered depth, within ``jump_m``
-   of our last output (else it is an occluder's until it has persisted ``gate_frames`` frames and fits the arm),
-   and, for a shoulder, is not within ``occlusion_radius_m`` of its elbow in the image (the pair the paper's
-   occlusion filter lacks). A seen shoulder is not trusted when a seen elbow that fits the wrist contradicts it
-   (upper arm off its length by more than ``consistency_m``); a shoulder the detector lost altogether yields
-   to a seen elbow. Seen joints move only as much as the exact lengths require: with a seen shoulder the elbow
-   goes on the circle at ``l_f`` from the wrist and ``l_u`` from the shoulder (nearest its filtered or rebuilt
-   position); when that would move a seen elbow by more than ``xy_tol_m`` (a lagging filter wrist) or a
-   rebuilt one off its image position, the elbow is placed from the shoulder and the wrist follows (x, y kept
-   where the length allows).
-2. **Lost depths are rebuilt with a temporally consistent choice.** The two Pythagorean candidates (eq. 7-8
-   with the full calibrated length; x, y of the joint kept when detected, else a radial correction when the
-   filter's estimate is near the length) are scored as Gaussian log-likelihoods::
+**With the filter's covariance** (``correct(pose, measured, variance)``, the filter's posterior variance of
+each coordinate; the evaluation always gives it), "trustworthy" is a statistical test, not a distance in cm:
 
-       J = |p - p̂|^2 / sigma_f^2 + min(|p - p_prev|^2 / sigma_t^2, cap^2) [+ width, torso and m5 terms]
+* *Seen depth*: measured this frame after the occlusion filter, and passing the innovation test: for a
+  Kalman update with measurement variance ``R`` (``depth_sigma_m``) the residual ``z - fz`` has variance
+  ``R - P``, so ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared; within ``gate_sigma``.
+  A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's
+  occlusion filter lacks); the filter that followed such a rejected depth is then no prior for it.
+* *Covariance matching*: a running mean of each arm coordinate's NIS (each frame's winsorised at the gate,
+  weight ``nis_alpha``) scales the filter's variance into the error variance its residuals show: a lagging
+  filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
+  that passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's.
+* *Minimal change*: when both depths are seen (or a blind one is still known as well as a measurement), and
+  the arm passes the chi2 test against the calibrated lengths (``length_sigma_m``), the output is the arm
+  nearest the filter's in its covariance metric with the exact lengths
+  (:func:`~akc_drake.core.arm_geometry.project_lengths`): the joint the filter is least sure of moves, mostly
+  in depth.
+* A joint the detector lost altogether whose depth the filter extrapolates (variance above ``R``, moved by more
+  than ``depth_sigma_m`` since last seen) is held at our last output in depth (a zero-velocity hold); a
+  filter that holds it, or whose constraints inform it (an EKF), is followed.
 
-   ``sigma_f`` grows with the distance the filter's depth has travelled since it was last seen (twice it) and,
-   unless the filter's estimate still fits the calibrated length within ``consistency_m``, with the frames
-   since then (a constant-velocity filter extrapolating a lost depth drifts; one that holds a depth consistent
-   with the lengths is evidence). When rebuilding the elbow from a seen shoulder, the point at ``l_u`` nearest
-   the filter's elbow is a candidate beside the pair. The filter term is dropped when its estimate was
-   replaced by our last output; the temporal term is capped so that persistent evidence can undo a wrong
-   configuration. Switching to the mirror
-   candidate (2r away) needs evidence over several frames; an arm passing through the image plane (r -> 0)
-   follows the filter. The shoulder candidates also weigh the shoulder width (against the other shoulder only
-   when that was seen) and the shoulders' depth about the hips' (torso lean ``sigma_torso_m``); folded
-   candidates are vetoed, hyperextended ones (a sign test that noise flips on nearly straight arms) get a
-   finite penalty (5 standard deviations squared).
-3. **No shrink factor**: seen depths make the near-in-plane ± instability, the shrink factor's reason, moot.
+Otherwise the arm is **rebuilt**: the Pythagorean candidates (eq. 7-8 with the full calibrated length; x, y
+kept when detected; without a solution the nearest point at the length, at the anchor's depth when x, y were
+detected, radially when not) are scored as Gaussian log-likelihoods::
 
-The wrist is the anchor (the paper's assumption) except when a seen shoulder and elbow contradict it. Every
-output arm has exactly the calibrated lengths (to rounding). Plain Python floats (15-21 µs per frame for both
-arms on real clips; numpy calls would cost more than the arithmetic).
+    J = |p - p̂|^2 / sigma_f^2 + min(|p - p_prev|^2 / sigma_t^2, cap^2) [+ width, torso and anatomy terms]
 
-AKC+ sees only the filter's estimate, not its covariance (the corrector's interface is the pose and the
-occlusion filter's output); the filter's uncertainty is inferred from how long and how far it has been blind.
+with ``sigma_f^2`` the filter's covariance-matched depth variance (no prior when the filter's estimate was
+replaced or follows a rejected depth). A seen shoulder is kept and the elbow goes on the circle between it
+and the wrist (the wrist follows when that would move a seen elbow by more than ``xy_tol_m``). The temporal
+term is capped so that persistent evidence can undo a wrong configuration; a mirror switch needs evidence
+over several frames. The anatomical tests (elbow folded below ``elbow_min_deg``, hyperextended by m5's
+signed angle) are a finite penalty of 5 standard deviations squared, no veto (both are tests on noisy
+positions near their limits).
+
+**Without the covariance** (the diagram until the filter system exposes it): the rules of the previous
+revision: seen = within ``consistency_m`` of the filter and ``jump_m`` of our last output (unless persisting
+``gate_frames`` frames and fitting the arm); ``sigma_f`` grows with the blind frames and the filter's travel
+since last seen; seen joints move only as the exact lengths require (circle / wrist follows).
+
+No shrink factor (seen depths make the near-in-plane instability moot). Every output arm has exactly the
+calibrated lengths (to rounding). Plain Python floats on the hot path (numpy calls cost more than the
+arithmetic).
 """
 
 from __future__ import annotations
@@ -54,7 +60,12 @@ import numpy as np
 
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, project_lengths, torso_axes
+from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
+from akc_drake.core.arm_geometry import d2 as _d2
+from akc_drake.core.arm_geometry import follow as _follow
+from akc_drake.core.arm_geometry import pythagoras as _pythagoras
+from akc_drake.core.arm_geometry import radial as _radial
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
@@ -145,69 +156,6 @@ class AKCPlusConfig:
                 raise ValueError(f"AKCPlusConfig.{name} must be > 0, got {getattr(self, name)!r}")
         if self.elbow_min_deg >= 180.0:
             raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")
-
-
-def _pythagoras(ax, ay, az, px, py, length):
-    """The two points at ``length`` from anchor ``a`` with the x, y of ``p`` (eq. 7-8), or None if too far."""
-    dx, dy = px - ax, py - ay
-    r2 = length * length - dx * dx - dy * dy
-    if r2 < 0.0:
-        return None
-    r = _sqrt(r2)
-    return (px, py, az + r), (px, py, az - r)
-
-
-def _candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
-    """The joint's candidates at ``length`` from anchor ``a``: the Pythagorean pair (eq. 7-8) when its x, y
-    were detected this frame; when they were not (the filter holds them, less reliable 2D) and ``p`` is
-    already within ``tol`` of the length, ``p`` moved radially (a small correction).
-    """
-    if not xy_seen and abs(_hypot(px - ax, py - ay, pz - az) - length) <= tol:
-        return (_radial(ax, ay, az, px, py, pz, length),)
-    pair = _pythagoras(ax, ay, az, px, py, length)
-    if pair is not None:
-        return pair
-    # No solution: the nearest point at the length, x, y moved as little as possible when they were detected
-    # (at the anchor's depth), else along the joint's direction (every axis as uncertain).
-    return (_in_plane(ax, ay, az, px, py, length) if xy_seen else _radial(ax, ay, az, px, py, pz, length),)
-
-
-def _in_plane(ax, ay, az, px, py, length):
-    """The point at ``length`` from ``a`` along the in-plane direction to ``p``, at ``a``'s depth."""
-    dx, dy = px - ax, py - ay
-    n = _hypot(dx, dy)
-    if n < 1e-12:
-        return ax, ay + length, az
-    f = length / n
-    return ax + dx * f, ay + dy * f, az
-
-
-def _radial(ax, ay, az, px, py, pz, length):
-    """``p`` moved along its direction from ``a`` to ``length`` from it (eq. 9's form)."""
-    dx, dy, dz = px - ax, py - ay, pz - az
-    n = _hypot(dx, dy, dz)
-    if n < 1e-12:
-        return ax, ay + length, az
-    f = length / n
-    return ax + dx * f, ay + dy * f, az + dz * f
-
-
-def _follow(ax, ay, az, px, py, pz, length):
-    """Joint ``p`` moved to ``length`` from ``a``: its x, y kept (the image is the reliable part) at the
-    Pythagorean depth nearest its own when that moves it less than 1.5 times the radial move, else radially."""
-    r = _radial(ax, ay, az, px, py, pz, length)
-    pair = _pythagoras(ax, ay, az, px, py, length)
-    if pair is None:
-        return r
-    q = pair[0] if abs(pair[0][2] - pz) <= abs(pair[1][2] - pz) else pair[1]
-    if abs(q[2] - pz) <= 1.5 * _hypot(r[0] - px, r[1] - py, r[2] - pz):
-        return q
-    return r
-
-
-def _d2(p, qx, qy, qz):
-    dx, dy, dz = p[0] - qx, p[1] - qy, p[2] - qz
-    return dx * dx + dy * dy + dz * dz
 
 
 class ArmKinematicCorrectorPlus:
@@ -518,12 +466,11 @@ class ArmKinematicCorrectorPlus:
         # filtered elbow) within consistency_m shows no drift: its filter prior keeps its full weight.
         cons = self.config.consistency_m
         self._fits = set()
-        if self._cur_var is None and not me and ke not in self._no_prior and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= cons:
-            self._fits.add(ke)
-        if self._cur_var is None and not ms and ks not in self._no_prior and abs(
-            _hypot(sx - ex, sy - ey, sz - ez) - lu
-        ) <= cons:
-            self._fits.add(ks)
+        if self._cur_var is None:  # (only the no-covariance prior uses it)
+            if not me and ke not in self._no_prior and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= cons:
+                self._fits.add(ke)
+            if not ms and ks not in self._no_prior and abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons:
+                self._fits.add(ks)
         # How far the filter's depth has travelled since the depth was lost, from the filter's depth in the
         # last frame it was seen (a filter that jumps to, or drifts towards, another depth while blind is no
         # evidence for it; one that stays where it was is).

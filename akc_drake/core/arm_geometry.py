@@ -236,3 +236,67 @@ def circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
             qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
     f = h / q
     return cx + qx * f, cy + qy * f, cz + qz * f
+
+
+# ------------------------------------------------------------------ AKC+'s candidates (plain floats)
+def pythagoras(ax, ay, az, px, py, length):
+    """The two points at ``length`` from anchor ``a`` with the x, y of ``p`` (eq. 7-8), or None if too far."""
+    dx, dy = px - ax, py - ay
+    r2 = length * length - dx * dx - dy * dy
+    if r2 < 0.0:
+        return None
+    r = math.sqrt(r2)
+    return (px, py, az + r), (px, py, az - r)
+
+
+def candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
+    """The joint's candidates at ``length`` from anchor ``a``: the Pythagorean pair (eq. 7-8) when its x, y
+    were detected this frame; when they were not (the filter holds them, less reliable 2D) and ``p`` is
+    already within ``tol`` of the length, ``p`` moved radially (a small correction).
+    """
+    if not xy_seen and abs(_hypot(px - ax, py - ay, pz - az) - length) <= tol:
+        return (radial(ax, ay, az, px, py, pz, length),)
+    pair = pythagoras(ax, ay, az, px, py, length)
+    if pair is not None:
+        return pair
+    # No solution: the nearest point at the length, x, y moved as little as possible when they were detected
+    # (at the anchor's depth), else along the joint's direction (every axis as uncertain).
+    return (in_plane(ax, ay, az, px, py, length) if xy_seen else radial(ax, ay, az, px, py, pz, length),)
+
+
+def in_plane(ax, ay, az, px, py, length):
+    """The point at ``length`` from ``a`` along the in-plane direction to ``p``, at ``a``'s depth."""
+    dx, dy = px - ax, py - ay
+    n = _hypot(dx, dy)
+    if n < 1e-12:
+        return ax, ay + length, az
+    f = length / n
+    return ax + dx * f, ay + dy * f, az
+
+
+def radial(ax, ay, az, px, py, pz, length):
+    """``p`` moved along its direction from ``a`` to ``length`` from it (eq. 9's form)."""
+    dx, dy, dz = px - ax, py - ay, pz - az
+    n = _hypot(dx, dy, dz)
+    if n < 1e-12:
+        return ax, ay + length, az
+    f = length / n
+    return ax + dx * f, ay + dy * f, az + dz * f
+
+
+def follow(ax, ay, az, px, py, pz, length):
+    """Joint ``p`` moved to ``length`` from ``a``: its x, y kept (the image is the reliable part) at the
+    Pythagorean depth nearest its own when that moves it less than 1.5 times the radial move, else radially."""
+    r = radial(ax, ay, az, px, py, pz, length)
+    pair = pythagoras(ax, ay, az, px, py, length)
+    if pair is None:
+        return r
+    q = pair[0] if abs(pair[0][2] - pz) <= abs(pair[1][2] - pz) else pair[1]
+    if abs(q[2] - pz) <= 1.5 * _hypot(r[0] - px, r[1] - py, r[2] - pz):
+        return q
+    return r
+
+
+def d2(p, qx, qy, qz):
+    dx, dy, dz = p[0] - qx, p[1] - qy, p[2] - qz
+    return dx * dx + dy * dy + dz * dz
