@@ -93,6 +93,10 @@ _NIS = 36
 class AKCPlusConfig:
     """Settings of AKC+ (see the module docstring). Lengths in metres.
 
+    ``consistency_m``, ``jump_m``, ``gate_frames``, ``sigma_filter_m`` and ``drift_m_per_frame`` serve only
+    without the filter's covariance; ``depth_sigma_m``, ``image_sigma_m``, ``length_sigma_m``, ``gate_sigma``,
+    ``nis_alpha`` and ``nis_floor`` only with it.
+
     Attributes:
         consistency_m: a measured depth farther than this from the filtered one is not trusted.
         length_tol_m: a measured joint whose segment length (to the wrist, or to a trusted elbow) is off the
