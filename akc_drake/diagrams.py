@@ -263,6 +263,10 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
         builder.Connect(estimated, akc.GetInputPort("landmarks_C"))
         if cfg.corrector == "AKC+":
             builder.Connect(accepted, akc.GetInputPort("landmarks_C_measured"))
+            # The filter's posterior variance, once its system exposes it (AKC+ runs without it otherwise).
+            filt = systems.get("filter")
+            if filt is not None and filt.HasOutputPort("landmarks_C_variance"):
+                builder.Connect(filt.GetOutputPort("landmarks_C_variance"), akc.GetInputPort("landmarks_C_variance"))
         systems["corrector"] = akc
         corrected = akc.GetOutputPort("landmarks_C_corrected")
     elif cfg.corrector == "COIK":
