@@ -31,6 +31,49 @@ _PENDING_ISSUE = {
 }
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """Shows each option's default (``(default: X)``) unless its help already states it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if (
+            "default" not in text
+            and action.option_strings
+            and default is not None
+            and default is not False
+            and default is not argparse.SUPPRESS
+        ):
+            text += " (default: %(default)s)"
+        return text
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line on stderr (naming the option) and exit code 2."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str):  # noqa: D102 - argparse's hook
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+def _seed(text: str) -> int:
+    """``--seed``: a non-negative integer (numpy's generators reject negative seeds)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value}")
+    return value
+
+
+def _add_seed(p: argparse.ArgumentParser, what: str = "the motion variation, detector and depth noise") -> None:
+    p.add_argument("--seed", type=_seed, default=0, metavar="S", help=f"random seed of {what}")
+
+
 def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--source",
@@ -67,7 +110,7 @@ def _body_detector(p, both: bool = False, body: str = "primitive", detector: str
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="akc-drake",
         description="Markerless RGB-D arm motion capture with Arm Kinematic Correction, as a Drake diagram.",
     )
@@ -75,16 +118,17 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser("demo", help="teleoperate the simulated robot from the rendered operator (the main job)")
-    p.add_argument("--quick", action="store_true", help="one cycle of each motion (CI-sized)")
-    p.add_argument("--dropout", type=float, default=0.0, metavar="F", help="share of frames lost in bursts (0-1)")
+    p.add_argument("--quick", action="store_true", help="one cycle of each motion (CI-sized; default: 3 cycles)")
+    p.add_argument("--dropout", type=float, default=0.0, metavar="F",
+                   help="share of frames lost in bursts, 0-1 (default: 0)")
     p.add_argument("--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
-    p.add_argument("--json", metavar="FILE", help="write the summary as JSON")
+    p.add_argument("--json", metavar="FILE", help="also write the summary (demo.json) to FILE")
     p.add_argument("--meshcat", action="store_true", help="serve Meshcat on localhost while running")
     p.add_argument("--html", metavar="FILE", help="save the Meshcat recording as a standalone HTML page")
     p.add_argument("--ros2-bag", metavar="FILE.mcap", help="write the AKC(KF) replays as a ROS 2 MCAP bag")
-    p.add_argument("--seed", type=int, default=0)
+    _add_seed(p, "the renders, the detector, the depth noise and --dropout")
     p.add_argument("--task", choices=("pick-place",), help="also run a task and score it per corrector")
-    p.add_argument("--seeds", type=int, default=5, metavar="N", help="seeded runs of --task per corrector (default 5)")
+    p.add_argument("--seeds", type=int, default=5, metavar="N", help="seeded runs of --task per corrector (default: 5)")
     p.add_argument("--hand-model", metavar="PATH",
                    help="MediaPipe hand_landmarker .task file (the gripper's hand channel with --detector mediapipe)")
     # The main job shows the real pipeline: MediaPipe on the rendered skinned body (--body primitive --detector sim:
@@ -92,14 +136,14 @@ def build_parser() -> argparse.ArgumentParser:
     _body_detector(p, body="skinned", detector="mediapipe")
 
     p = sub.add_parser("evaluate", help="reproduce the paper's tables and figures against ground truth")
-    p.add_argument("--motion", default="both", choices=("I", "II", "both"))
+    p.add_argument("--motion", default="both", choices=("I", "II", "both"), help="the paper's motion(s)")
     p.add_argument("--motion-file", metavar="FILE", help="a BVH file, or an AMC file with --skeleton")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
-    p.add_argument("--cycles", type=int, default=30, metavar="N")
-    p.add_argument("--seed", type=int, default=0, metavar="S")
+    p.add_argument("--cycles", type=int, default=30, metavar="N", help="motion cycles of 6 s each")
+    _add_seed(p)
     p.add_argument("--methods", default=None, help="comma-separated, from: " + ", ".join(METHODS)
                    + " (default: all; with --motion-dir: KF, EKF and the AKC/AKC+ variants)")
-    p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"))
+    p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"), help="AKC weight preset (paper Table I)")
     p.add_argument("--protocol", default="paper", choices=("paper", "ours"),
                    help="paper: the stages and table definitions as the paper describes them; ours: our "
                    "improvements (default: paper)")
@@ -109,48 +153,53 @@ def build_parser() -> argparse.ArgumentParser:
                    "bvh | trc | c3d | csv, and the RTS smoother's gain (rts_gain.json)")
     p.add_argument("--export-frame", default="world", choices=("world", "camera"), help="frame of --export files")
     p.add_argument("--out", metavar="DIR", help="write report.md, CSV tables and PNG figures here")
-    p.add_argument("--json", metavar="FILE")
+    p.add_argument("--json", metavar="FILE", help="write the tables as JSON (DESIGN.md keys)")
     p.add_argument("--width", type=int, default=640, help=argparse.SUPPRESS)
     p.add_argument("--height", type=int, default=480, help=argparse.SUPPRESS)
     _body_detector(p, both=True)
     _add_scheduler_args(p)
 
     p = sub.add_parser("sweep", help="AKC weight and shrink-factor sensitivity study (paper Fig. 5, Table VII)")
-    p.add_argument("--motion", default="both", choices=("I", "II", "both"))
-    p.add_argument("--cycles", type=int, default=30, metavar="N")
-    p.add_argument("--jobs", type=int, default=2, metavar="N", help="local worker processes (default: 2)")
+    p.add_argument("--motion", default="both", choices=("I", "II", "both"), help="the paper's motion(s)")
+    p.add_argument("--cycles", type=int, default=30, metavar="N", help="motion cycles of 6 s each")
+    p.add_argument("--jobs", "--workers", dest="jobs", type=int, default=2, metavar="N",
+                   help="local worker processes (--workers: the same, as in evaluate; default: 2)")
     _add_scheduler_args(p, workers=False)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", metavar="DIR")
-    p.add_argument("--json", metavar="FILE")
+    _add_seed(p)
+    p.add_argument("--out", metavar="DIR", help="write sweep.md, tables/table7.csv and the figures here")
+    p.add_argument("--json", metavar="FILE", help="write the grid, the optima and Table VII as JSON")
 
     p = sub.add_parser("cache", help="where the render cache is and how big; --clear empties it")
     p.add_argument("--clear", action="store_true", help="delete every cached rendered session")
 
     p = sub.add_parser("graph", help="write the system graph of a diagram as .dot and .svg")
-    p.add_argument("--diagram", required=True, choices=("mocap", "teleop"))
-    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--diagram", required=True, choices=("mocap", "teleop"), help="which diagram (required)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for NAME.dot and NAME.svg (required)")
 
     p = sub.add_parser("record", help="render (or capture) a session into a recording folder")
     p.add_argument("--motion", default="II", help="I | II | tpose | lpose | FILE.bvh | FILE.amc")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
     p.add_argument("--source", default="sim", help="sim | realsense | bag:FILE (default: sim)")
-    p.add_argument("--cycles", type=int, default=1, metavar="N")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--seconds", type=float, metavar="S", help="duration for live or bag sources")
-    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--cycles", type=int, default=1, metavar="N", help="motion cycles of 6 s each (--source sim)")
+    _add_seed(p)
+    p.add_argument("--seconds", type=float, metavar="S", help="duration for live or bag sources (default: all)")
+    p.add_argument("--out", required=True, metavar="DIR", help="the recording folder to write (required)")
     _body_detector(p)
 
     p = sub.add_parser("run", help="run the mocap (or teleop) diagram on a source")
     _add_source_args(p)
-    p.add_argument("--motion", default="II", help="motion for --source sim: I | II | tpose | lpose | FILE")
-    p.add_argument("--cycles", type=int, default=1, metavar="N")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--filter", default="KF", choices=("none", "KF", "EKF"))
-    p.add_argument("--corrector", default="AKC", choices=("none", "AKC", "AKC+", "COIK"))
+    p.add_argument("--motion", default="II",
+                   help="motion for --source sim: I | II | tpose | lpose | FILE.bvh | FILE.amc")
+    p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC --motion file")
+    p.add_argument("--cycles", type=int, default=1, metavar="N", help="motion cycles of 6 s each (--source sim)")
+    _add_seed(p)
+    p.add_argument("--filter", default="KF", choices=("none", "KF", "EKF"), help="the landmark filter")
+    p.add_argument("--corrector", default="AKC", choices=("none", "AKC", "AKC+", "COIK"),
+                   help="the arm correction after the filter")
     p.add_argument("--teleop", action="store_true", help="drive the simulated robot too")
-    p.add_argument("--meshcat", action="store_true")
-    p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources)")
+    p.add_argument("--meshcat", action="store_true", help="with --teleop: serve Meshcat on localhost")
+    p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources; default: "
+                   "the whole source)")
     p.add_argument("--out", metavar="DIR", help="where to write poses.npz (default: next to --json)")
     p.add_argument("--export", metavar="FMT[,FMT]", help="also write the raw, filtered and corrected skeletons to "
                    "--out as bvh | trc | c3d | csv (see 'akc-drake export')")
@@ -160,34 +209,35 @@ def build_parser() -> argparse.ArgumentParser:
                    "with --teleop, the robot's joint commands and wrist targets")
     p.add_argument("--lcm", metavar="URL", help="with --teleop: publish joint commands and wrist targets on LCM "
                    "(memq://, udpm://239.255.76.67:7667 (ttl=0: this host only), file://LOG?mode=w)")
-    p.add_argument("--json", metavar="FILE")
+    p.add_argument("--json", metavar="FILE", help="write the summary as JSON (frames, latency, errors)")
     _body_detector(p)
 
     p = sub.add_parser("calibrate", help="arm lengths and shoulder width from a held T-pose or L-pose")
     _add_source_args(p)
-    p.add_argument("--pose", default="tpose", choices=("tpose", "lpose"))
-    p.add_argument("--frames", type=int, default=100, metavar="N")
-    p.add_argument("--out", required=True, metavar="FILE.json")
+    p.add_argument("--pose", default="tpose", choices=("tpose", "lpose"), help="the held calibration pose")
+    p.add_argument("--frames", type=int, default=100, metavar="N", help="calibration frames, at least 10")
+    p.add_argument("--out", required=True, metavar="FILE.json",
+                   help="where to write the dimensions (required; read by --dims)")
     _body_detector(p)
 
     p = sub.add_parser("soak", help="a long simulated teleop session with random tracking loss (robustness)")
     p.add_argument("--minutes", type=float, default=30.0, metavar="M", help="simulated minutes (default: 30)")
-    p.add_argument("--dropout", type=float, default=0.3, metavar="F", help="share of frames lost in bursts")
-    p.add_argument("--garbage", type=float, default=0.0, metavar="F", help="share of frames with garbage")
-    p.add_argument("--motion", default="I", choices=("I", "II"))
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--dropout", type=float, default=0.3, metavar="F", help="share of frames lost in bursts, 0-1")
+    p.add_argument("--garbage", type=float, default=0.0, metavar="F", help="share of frames with garbage, 0-1")
+    p.add_argument("--motion", default="I", choices=("I", "II"), help="the motion, repeated")
+    _add_seed(p, "the motion variation and the tracking-loss bursts")
     p.add_argument("--sample-s", type=float, default=10.0, metavar="S", help=argparse.SUPPRESS)
-    p.add_argument("--json", metavar="FILE")
+    p.add_argument("--json", metavar="FILE", help="write the checks and figures as JSON")
 
     p = sub.add_parser("bench", help="measure the speed of every stage (see README, Performance)")
-    p.add_argument("--quick", action="store_true")
+    p.add_argument("--quick", action="store_true", help="the CI-sized run (well under a minute)")
     _body_detector(p)
-    p.add_argument("--json", metavar="FILE")
+    p.add_argument("--json", metavar="FILE", help="write every figure as JSON (DESIGN.md keys)")
 
     p = sub.add_parser("export", help="a poses.npz (from run) to BVH, TRC, C3D, CSV or a ROS 2 MCAP bag")
-    p.add_argument("--poses", required=True, metavar="FILE.npz", help="the poses.npz that 'run' writes")
-    p.add_argument("--format", required=True, metavar="FMT", help="bvh | trc | c3d | csv | mcap")
-    p.add_argument("--out", required=True, metavar="FILE")
+    p.add_argument("--poses", required=True, metavar="FILE.npz", help="the poses.npz that 'run' writes (required)")
+    p.add_argument("--format", required=True, metavar="FMT", help="bvh | trc | c3d | csv | mcap (required)")
+    p.add_argument("--out", required=True, metavar="FILE", help="the file to write (required)")
     p.add_argument("--stage", default="corrected", metavar="S",
                    help="raw | accepted | filtered | corrected | truth (default: corrected)")
     p.add_argument("--frame", default="world", choices=("world", "camera"),

@@ -28,6 +28,8 @@ from akc_drake.fileio import write_json
 def _config(args):
     from akc_drake.config import PipelineConfig, load_config
 
+    if args.cycles < 1:
+        raise UserError(f"--cycles must be at least 1, got {args.cycles}")
     cfg = load_config(args.config) if args.config else PipelineConfig()
     # Options given on the command line win over the file (argparse defaults do not).
     cfg.source = args.source

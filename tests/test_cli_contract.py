@@ -1,0 +1,130 @@
+"""The command line as a contract: DESIGN.md's flags exist, every flag is documented with its default, shared
+flags are spelled and checked the same way everywhere, and usage mistakes are one line with exit code 2."""
+
+import argparse
+
+import pytest
+
+from akc_drake import cli
+
+# DESIGN.md, "Contracts that other tools rely on": the flags each command line names.
+DESIGN_FLAGS = {
+    "demo": ["--quick", "--dropout", "--task", "--seeds", "--out", "--json", "--meshcat", "--html"],
+    "evaluate": ["--motion", "--motion-file", "--skeleton", "--motion-dir", "--cycles", "--seed", "--body",
+                 "--detector", "--protocol", "--methods", "--weights", "--out", "--json"],
+    "sweep": ["--motion", "--cycles", "--jobs", "--out", "--json"],
+    "graph": ["--diagram", "--out"],
+    "record": ["--motion", "--cycles", "--body", "--out"],
+    "run": ["--source", "--detector", "--teleop", "--json"],
+    "calibrate": ["--source", "--pose", "--frames", "--out"],
+    "bench": ["--json"],
+}
+
+
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    parser = cli.build_parser()
+    (action,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return dict(action.choices)
+
+
+def _option(p: argparse.ArgumentParser, flag: str) -> argparse.Action:
+    return next(a for a in p._actions if flag in a.option_strings)
+
+
+def _usage_error(argv, capsys) -> str:
+    with pytest.raises(SystemExit) as e:
+        cli.main(argv)
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err  # one line, no usage block and no traceback
+    return err
+
+
+def test_design_flags_exist():
+    subs = _subparsers()
+    for command, flags in DESIGN_FLAGS.items():
+        options = {s for a in subs[command]._actions for s in a.option_strings}
+        missing = [f for f in flags if f not in options]
+        assert not missing, f"{command}: {missing}"
+
+
+def test_design_choices():
+    subs = _subparsers()
+    assert _option(subs["evaluate"], "--weights").choices == ("Wa", "Wb", "Wc")
+    assert _option(subs["evaluate"], "--protocol").choices == ("paper", "ours")
+    assert _option(subs["graph"], "--diagram").choices == ("mocap", "teleop")
+    assert _option(subs["calibrate"], "--pose").choices == ("tpose", "lpose")
+    assert _option(subs["calibrate"], "--frames").default == 100
+    assert _option(subs["demo"], "--task").choices == ("pick-place",)
+    for name in ("Raw", "KF", "EKF", "COIK(KF)", "AKC(KF)", "AKC(EKF)", "AKC+(KF)", "AKC+(EKF)"):
+        assert name in cli.METHODS
+
+
+def test_every_option_documented_with_its_default():
+    for command, p in _subparsers().items():
+        fmt = p._get_formatter()
+        for a in p._actions:
+            if not a.option_strings or a.help == argparse.SUPPRESS or isinstance(a, argparse._HelpAction):
+                continue
+            assert a.help, f"{command} {a.option_strings[0]}: no help text"
+            text = fmt._expand_help(a)
+            if a.default not in (None, False):
+                assert "default" in text, f"{command} {a.option_strings[0]}: default not shown: {text!r}"
+
+
+def test_shared_flags_spelled_and_checked_alike():
+    subs = _subparsers()
+    for command, p in subs.items():
+        flags = {s for a in p._actions for s in a.option_strings}
+        if "--body" in flags:
+            assert _option(p, "--body").choices == ("primitive", "skinned"), command
+        if "--detector" in flags:
+            assert set(_option(p, "--detector").choices) >= {"sim", "mediapipe"}, command
+        if "--seed" in flags:
+            seed = _option(p, "--seed")
+            assert seed.type is cli._seed and seed.default == 0, command
+        if "--cycles" in flags:
+            assert _option(p, "--cycles").type is int, command
+    # evaluate's --workers is accepted by sweep too (as its --jobs)
+    args = cli.build_parser().parse_args(["sweep", "--workers", "3"])
+    assert args.jobs == 3
+
+
+@pytest.mark.parametrize("command", ["demo", "evaluate", "sweep", "record", "run", "soak"])
+def test_negative_seed_is_one_line_exit_2(command, capsys):
+    extra = ["--out", "x"] if command == "record" else []
+    err = _usage_error([command, "--seed", "-1", *extra], capsys)
+    assert err.startswith(f"akc-drake {command}: error: argument --seed:")
+    assert "-1" in err
+
+
+def test_bad_value_and_missing_flag_are_one_line(capsys):
+    err = _usage_error(["evaluate", "--cycles", "abc"], capsys)
+    assert "argument --cycles" in err and "'abc'" in err
+    err = _usage_error(["record", "--motion", "I"], capsys)
+    assert "--out" in err and "required" in err
+    err = _usage_error(["run", "--corrector", "AKC++"], capsys)
+    assert "argument --corrector" in err and "AKC++" in err
+
+
+def test_run_takes_skeleton_for_amc_motion():
+    args = cli.build_parser().parse_args(["run", "--motion", "clip.amc", "--skeleton", "clip.asf"])
+    from akc_drake.commands.run import _config
+
+    assert _config(args).skeleton == "clip.asf"
+
+
+def test_run_cycles_named(capsys):
+    assert cli.main(["run", "--cycles", "0"]) == 2
+    assert capsys.readouterr().err.strip() == "akc-drake run: error: --cycles must be at least 1, got 0"
+
+
+def test_graph_out_is_a_file(tmp_path, capsys):
+    f = tmp_path / "taken.json"
+    f.write_text("{}")
+    assert cli.main(["graph", "--diagram", "mocap", "--out", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out" in err and "not a folder" in err
+    assert cli.main(["graph", "--diagram", "mocap", "--out", str(f / "sub")]) == 2
+    assert "not a folder" in capsys.readouterr().err
+    assert f.read_text() == "{}"
