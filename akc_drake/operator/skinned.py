@@ -564,6 +564,36 @@ class SkinnedOperator:
                 out[:, LANDMARKS.index(f"{side}_{name}"), :] = val
         return out
 
+    # ------------------------------------------------------------------ the rig driven bone by bone
+    def rest_bones(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(heads, tails)`` ``(B, 3)``: every rig bone's ends in the reshaped rest body (O)."""
+        a, M = self.assets, self.reshape_maps
+        return (np.einsum("bij,bj->bi", M[:, :, :3], a.heads) + M[:, :, 3],
+                np.einsum("bij,bj->bi", M[:, :, :3], a.tails) + M[:, :, 3])
+
+    def posed_points_from_maps(self, maps: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``(P, 3)`` every skinned point for bone maps ``(B, 3, 4)`` that may move every bone (spine, clavicles,
+        neck, legs: :mod:`akc_drake.operator.rig_drive`), not only the arms' as :meth:`posed_points`."""
+        if getattr(self, "_lbs_all", None) is None:
+            self._lbs_all = skinning.LinearBlendSkinning(self.lbs.rest, self.lbs.weights)
+        return self._lbs_all.skin(maps, out=out)
+
+    def landmarks_from_maps(self, maps: np.ndarray) -> np.ndarray:
+        """True landmarks ``(T, 12, 3)`` in O for bone maps ``(T, B, 3, 4)`` (or one ``(B, 3, 4)``): the upper
+        arm, forearm and hand bones' heads (shoulder, elbow, wrist), the knuckles carried by the hand, the thigh
+        bone's head (hip)."""
+        maps = np.asarray(maps, float)
+        maps = maps[None] if maps.ndim == 3 else maps
+        out = np.empty((len(maps), NUM_LANDMARKS, 3))
+        a = self.assets
+        for side in SIDES:
+            iu, jf, hand = self._hand_bones[side]
+            bones = (iu, jf, hand[0], hand[0], hand[0], a.bone(_HIP_BONES[side][1]))
+            for name, b, p in zip(("shoulder", "elbow", "wrist", "index", "pinky", "hip"), bones,
+                                  self._rest_joints[side], strict=True):
+                out[:, LANDMARKS.index(f"{side}_{name}"), :] = maps[:, b, :, :3] @ p + maps[:, b, :, 3]
+        return out
+
     # ------------------------------------------------------------------ files
     def shell_files(self) -> dict[str, Path]:
         """One tetrahedral ``.vtk`` (the region's prism layer) per region at the reshaped rest pose, cached in

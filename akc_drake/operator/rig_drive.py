@@ -1,0 +1,374 @@
+"""A CMU clip drives the skinned body's CMU-MB rig directly, bone by bone (numpy + scipy).
+
+The default path (:mod:`akc_drake.operator.retarget`) reduces a clip to the operator's 10 arm angles with the
+torso fixed, so a real person's spine, clavicle (shrug, protraction), neck and head motion never reaches the
+renderer and the true shoulders never move. Here every bone the clip has turns the rig's bone of the same name:
+
+1. *Clip rotations.* A BVH joint's global rotation (cgspeed/CMU names: ``Hips``, ``LowerBack``, ``Spine``,
+   ``Spine1``, ``Neck``, ``Neck1``, ``Head``, ``LeftShoulder``, ``LeftArm``, ``LeftForeArm``, ``LeftHand``...)
+   or an ASF bone's (CMU names ``root``, ``lowerback``, ``upperback``, ``thorax``, ``lclavicle``, ``lhumerus``,
+   ``lradius``...: :data:`ASF_TO_RIG`) is the rotation of that body segment from the clip's rest pose (all
+   channels zero), in the clip's world. The segment of a rig bone runs from its clip joint to the clip joint of
+   the rig child that starts at the bone's tail (or the joint's End Site), so its rest direction in the clip
+   is known too.
+2. *Into the operator frame O.* The clip's world (Y up) turns into O (x forward, y left, z up) by the rest
+   pose's own axes: z the up axis, y from the right to the left upper-arm joint. Each frame's heading (the
+   root's forward direction about z) is taken out of every bone, so the operator keeps facing the camera; the
+   root stays at the operator's place (positions are not used).
+3. *Retarget by direction and twist.* The rig's rest (A-pose) differs from the clip's (a T-pose for CMU
+   data). For each bone, ``A`` is the smallest rotation taking the rig's rest direction (head -> tail) onto the
+   clip's rest direction; the bone's posed world rotation is ``G = D A``, ``D`` the clip's rotation in O. So
+   the posed bone points where the clip's segment points, with the clip's twist about it. A rig bone the clip
+   lacks moves rigidly with its parent; a bone without a direction (zero length in the clip: the root, a
+   joint at its parent's origin) keeps its parent's ``A``, i.e. its rig rest pose relative to the parent.
+4. *Rig maps.* From the root down, each bone's head is carried by its parent's map, and the bone's map is the
+   rigid ``v -> G (v - head_rest) + head_posed`` (:func:`rig_maps`): the ``(B, 3, 4)`` rest -> posed maps that
+   :class:`~akc_drake.operator.skinned.SkinnedOperator` skins with, and whose joint centres are the truth.
+
+Rotations (resampling by Slerp, heading, alignment) go through :class:`scipy.spatial.transform.Rotation`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from akc_drake.errors import UserError
+
+#: CMU ASF bone names -> the CMU-MB rig's (the cgspeed BVH conversion's) names.
+ASF_TO_RIG = {
+    "root": "Hips",
+    "lowerback": "LowerBack",
+    "upperback": "Spine",
+    "thorax": "Spine1",
+    "lowerneck": "Neck",
+    "upperneck": "Neck1",
+    "head": "Head",
+    "lhipjoint": "LHipJoint",
+    "rhipjoint": "RHipJoint",
+    "lthumb": "LThumb",
+    "rthumb": "RThumb",
+}
+for _s, _S in (("l", "Left"), ("r", "Right")):
+    for _asf, _rig in (("femur", "UpLeg"), ("tibia", "Leg"), ("foot", "Foot"), ("toes", "ToeBase"),
+                       ("clavicle", "Shoulder"), ("humerus", "Arm"), ("radius", "ForeArm"), ("wrist", "Hand"),
+                       ("hand", "FingerBase"), ("fingers", "HandFinger1")):
+        ASF_TO_RIG[f"{_s}{_asf}"] = f"{_S}{_rig}"
+#: BVH names of other CMU conversions -> the rig's.
+BVH_ALIASES = {
+    "LFingers": "LeftHandFinger1",
+    "RFingers": "RightHandFinger1",
+    "LeftHandIndex1": "LeftHandFinger1",
+    "RightHandIndex1": "RightHandFinger1",
+}
+#: Bones a clip must have to drive the rig (the upper body the camera sees).
+REQUIRED_BONES = (
+    "Hips",
+    "Spine1",
+    "LeftShoulder",
+    "LeftArm",
+    "LeftForeArm",
+    "LeftHand",
+    "RightShoulder",
+    "RightArm",
+    "RightForeArm",
+    "RightHand",
+)
+#: Segments shorter than this (metres) have no direction (the root's, a joint at its parent's origin).
+_MIN_SEGMENT_M = 1e-4
+
+
+@dataclass(frozen=True)
+class ClipRotations:
+    """A clip's bone rotations on the rig's bone names, in O, heading removed, at the camera's sample times.
+
+    Attributes:
+        times: ``(T,)`` sample times (seconds, from 0).
+        bones: the rig bone names the clip drives.
+        rotations: ``(T, n, 3, 3)`` each bone's world rotation in O from the clip's rest pose.
+        rest_dirs: ``(n, 3)`` each bone's unit rest direction (head -> tail) in O; NaN: no direction.
+        name: the clip's label.
+        source: the file, for messages.
+    """
+
+    times: np.ndarray
+    bones: tuple[str, ...]
+    rotations: np.ndarray
+    rest_dirs: np.ndarray
+    name: str = "clip"
+    source: str = "clip"
+
+    def window(self, window_s, name: str | None = None) -> ClipRotations:
+        """The samples within ``window_s = [t0, t1]`` seconds, restarting at t = 0 (as the 10-angle path's
+        :func:`~akc_drake.evaluation.cache.window_motion`)."""
+        t = self.times - self.times[0]
+        sel = (t >= float(window_s[0]) - 1e-9) & (t <= float(window_s[1]) + 1e-9)
+        if sel.sum() < 2:
+            raise UserError(f"{self.source}: window {list(window_s)} s holds no frames (the clip lasts {t[-1]:.1f} s)")
+        return ClipRotations(t[sel] - t[sel][0], self.bones, self.rotations[sel], self.rest_dirs,
+                             name or self.name, self.source)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > _MIN_SEGMENT_M else np.full(3, np.nan)
+
+
+def clip_skeleton(motion, names: dict | None = None):
+    """A parsed clip as joints: ``(rig_names, parents, R, p, times)``.
+
+    ``rig_names`` ``(J,)``: each joint's rig bone name (None: no rig bone; End Sites ``"<name>_end"``);
+    ``parents`` ``(J,)``; ``R`` ``(F, J, 3, 3)`` global rotations from the rest pose (identity at rest);
+    ``p`` ``(F, J, 3)`` joint positions (a BVH joint's origin, an ASF bone's start; an ASF leaf bone's end is an
+    extra ``"<name>_end"`` joint), clip world, metres.
+
+    Args:
+        motion: a :class:`~akc_drake.operator.bvh.BVHMotion` or an :class:`~akc_drake.operator.asf_amc.AMCMotion`.
+        names: optional clip joint name -> rig bone name overrides.
+    """
+    from akc_drake.operator.asf_amc import AMCMotion
+    from akc_drake.operator.bvh import BVHMotion
+
+    names = dict(names or {})
+    if isinstance(motion, BVHMotion):
+        R, p = motion.global_transforms()
+        parents = np.array([j.parent for j in motion.joints])
+        rig = [None if j.end_site else names.get(j.name, BVH_ALIASES.get(j.name, j.name)) for j in motion.joints]
+        rig = [f"{rig[j.parent]}_end" if j.end_site and rig[j.parent] else r
+               for j, r in zip(motion.joints, rig, strict=True)]
+    elif isinstance(motion, AMCMotion):
+        R, start, end = motion.global_transforms()
+        clip_names = list(motion.joint_names)
+        skel = motion.skeleton
+        parents = [-1] + [clip_names.index(skel.parents[b]) for b in clip_names[1:]]
+        has_child = {skel.parents[b] for b in clip_names[1:]}
+        leaves = [i for i, b in enumerate(clip_names) if i > 0 and b not in has_child]
+        R = np.concatenate([R, R[:, leaves]], axis=1)  # a leaf bone's end joint (its rotation is not used)
+        p = np.concatenate([start, end[:, leaves]], axis=1)
+        rig = [names.get(b, ASF_TO_RIG.get(b.lower())) for b in clip_names]
+        rig += [f"{rig[i]}_end" if rig[i] else None for i in leaves]
+        parents = np.array(parents + leaves)
+    else:
+        raise TypeError(f"motion must be a BVHMotion or an AMCMotion, got {type(motion).__name__}")
+    return rig, parents, R, p, motion.frame_time
+
+
+def clip_rotations(
+    motion,
+    *,
+    rate_hz: float = 10.0,
+    names: dict | None = None,
+    up: str = "y",
+    source: str | None = None,
+    rig_children: dict | None = None,
+) -> ClipRotations:
+    """The rig bones' rotations of a parsed clip (steps 1-2 of the module's recipe), resampled to ``rate_hz``.
+
+    Args:
+        motion: a BVHMotion or an AMCMotion (CMU names, or ``names`` mapping them to the rig's).
+        rate_hz: the camera rate (sample times ``k / rate_hz``, as
+            :func:`~akc_drake.operator.retarget.retarget_positions`).
+        names: optional clip name -> rig bone name overrides.
+        up: the clip's up axis ("x", "y" or "z"; BVH and CMU data are Y up).
+        source: the file, for messages.
+        rig_children: ``{bone: child}``: which rig child's joint ends each bone's segment (default:
+            :data:`RIG_TAIL_CHILD`, the CMU-MB rig's).
+
+    Raises:
+        UserError: the clip lacks a bone of :data:`REQUIRED_BONES` (naming the file and the bone), or is
+            shorter than one sample period.
+    """
+    from akc_drake.operator.retarget import resample_times
+
+    source = source or getattr(motion, "name", "clip")
+    rig, parents, R, p, frame_time = clip_skeleton(motion, names)
+    index = {r: i for i, r in enumerate(rig) if r}
+    missing = [b for b in REQUIRED_BONES if b not in index]
+    if missing:
+        raise UserError(
+            f"{source}: no bone {missing[0]} (nor its CMU ASF name) to drive the CMU-MB rig with; "
+            "use the default --drive angles, or a clip with CMU bone names"
+        )
+    children = RIG_TAIL_CHILD if rig_children is None else rig_children
+    # The clip's world -> O, from its rest pose (R = identity): z up, y from the right to the left shoulder.
+    rest = np.zeros((len(rig), 3))
+    for j, par in enumerate(parents):
+        if par >= 0:
+            rest[j] = rest[par] + R[0, par].T @ (p[0, j] - p[0, par])
+    z = np.eye(3)["xyz".index(str(up).lower())]
+    y = rest[index["LeftArm"]] - rest[index["RightArm"]]
+    y = y - (y @ z) * z
+    if np.linalg.norm(y) < _MIN_SEGMENT_M:
+        raise UserError(f"{source}: the rest pose's shoulders coincide; cannot tell the body's left")
+    y /= np.linalg.norm(y)
+    P = np.stack([np.cross(y, z), y, z])  # rows: O's axes in the clip's world
+    bones = tuple(r for r in rig if r and not r.endswith("_end"))
+    dirs = np.full((len(bones), 3), np.nan)
+    for k, b in enumerate(bones):
+        j = index[b]
+        tail = index.get(children.get(b, ""), index.get(f"{b}_end"))
+        if tail is not None and parents[tail] == j:
+            dirs[k] = _unit(P @ (rest[tail] - rest[j]))
+    # Resample every bone's rotation at the camera's times (Slerp), then into O without the heading.
+    t_in = np.arange(R.shape[0]) * float(frame_time)
+    t_out = resample_times(t_in[-1], rate_hz)
+    if len(t_out) < 2:
+        raise UserError(
+            f"{source}: the motion lasts {t_in[-1]:.3g} s, shorter than one sample period at {rate_hz:g} Hz"
+        )
+    rots = []
+    for b in bones:
+        r = Rotation.from_matrix(R[:, index[b]])
+        rots.append((Slerp(t_in, r)(t_out) if len(t_in) > 1 else r).as_matrix())
+    G = np.einsum("ij,tnjk,lk->tnil", P, np.stack(rots, axis=1), P)
+    fwd = G[:, bones.index("Hips"), :, 0]
+    heading = Rotation.from_euler("z", -np.arctan2(fwd[:, 1], fwd[:, 0])[:, None]).as_matrix()
+    G = np.einsum("tij,tnjk->tnik", heading, G)
+    name = getattr(motion, "name", "clip")
+    return ClipRotations(t_out, bones, G, dirs, name, source)
+
+
+#: The CMU-MB rig's bone -> the child whose head is the bone's tail (where a clip's segment of it ends).
+RIG_TAIL_CHILD = {
+    "Hips": "LowerBack",
+    "LowerBack": "Spine",
+    "Spine": "Spine1",
+    "Spine1": "Neck",
+    "Neck": "Neck1",
+    "Neck1": "Head",
+    **{
+        f"{S}{bone}": child.format(S=S, s=S[0])
+        for S in ("Left", "Right")
+        for bone, child in (
+            ("Shoulder", "{S}Arm"),
+            ("Arm", "{S}ForeArm"),
+            ("ForeArm", "{S}Hand"),
+            ("Hand", "{S}FingerBase"),
+            ("FingerBase", "{S}HandFinger1"),
+            ("UpLeg", "{S}Leg"),
+            ("Leg", "{S}Foot"),
+            ("Foot", "{S}ToeBase"),
+        )
+    },
+    "LHipJoint": "LeftUpLeg",
+    "RHipJoint": "RightUpLeg",
+}
+
+
+def read_clip(path, skeleton=None, *, rate_hz: float = 10.0, names: dict | None = None, window_s=None,
+              name: str | None = None) -> ClipRotations:
+    """:func:`clip_rotations` of a ``.bvh`` file, or an ``.amc`` file with its ``.asf`` ``skeleton``.
+
+    Raises:
+        UserError: an unreadable file, a wrong suffix, or a clip the rig cannot take (naming the file).
+    """
+    from akc_drake.operator.asf_amc import read_amc, read_asf
+    from akc_drake.operator.bvh import read_bvh
+
+    path = os.fspath(path)
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix == ".bvh":
+        motion = read_bvh(path)
+    elif suffix == ".amc":
+        if skeleton is None:
+            raise UserError(f"{path}: an AMC motion needs its ASF skeleton (--skeleton FILE.asf)")
+        motion = read_amc(path, read_asf(skeleton))
+    else:
+        raise UserError(f"{path}: the rig drive reads .bvh, or .amc with an .asf, not {suffix or '(none)'!r}")
+    clip = clip_rotations(motion, rate_hz=rate_hz, names=names, source=path)
+    return clip.window(window_s, name) if window_s else clip
+
+
+def _align(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit ``u`` onto unit ``v`` (3, 3)."""
+    if np.dot(u, v) < -1.0 + 1e-12:  # opposite: half a turn about any axis across u
+        axis = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+        return Rotation.from_rotvec(math.pi * axis / np.linalg.norm(axis)).as_matrix()
+    rot, _ = Rotation.align_vectors(v[None], u[None])
+    return rot.as_matrix()
+
+
+def rest_alignments(clip: ClipRotations, bones, parents, rest_heads, rest_tails) -> np.ndarray:
+    """``(B, 3, 3)`` each rig bone's rest alignment ``A``: the smallest rotation taking its rest direction onto
+    the clip's rest direction of the same bone; a bone without a direction (in the rig or in the clip) keeps
+    its parent's (so it keeps its rest pose relative to the parent), the root the identity."""
+    A = np.empty((len(bones), 3, 3))
+    for b, name in enumerate(bones):
+        A[b] = A[parents[b]] if parents[b] >= 0 else np.eye(3)
+        if name in clip.bones:
+            v = clip.rest_dirs[clip.bones.index(name)]
+            u = rest_tails[b] - rest_heads[b]
+            if np.all(np.isfinite(v)) and np.linalg.norm(u) > _MIN_SEGMENT_M:
+                A[b] = _align(u / np.linalg.norm(u), v)
+    return A
+
+
+def rig_world_rotations(clip: ClipRotations, bones, parents, rest_heads, rest_tails) -> np.ndarray:
+    """``(T, B, 3, 3)`` each rig bone's world rotation from the rig's rest (step 3 of the module's recipe):
+    ``G = D A`` (:func:`rest_alignments`); a rig bone the clip lacks moves rigidly with its parent.
+
+    Args:
+        clip: the clip's rotations.
+        bones: the rig's bone names (parents first); ``parents`` ``(B,)`` their parents (-1: the root).
+        rest_heads, rest_tails: ``(B, 3)`` the rig's rest bone ends in O.
+    """
+    A = rest_alignments(clip, bones, parents, rest_heads, rest_tails)
+    G = np.empty((len(clip.times), len(bones), 3, 3))
+    for b, name in enumerate(bones):
+        if name in clip.bones:
+            G[:, b] = clip.rotations[:, clip.bones.index(name)] @ A[b]
+        else:
+            G[:, b] = G[:, parents[b]] if parents[b] >= 0 else np.eye(3)
+    return G
+
+
+def rig_maps(G: np.ndarray, parents, rest_heads) -> np.ndarray:
+    """``(T, B, 3, 4)`` rest -> posed bone maps from world rotations ``G`` ``(T, B, 3, 3)`` (step 4): the root's
+    head stays where it is at rest, every other head is carried by its parent's map."""
+    T, B = G.shape[:2]
+    maps = np.empty((T, B, 3, 4))
+    heads = np.empty((T, B, 3))
+    for b in range(B):
+        par = parents[b]
+        h = rest_heads[b]
+        heads[:, b] = h if par < 0 else np.einsum("tij,j->ti", maps[:, par, :, :3], h) + maps[:, par, :, 3]
+        maps[:, b, :, :3] = G[:, b]
+        maps[:, b, :, 3] = heads[:, b] - G[:, b] @ h
+    return maps
+
+
+class RigDrive:
+    """A clip's rig maps and true landmarks on one :class:`~akc_drake.operator.skinned.SkinnedOperator`.
+
+    Args:
+        clip: the clip's rotations (:func:`read_clip`).
+        body: the skinned operator (its reshaped rest rig).
+
+    Attributes:
+        times: ``(T,)`` sample times (from 0).
+        maps: ``(T, B, 3, 4)`` rest -> posed bone maps.
+        landmarks_O: ``(T, 12, 3)`` true landmarks in O (the posed rig's joint centres and knuckles).
+    """
+
+    def __init__(self, clip: ClipRotations, body):
+        a = body.assets
+        heads, tails = body.rest_bones()
+        G = rig_world_rotations(clip, a.bones, a.parents, heads, tails)
+        self.clip = clip
+        self.times = clip.times
+        self.maps = rig_maps(G, a.parents, heads)
+        self.landmarks_O = body.landmarks_from_maps(self.maps)
+
+    def index(self, t: float) -> int:
+        """The sample nearest to time ``t`` (seconds from the clip's start, clamped)."""
+        period = float(self.times[1] - self.times[0])
+        return int(np.clip(np.rint((float(t) - self.times[0]) / period), 0, len(self.times) - 1))
+
+    def maps_at(self, t: float) -> np.ndarray:
+        """``(B, 3, 4)`` the bone maps of the sample nearest to ``t``."""
+        return self.maps[self.index(t)]
+
