@@ -196,3 +196,39 @@ def test_the_torso_is_held_while_the_detector_moves_the_hips_and_follows_a_step(
     expected = F.robot_targets(stepped, m, torso=model.torso(stepped))[0]
     np.testing.assert_allclose(moves[-1], expected[:3, 3], atol=m.scale * sm.TORSO_HOLD.settle_m + 1e-6)
     assert s[t.state_size - sm.HOLD_STATE_SIZE + 9] == 0.0  # held again
+
+
+def test_hands_knuckles_replace_the_pose_hand_points_and_a_missed_frame_keeps_the_last():
+    from akc_drake.core.camera import CameraIntrinsics
+    from akc_drake.core.control_frames import hands_knuckle_vector
+
+    K = CameraIntrinsics()
+    pose = camera_pose()
+    m = F.RobotMapping.default()
+    truth = F.robot_targets(pose, m)
+    wrong = pose.copy()  # the pose model's hand points turned 90 deg about the forearm
+    for side in ("left", "right"):
+        w = pose[INDEX[f"{side}_wrist"]]
+        i, p = pose[INDEX[f"{side}_index"]] - w, pose[INDEX[f"{side}_pinky"]] - w
+        c, d = 0.5 * (i + p), 0.5 * (i - p)
+        wrong[INDEX[f"{side}_index"]] = w + c + [d[2], 0.0, 0.0]
+        wrong[INDEX[f"{side}_pinky"]] = w + c - [d[2], 0.0, 0.0]
+    # Hands' landmarks of the true knuckles: pixels, and a relative depth on u's scale (pixels).
+    knuckles = np.zeros((2, 3))
+    for k, side in enumerate(("left", "right")):
+        hand = np.full((21, 3), np.nan)
+        for j, name in ((5, "index"), (17, "pinky")):
+            x, y, z = pose[INDEX[f"{side}_{name}"]]
+            hand[j] = [K.fx * x / z + K.cx, K.fy * y / z + K.cy, K.fx * (z - 2.0) / 2.0]
+        knuckles[k] = hands_knuckle_vector(hand, K)
+    t = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None)
+    s, with_hands, _, _ = t.step(t.initial_state(), 0.0, wrong, knuckles)
+    _, without, _, _ = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None).step(
+        t.initial_state(), 0.0, wrong)
+    for k in range(2):
+        assert F.rotation_angle(truth[k][:3, :3].T @ with_hands[k][:3, :3]) < np.radians(3.0)
+        assert F.rotation_angle(truth[k][:3, :3].T @ without[k][:3, :3]) > np.radians(30.0)
+    # Hands misses both hands in the next frame: the last hand vector is kept (not the pose's wrong points).
+    s, missed, _, _ = t.step(s, 0.1, wrong, np.full((2, 3), np.nan))
+    for k in range(2):
+        assert F.rotation_angle(truth[k][:3, :3].T @ missed[k][:3, :3]) < np.radians(3.0)
