@@ -158,3 +158,26 @@ def test_workspace_clip_is_reported():
     assert ws["left"].contains(X[:3, 3], tol=1e-6)
     assert np.linalg.norm(X[:3, 3] - ws["left"].shoulder) == pytest.approx(ws["left"].r_max)
     np.testing.assert_array_equal(fm.GetOutputPort("workspace_clipped").Eval(ctx), [1.0, 0.0])
+
+
+def test_hand_knuckles_port_is_used_when_connected():
+    """The optional hand_knuckles port (MediaPipe Hands): unconnected, the pose's hand points make the frame; fed
+    a knuckle vector turned about the forearm, the wrist frame turns with it."""
+    pose = camera_pose()
+    plain = FrameMapper(period_s=PERIOD, robust_wrist=True)
+    fm = FrameMapper(period_s=PERIOD, robust_wrist=True, hand_knuckles_input=True)
+    assert fm.GetInputPort("hand_knuckles").size() == 6
+    out = {}
+    for name, system, knuckles in (("plain", plain, None), ("unconnected", fm, None), ("fed", fm, "turned")):
+        sim, ctx = _sim(system)
+        system.get_input_port(0).FixValue(ctx, pose.reshape(36))
+        if knuckles is not None:
+            kn = np.zeros((2, 3))
+            for k, side in enumerate(("left", "right")):
+                h = pose[INDEX[f"{side}_index"]] - pose[INDEX[f"{side}_pinky"]]
+                kn[k] = np.array([h[1], -h[0], h[2]]) / pose[INDEX[f"{side}_wrist"], 2]  # 90 deg in the image
+            system.GetInputPort("hand_knuckles").FixValue(ctx, kn.reshape(6))
+        sim.AdvanceTo(0.05)
+        out[name] = _X(system.GetOutputPort("X_TE_desired_left"), ctx)
+    np.testing.assert_allclose(out["unconnected"], out["plain"], atol=1e-12)
+    assert F.rotation_angle(out["plain"][:3, :3].T @ out["fed"][:3, :3]) > np.radians(20.0)

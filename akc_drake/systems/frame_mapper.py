@@ -86,6 +86,10 @@ class FrameMapper(LeafSystem):
             teleop diagram.
         torso_hold: :class:`~akc_drake.core.smoothing.HoldParams`: the torso held still while the operator stands
             (None: off; the teleop diagram uses :data:`~akc_drake.core.smoothing.TORSO_HOLD`).
+        hand_knuckles_input: declare an input port ``hand_knuckles`` (6: left, right), MediaPipe Hands' knuckle
+            vectors in normalised image units
+            (:func:`~akc_drake.core.control_frames.hands_knuckle_vector`, NaN where no hand), used in place of the
+            pose's two hand points when connected.
     """
 
     def __init__(
@@ -103,6 +107,7 @@ class FrameMapper(LeafSystem):
         workspace: dict | None = None,
         robust_wrist: bool = False,
         torso_hold: smoothing.HoldParams | None = None,
+        hand_knuckles_input: bool = False,
     ):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0.0):
@@ -128,6 +133,7 @@ class FrameMapper(LeafSystem):
             self._home[side] = _as_rigid_transform(X, f"X_TE_home_{side}")
 
         self._input = self.DeclareVectorInputPort("landmarks_C", BasicVector(POSE_SIZE))
+        self._hands = self.DeclareVectorInputPort("hand_knuckles", BasicVector(6)) if hand_knuckles_input else None
         self._X_state = {
             side: self.DeclareAbstractState(AbstractValue.Make(RigidTransform(self._home[side])))
             for side in SIDES
@@ -160,7 +166,10 @@ class FrameMapper(LeafSystem):
     def _update(self, context, state) -> None:
         pose = self._input.Eval(context).reshape(NUM_LANDMARKS, 3)
         s = context.get_discrete_state(self._tracker_state).get_value()
-        s, targets, lost, clipped = self._tracker.step(s, context.get_time(), pose)
+        knuckles = None
+        if self._hands is not None and self._hands.HasValue(context):
+            knuckles = self._hands.Eval(context).reshape(2, 3)
+        s, targets, lost, clipped = self._tracker.step(s, context.get_time(), pose, knuckles)
         for side, X in zip(SIDES, targets, strict=True):
             if X is not None:
                 state.get_mutable_abstract_state(self._X_state[side]).set_value(_to_rigid_transform(X))
