@@ -270,8 +270,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(module.main(args) or 0)
-    except (UserError, ValueError, FileNotFoundError) as e:
-        msg = str(e) if not isinstance(e, FileNotFoundError) or not e.filename else f"{e.filename}: {e.strerror}"
+    except (UserError, ValueError, OSError) as e:
+        if isinstance(e, OSError) and not e.filename:
+            raise  # not a path the user gave (a socket, a worker): a bug or an environment problem, with its traceback
+        msg = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) else str(e)
         print(f"akc-drake {args.command}: error: {msg}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -128,3 +128,41 @@ def test_graph_out_is_a_file(tmp_path, capsys):
     assert cli.main(["graph", "--diagram", "mocap", "--out", str(f / "sub")]) == 2
     assert "not a folder" in capsys.readouterr().err
     assert f.read_text() == "{}"
+
+
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["run", "--json", "{dir}"], "--json"),
+        (["run", "--json", "{file}/x.json"], "--json"),
+        (["run", "--out", "{file}"], "--out"),
+        (["soak", "--minutes", "0.05", "--json", "{dir}"], "--json"),
+        (["demo", "--quick", "--body", "primitive", "--detector", "sim", "--json", "{dir}"], "--json"),
+        (["demo", "--quick", "--body", "primitive", "--detector", "sim", "--html", "{file}/t.html"], "--html"),
+        (["demo", "--quick", "--body", "primitive", "--detector", "sim", "--out", "{file}"], "--out"),
+        (["calibrate", "--out", "{file}/dims.json"], "--out"),
+        (["sweep", "--json", "{dir}"], "--json"),
+        (["sweep", "--out", "{file}"], "--out"),
+    ],
+)
+def test_unwritable_outputs_fail_before_the_work(argv, flag, tmp_path, capsys):
+    """An output path that cannot be written is one line naming the flag, exit 2, before anything runs
+    (it used to be a traceback after the run, losing its results)."""
+    taken = tmp_path / "taken.txt"
+    taken.write_text("keep")
+    argv = [a.format(dir=tmp_path, file=taken) for a in argv]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"error: {flag} " in err, err
+    assert taken.read_text() == "keep"
+
+
+def test_os_error_on_a_path_is_one_line(monkeypatch, capsys):
+    import akc_drake.commands.graph as graph
+
+    def fail(args):
+        raise IsADirectoryError(21, "Is a directory", "/some/out.json")
+
+    monkeypatch.setattr(graph, "main", fail)
+    assert cli.main(["graph", "--diagram", "mocap", "--out", "x"]) == 2
+    assert capsys.readouterr().err == "akc-drake graph: error: /some/out.json: Is a directory\n"

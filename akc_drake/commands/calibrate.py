@@ -17,6 +17,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from akc_drake.commands._common import check_output_file
 from akc_drake.errors import UserError
 from akc_drake.pipeline.calibration import MIN_FRAMES, MIN_VALID_FRAMES, check_frames, min_valid_frames
 
@@ -43,6 +44,7 @@ def main(args) -> int:
     out = Path(args.out)
     if out.exists() and out.is_dir():
         raise UserError(f"--out {out}: is a folder; give a file name such as dims.json")
+    check_output_file(args.out, "--out")
     cfg = _config(args)
     cal = calibrate_on_source(
         cfg,

@@ -71,8 +71,12 @@ def _serve(meshcat) -> None:
 def main(args) -> int:
     """Run ``akc-drake demo`` with parsed ``args`` (see ``akc_drake.cli``); returns the exit code."""
     from akc_drake import teleop
+    from akc_drake.commands._common import check_output_dir, check_output_file
 
     opts = options_from_args(args)
+    check_output_dir(args.out, "--out")
+    for flag, path in (("--json", args.json), ("--html", args.html), ("--ros2-bag", getattr(args, "ros2_bag", None))):
+        check_output_file(path, flag)
     if args.meshcat:
         meshcat, err = teleop._make_meshcat()
         if meshcat is None:

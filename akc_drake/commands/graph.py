@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
-from akc_drake.errors import UserError
+from akc_drake.commands._common import check_output_dir
 from akc_drake.graphs import write_graph
 
 
@@ -22,20 +21,8 @@ def build_named_diagram(name: str):
     raise ValueError(f"--diagram must be mocap or teleop, got {name!r}")
 
 
-def _check_out(out: str) -> None:
-    """``--out`` must be a folder (or not exist yet): fail before building the diagram."""
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    for parent in path.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise UserError(f"--out {out}: {parent} is not a folder")
-            break
-
-
 def main(args) -> int:
-    _check_out(args.out)
+    check_output_dir(args.out, "--out")
     diagram = build_named_diagram(args.diagram)
     paths = write_graph(diagram, args.out, args.diagram)
     print(f"wrote {paths['dot']}")

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from akc_drake.commands._common import check_output_dir, check_output_file
 from akc_drake.core.skeleton import SEGMENT_NAMES
 from akc_drake.errors import UserError
 from akc_drake.fileio import write_json
@@ -70,6 +71,9 @@ def main(args) -> int:
 
     cfg = _config(args)
     kind = source_kind(cfg.source)
+    out_dir = Path(args.out) if args.out else (Path(args.json).parent if args.json else Path("out/run"))
+    check_output_file(args.json, "--json")
+    check_output_dir(str(out_dir), "--out" if args.out else "the poses.npz folder")
     lcm = _interop_checks(args)
     inputs = open_inputs(
         cfg,
@@ -102,7 +106,6 @@ def main(args) -> int:
             file=sys.stderr,
         )
     summary = run_summary(cfg, inputs, built, result, teleop=bool(args.teleop), depth_m=args.depth)
-    out_dir = Path(args.out) if args.out else (Path(args.json).parent if args.json else Path("out/run"))
     from akc_drake.pipeline.export import imu_up_for_source
 
     summary["poses_npz"] = str(save_poses(out_dir, result.log, dims=built.dims, up_C=imu_up_for_source(cfg.source)))

@@ -15,8 +15,10 @@ __all__ = ["MAX_POSITION_VARIANCE_M2", "MAX_RSS_GROWTH_MB", "main", "run_soak", 
 
 def main(args) -> int:
     """Run ``akc-drake soak`` with parsed ``args`` (see ``akc_drake.cli``); returns the exit code."""
+    from akc_drake.commands._common import check_output_file
     from akc_drake.fileio import write_json
 
+    check_output_file(args.json, "--json")
     summary = run_soak(args.minutes, motion=args.motion, dropout=args.dropout, garbage=args.garbage,
                        seed=args.seed, sample_s=args.sample_s, progress=sys.stderr.isatty())
     if args.json:

@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+from akc_drake.commands._common import check_output_dir, check_output_file
 from akc_drake.errors import UserError
 
 
@@ -34,10 +35,8 @@ def main(args) -> int:
     if args.jobs < 1:
         raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     scheduler = check_scheduler(getattr(args, "scheduler", "local"))
-    if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
-        raise UserError(f"--out {args.out}: exists and is not a folder")
-    if args.json and Path(args.json).is_dir():
-        raise UserError(f"--json {args.json}: is a folder, expected a file name")
+    check_output_dir(args.out, "--out")
+    check_output_file(args.json, "--json")
     motions = ("I", "II") if args.motion == "both" else (args.motion,)
     config = ExperimentConfig(
         motions=motions, cycles=args.cycles, seed=args.seed, calibration_study=False, weight_study=False
