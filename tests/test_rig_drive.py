@@ -181,3 +181,28 @@ def test_bad_bone_names_name_the_file(tmp_path):
         read_clip(bad)
     with pytest.raises(UserError, match="needs its ASF skeleton"):
         read_clip(AMC)
+
+
+def test_render_session_drives_the_rendered_body_and_the_truth(body):
+    """``render_session(..., rig_clip=...)``: the truth is the posed rig's (in C), the simulated detector finds
+    the joints where the rendered body is (its depth within a few cm of the truth's surface), and the angle
+    path's truth differs (its shoulders never move)."""
+    from akc_drake.evaluation.cache import window_motion
+    from akc_drake.operator.retarget import load_motion_file
+    from akc_drake.systems.session_render import render_session
+
+    win = [10.0, 10.3]
+    motion = window_motion(load_motion_file(BVH), win, "cmu")
+    rig = render_session(motion, body="skinned", rig_clip={"path": str(BVH), "window_s": win})
+    ang = render_session(motion, body="skinned")
+    drive = RigDrive(read_clip(BVH, window_s=win), body)
+    X = np.linalg.inv(rig.X_OC)
+    np.testing.assert_allclose(rig.truth, drive.landmarks_O @ X[:3, :3].T + X[:3, 3], atol=1e-9)
+    sh = LANDMARKS.index("left_shoulder")
+    assert np.linalg.norm(rig.truth[0, sh] - ang.truth[0, sh]) > 0.03
+    # The depth read at the visible joints' pixels lies on the rig-driven body, not on the angle-driven one.
+    joints = [LANDMARKS.index(f"{s}_{j}") for s in ("left", "right") for j in ("shoulder", "elbow")]
+    err = np.nanmedian(np.abs(rig.raw[:, joints, 2] - rig.truth[:, joints, 2]))
+    assert err < 0.05
+    with pytest.raises(UserError, match="--body skinned"):
+        render_session(motion, rig_clip={"path": str(BVH), "window_s": win})

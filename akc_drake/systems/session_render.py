@@ -105,6 +105,27 @@ def make_detector(detector, seed: int = 0, pose_model=None) -> Detector:
     return detector
 
 
+def rig_drive_for(rig_clip: dict, motion: OperatorMotion, skinned):
+    """The :class:`~akc_drake.operator.rig_drive.RigDrive` of ``rig_clip`` (``{"path", "skeleton",
+    "window_s"}``) on the skinned body, sampled at ``motion``'s frame times.
+
+    Raises:
+        UserError: no skinned body (``--drive rig`` needs ``--body skinned``), or a clip the rig cannot take.
+    """
+    from akc_drake.errors import UserError
+    from akc_drake.operator.rig_drive import RigDrive, read_clip
+
+    if skinned is None:
+        raise UserError(f"{rig_clip.get('path')}: the rig drive needs the skinned body (--body skinned)")
+    rate = 1.0 / float(motion.times[1] - motion.times[0])
+    clip = read_clip(rig_clip["path"], rig_clip.get("skeleton"), rate_hz=rate, window_s=rig_clip.get("window_s"),
+                     name=motion.name)
+    t = motion.times - motion.start
+    if len(clip.times) != len(t) or not np.allclose(clip.times, t, atol=1e-6):
+        raise ValueError(f"{rig_clip['path']}: the clip's samples ({len(clip.times)}) are not the motion's ({len(t)})")
+    return RigDrive(clip, skinned)
+
+
 def render_session(
     motion: OperatorMotion,
     intrinsics: CameraIntrinsics | None = None,
@@ -121,6 +142,7 @@ def render_session(
     background_wall_m: float | None = 1.5,
     window: int = 5,
     surface_offset_m=None,
+    rig_clip: dict | None = None,
 ) -> Session:
     """Render ``motion`` frame by frame and extract raw landmarks, without a simulator.
 
@@ -150,6 +172,10 @@ def render_session(
         surface_offset_m: the extractor's surface-to-centre depth offsets
             (:func:`~akc_drake.core.landmark_extraction.surface_offsets`; None: the same defaults as
             :class:`~akc_drake.systems.landmark_extractor.LandmarkExtractor`, 0: off).
+        rig_clip: ``{"path", "skeleton", "window_s"}`` of the CMU clip ``motion`` was retargeted from: the
+            skinned body is then driven by the clip bone by bone (:mod:`akc_drake.operator.rig_drive`: spine,
+            clavicles, neck and head move too) and the truth is the posed rig's; ``motion`` only sets the
+            frame times. None: the body follows ``motion``'s 10 angles.
 
     Returns:
         A :class:`Session`.
@@ -177,6 +203,11 @@ def render_session(
         background_wall_m=background_wall_m,
         body=body,
     )
+    drive = None if rig_clip is None else rig_drive_for(rig_clip, motion, source.skinned)
+    if drive is not None:
+        source.skinned_system.drive_rig(drive)
+        X_CO = source.X_OC.inverse()
+        R_CO, p_CO = X_CO.rotation().matrix(), X_CO.translation()
     context = source.CreateDefaultContext()
     sensor_ctx = source.sensor.GetMyContextFromRoot(context)
     noise_ctx = source.noise_system.GetMyContextFromRoot(context)
@@ -203,7 +234,10 @@ def render_session(
         color = np.ascontiguousarray(color_port.Eval(sensor_ctx).data[:, :, :3]) if render_color else black
         depth = depth_port.Eval(noise_ctx).data[:, :, 0].copy()
         label = label_port.Eval(sensor_ctx).data[:, :, 0].copy() if need_label else None
-        truth[k] = truth_port.Eval(truth_ctx).reshape(NUM_LANDMARKS, 3)
+        if drive is None:
+            truth[k] = truth_port.Eval(truth_ctx).reshape(NUM_LANDMARKS, 3)
+        else:
+            truth[k] = drive.landmarks_O[drive.index(t)] @ R_CO.T + p_CO
         t1 = time.perf_counter()
         frame = CameraFrame(
             color=color, depth_m=depth, t=float(t), intrinsics=K, truth_C=truth[k], label=label

@@ -115,6 +115,7 @@ class SkinnedBody(LeafSystem):
         super().__init__()
         self.body = body
         self._motion = None
+        self._rig = None
         self.follow_hands(motion if motion is not None else _HANDS_MOTION.get())
         self._ids = dict(geometry_ids)
         X = X_WO if X_WO is not None else RigidTransform()
@@ -132,12 +133,25 @@ class SkinnedBody(LeafSystem):
             "landmarks_true_W",
             3 * NUM_LANDMARKS,
             self._calc_landmarks,
-            prerequisites_of_calc={self._q.ticket()},
+            prerequisites_of_calc={self._q.ticket(), self.time_ticket()},
         )
 
     def follow_hands(self, motion) -> None:
         """Close the hands as ``motion``'s ``hand_closed`` says (None: relaxed hands)."""
         self._motion = motion if getattr(motion, "hand_closed", None) is not None else None
+
+    def drive_rig(self, drive) -> None:
+        """Pose the body from a clip's rig maps instead of ``q``: a
+        :class:`~akc_drake.operator.rig_drive.RigDrive` on this body (its sample nearest to the diagram time;
+        every bone moves: spine, clavicles, neck, head), and take the true landmarks from it. None: back to ``q``."""
+        self._rig = drive
+
+    def rig_configuration(self, t: float) -> dict[str, np.ndarray]:
+        """``{region: (n, 3)}`` world-frame shell vertices of the rig-driven body at diagram time ``t``."""
+        P = self.body.posed_points_from_maps(self._rig.maps_at(t), out=self._buffer)
+        if not np.array_equal(self._R, np.eye(3)) or np.any(self._p):
+            P = P @ self._R.T + self._p
+        return self.body.region_points(P)
 
     def closure(self, t: float):
         """``(2,)`` hand closure at diagram time ``t`` (None without a motion's closure)."""
@@ -154,10 +168,17 @@ class SkinnedBody(LeafSystem):
 
     def _calc_configuration(self, context, output):
         value = GeometryConfigurationVector()
-        for name, pts in self.configuration(self._q.Eval(context), self.closure(context.get_time())).items():
+        if self._rig is not None:
+            regions = self.rig_configuration(context.get_time())
+        else:
+            regions = self.configuration(self._q.Eval(context), self.closure(context.get_time()))
+        for name, pts in regions.items():
             value.set_value(self._ids[name], pts.ravel())
         output.set_value(value)
 
     def _calc_landmarks(self, context, output):
-        lm = self.body.landmarks_O(self._q.Eval(context)[None])[0]
+        if self._rig is not None:
+            lm = self._rig.landmarks_O[self._rig.index(context.get_time())]
+        else:
+            lm = self.body.landmarks_O(self._q.Eval(context)[None])[0]
         output.SetFromVector((lm @ self._R.T + self._p).ravel())
