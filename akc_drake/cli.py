@@ -149,6 +149,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "improvements (default: paper)")
     p.add_argument("--motion-dir", metavar="DIR", help="evaluate on every real mocap clip of DIR (e.g. data/mocap "
                    "from 'make mocap-data'): per-clip and pooled tables, a plot per clip and method")
+    p.add_argument("--drive", default="angles", choices=("angles", "rig"),
+                   help="how a CMU clip (--motion-file or --motion-dir) poses --body skinned: angles (the "
+                   "operator's 10 arm angles, torso fixed; default) or rig (bone by bone: spine, clavicles, neck, "
+                   "head too; the clips' per-clip tables)")
     p.add_argument("--export", metavar="FMT[,FMT]", help="also write every method's skeleton to --out/exports as "
                    "bvh | trc | c3d | csv, and the RTS smoother's gain (rts_gain.json)")
     p.add_argument("--export-frame", default="world", choices=("world", "camera"), help="frame of --export files")
@@ -200,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--meshcat", action="store_true", help="with --teleop: serve Meshcat on localhost")
     p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources; default: "
                    "the whole source)")
-    p.add_argument("--out", metavar="DIR", help="where to write poses.npz (default: next to --json)")
+    p.add_argument("--out", metavar="DIR", help="where to write poses.npz (default: --json's folder, else out/run)")
     p.add_argument("--export", metavar="FMT[,FMT]", help="also write the raw, filtered and corrected skeletons to "
                    "--out as bvh | trc | c3d | csv (see 'akc-drake export')")
     p.add_argument("--export-frame", default="world", choices=("world", "camera"), help="frame of --export files")

@@ -124,6 +124,24 @@ def _export(ev, args) -> None:
                   f"RTS {g['rts_rmse_cm']:.2f} cm (coverage {g['coverage']:.0%})")
 
 
+def _rig_clips(args) -> list | None:
+    """``--drive rig``: the clip of ``--motion-file`` (evaluated as a one-clip motion set), or None for
+    ``--motion-dir``'s clips."""
+    if getattr(args, "body", "primitive") != "skinned":
+        raise UserError("--drive rig: the rig is the skinned body's; add --body skinned")
+    if getattr(args, "motion_file", None):
+        if getattr(args, "motion_dir", None):
+            raise UserError("--motion-file: not used with --motion-dir")
+        mf, sk = _motion_file_options(args)
+        from akc_drake.operator.rig_drive import read_clip
+
+        read_clip(mf, sk)  # a clip the rig cannot take is one line before the calibration renders
+        return [{"name": Path(mf).stem, "path": mf, "skeleton": sk, "window_s": None, "names": None}]
+    if not getattr(args, "motion_dir", None):
+        raise UserError("--drive rig: give the CMU clip, --motion-file CLIP (or --motion-dir DIR)")
+    return None
+
+
 def run_motion_dir(args) -> int:
     """``evaluate --motion-dir DIR``: every method on every real mocap clip; per-clip and pooled tables."""
     from akc_drake.evaluation.executor import check_scheduler
@@ -137,8 +155,10 @@ def run_motion_dir(args) -> int:
     )
     from akc_drake.evaluation.report import format_table, write_json, write_tables
 
+    drive = getattr(args, "drive", "angles")
+    clips = _rig_clips(args) if drive == "rig" else None
     for opt in ("motion_file", "skeleton"):
-        if getattr(args, opt, None):
+        if getattr(args, opt, None) and clips is None:
             raise UserError(f"--{opt.replace('_', '-')}: not used with --motion-dir")
     try:
         methods = DEFAULT_METHODS if args.methods is None else parse_methods(args.methods)
@@ -152,11 +172,12 @@ def run_motion_dir(args) -> int:
     workers = getattr(args, "workers", None)
     if workers is not None and workers < 1:
         raise UserError(f"--workers must be at least 1, got {workers}")
-    find_clips(args.motion_dir)
+    if clips is None:
+        find_clips(args.motion_dir)
     scheduler = check_scheduler(getattr(args, "scheduler", "local"))
     result = evaluate_motion_dir(args.motion_dir, methods=methods, seed=args.seed, protocol=args.protocol,
                                  weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
-                                 scheduler=scheduler, n_workers=workers)
+                                 scheduler=scheduler, n_workers=workers, drive=drive, clips=clips)
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))
@@ -180,7 +201,7 @@ def run_motion_dir(args) -> int:
 def main(args) -> int:
     from akc_drake.evaluation.report import format_table, write_evaluation, write_json
 
-    if getattr(args, "motion_dir", None):
+    if getattr(args, "motion_dir", None) or getattr(args, "drive", "angles") == "rig":
         return run_motion_dir(args)
     config = build_config(args)
     _check_outputs(args)

@@ -101,6 +101,7 @@ def clip_spec(
     detector: str = "sim",
     width: int = 640,
     height: int = 480,
+    drive: str = "angles",
 ) -> dict:
     """The render spec (:func:`~akc_drake.evaluation.cache.render_spec`) of one clip: its file's and skeleton's
     content, its joint-name map and window, the seed, the camera, the body, the detector and the protocol's
@@ -118,6 +119,10 @@ def clip_spec(
         motion["names"] = dict(clip["names"])
     if clip.get("window_s"):
         motion["window_s"] = [float(x) for x in clip["window_s"]]
+    options = dict(render_kwargs(protocol))
+    if drive == "rig":  # the skinned body driven by the clip bone by bone (render_session's rig_clip)
+        options["rig_clip"] = {"path": str(Path(clip["path"]).resolve()), "skeleton": clip.get("skeleton") and
+                               str(Path(clip["skeleton"]).resolve()), "window_s": motion.get("window_s")}
     return render_spec(
         clip["name"],
         motion,
@@ -125,7 +130,7 @@ def clip_spec(
         seed=seed,
         body=body,
         detector=detector,
-        options=render_kwargs(protocol),
+        options=options,
     )
 
 
@@ -189,7 +194,7 @@ def evaluate_clip(item: dict) -> dict:
     clip = item["clip"]
     protocol = item.get("protocol", "paper")
     spec = clip_spec(clip, protocol=protocol, seed=int(item.get("seed", 0)), body=item.get("body", "primitive"),
-                     detector=item.get("detector", "sim"))
+                     detector=item.get("detector", "sim"), drive=item.get("drive", "angles"))
     t0 = time.perf_counter()
     if item.get("frame_progress"):  # in-process only: a worker's stderr is not the user's terminal
         from tqdm import tqdm
@@ -305,6 +310,8 @@ def evaluate_motion_dir(
     cache=None,
     progress: bool = True,
     tpose_seconds: float = 10.0,
+    drive: str = "angles",
+    clips: list | None = None,
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -321,6 +328,9 @@ def evaluate_motion_dir(
         cache: the render cache (None: the default folder, False: off, or a folder).
         progress: show the progress bars: over the clips, and in-process over each clip's frames too.
         tpose_seconds: length of the calibration T-pose.
+        drive: "angles" (the operator's 10 angles) or "rig" (the skinned body driven by each clip bone by bone,
+            :mod:`akc_drake.operator.rig_drive`; a clip without CMU bone names fails with a line naming it).
+        clips: evaluate these clips (:func:`find_clips` entries) instead of ``motion_dir``'s.
 
     Returns:
         ``{"protocol", "seed", "body", "detector", "methods", "dims_cm", "clips": [evaluate_clip results],
@@ -334,7 +344,7 @@ def evaluate_motion_dir(
 
     check_protocol(protocol)
     t0 = time.perf_counter()
-    clips = find_clips(motion_dir)
+    clips = find_clips(motion_dir) if clips is None else list(clips)
     from tqdm import tqdm
 
     spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds)
@@ -344,7 +354,7 @@ def evaluate_motion_dir(
     cache_arg = None if cache is None else (False if cache is False else str(cache))
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
-         "weights": weights, "body": body, "detector": detector, "cache": cache_arg,
+         "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
          "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
@@ -359,6 +369,7 @@ def evaluate_motion_dir(
         "seed": seed,
         "body": body,
         "detector": detector,
+        "drive": drive,
         "methods": list(methods),
         "dims_cm": {k: v * 100.0 for k, v in dims.as_dict().items()},
         "clips": results,
