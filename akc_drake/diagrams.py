@@ -497,7 +497,8 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                          meshcat=None, lcm=None, time_step: float = 0.005, ik_time_step: float = 0.01,
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
                          torso_model=None, smoothing: bool = True, workspace: bool = True,
-                         hand_dropout=None, hand_apertures=None, hand_detector=None) -> TeleopDiagram:
+                         hand_dropout=None, hand_apertures=None, hand_detector=None,
+                         hand_knuckles=None) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
@@ -522,6 +523,8 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         hand_dropout: ``(frames,)`` bool, frames in which the hand channel is blanked too (``--dropout``).
         hand_apertures: ``(frames, 2)`` measured thumb-index distances to replay as the hand channel (e.g.
             MediaPipe Hands run on the rendered frames, with ``replay``).
+        hand_knuckles: ``(frames, 2, 3)`` MediaPipe Hands' knuckle vectors measured on the replayed frames
+            (:func:`~akc_drake.core.control_frames.hands_knuckle_vector`), for the wrist frames (with ``replay``).
         hand_detector: the hand detector on the camera's frames (default: MediaPipe Hands,
             :class:`~akc_drake.io.hand_detector.HandDetector`, on a ``frame_source``'s frames, or on the render of
             a ``motion`` with a hand closure when ``cfg.detector`` is ``mediapipe``).
@@ -559,7 +562,8 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                     wrist_smoothing=sm.WRIST_SMOOTHING if smoothing else None,
                     torso_smoothing=sm.TORSO_SMOOTHING if smoothing else None,
                     workspace={s: Workspace.for_side(s) for s in ("left", "right")} if workspace else None,
-                    robust_wrist=smoothing, torso_hold=sm.TORSO_HOLD if smoothing else None)
+                    robust_wrist=smoothing, torso_hold=sm.TORSO_HOLD if smoothing else None,
+                    hand_knuckles_replay=hand_knuckles)
     )
     mapper.set_name("FrameMapper")
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))

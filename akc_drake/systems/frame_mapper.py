@@ -90,6 +90,9 @@ class FrameMapper(LeafSystem):
             vectors in normalised image units
             (:func:`~akc_drake.core.control_frames.hands_knuckle_vector`, NaN where no hand), used in place of the
             pose's two hand points when connected.
+        hand_knuckles_replay: ``(frames, 2, 3)`` recorded knuckle vectors replayed one row per update (the
+            mapper's k-th update takes row k, as :class:`~akc_drake.systems.measurement_replay.MeasurementReplay`
+            emits frame k), used when the port is absent or unconnected.
     """
 
     def __init__(
@@ -108,6 +111,7 @@ class FrameMapper(LeafSystem):
         robust_wrist: bool = False,
         torso_hold: smoothing.HoldParams | None = None,
         hand_knuckles_input: bool = False,
+        hand_knuckles_replay=None,
     ):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0.0):
@@ -134,6 +138,8 @@ class FrameMapper(LeafSystem):
 
         self._input = self.DeclareVectorInputPort("landmarks_C", BasicVector(POSE_SIZE))
         self._hands = self.DeclareVectorInputPort("hand_knuckles", BasicVector(6)) if hand_knuckles_input else None
+        self._replay = None if hand_knuckles_replay is None else np.asarray(hand_knuckles_replay, float).reshape(-1, 2, 3)
+        self._count = self.DeclareDiscreteState(np.zeros(1))  # updates so far (the replay's row)
         self._X_state = {
             side: self.DeclareAbstractState(AbstractValue.Make(RigidTransform(self._home[side])))
             for side in SIDES
@@ -156,6 +162,11 @@ class FrameMapper(LeafSystem):
         return self._mapping
 
     @property
+    def hand_knuckles_replay(self) -> np.ndarray | None:
+        """The replayed ``(frames, 2, 3)`` knuckle vectors, or None."""
+        return self._replay
+
+    @property
     def tracker(self) -> ControlFrameTracker:
         return self._tracker
 
@@ -167,8 +178,12 @@ class FrameMapper(LeafSystem):
         pose = self._input.Eval(context).reshape(NUM_LANDMARKS, 3)
         s = context.get_discrete_state(self._tracker_state).get_value()
         knuckles = None
+        k = int(context.get_discrete_state(self._count).get_value()[0])
         if self._hands is not None and self._hands.HasValue(context):
             knuckles = self._hands.Eval(context).reshape(2, 3)
+        elif self._replay is not None and len(self._replay):
+            knuckles = self._replay[min(k, len(self._replay) - 1)]
+        state.get_mutable_discrete_state(self._count).SetFromVector([k + 1.0])
         s, targets, lost, clipped = self._tracker.step(s, context.get_time(), pose, knuckles)
         for side, X in zip(SIDES, targets, strict=True):
             if X is not None:

@@ -142,6 +142,38 @@ def _prepare_out_dir(out: Path) -> Path:
     return out
 
 
+def _render_with_hands(motion, cfg, opts: DemoOptions):
+    """Render ``motion``; with MediaPipe, also run MediaPipe Hands on each frame for the wrist frames.
+
+    Returns:
+        ``(session, knuckles)``: ``knuckles`` is ``(frames, 2, 3)`` each hand's knuckle vector in normalised image
+        units (:func:`~akc_drake.core.control_frames.hands_knuckle_vector`; NaN: no hand), None without MediaPipe.
+        The hands are told apart by the pose detector's wrists of the same frame.
+    """
+    if getattr(cfg, "detector", "sim") != "mediapipe":
+        return render_motion(motion, cfg, seed=opts.seed, progress=opts.progress), None
+    from akc_drake.core.control_frames import hands_knuckle_vector
+    from akc_drake.io.hand_detector import HandDetector
+    from akc_drake.systems.session_render import make_detector
+    from akc_drake.teleop.task import RememberingDetector
+
+    rows: list[np.ndarray] = []
+    with HandDetector(opts.hand_model) as hands:
+        pose = RememberingDetector(make_detector("mediapipe", opts.seed))
+
+        def record(frame) -> None:
+            found = hands.detect(frame, pose.wrists_px())
+            rows.append(np.array([hands_knuckle_vector(h, frame.intrinsics) for h in found.landmarks_px]))
+
+        try:
+            session = render_motion(motion, cfg, seed=opts.seed, progress=opts.progress, frame_callback=record,
+                                    detector=pose)
+        finally:
+            if hasattr(pose.inner, "close"):
+                pose.inner.close()
+    return session, np.array(rows, dtype=float).reshape(-1, 2, 3)
+
+
 def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
     """Run the demo (see the module docstring) and write its outputs; returns the summary (``demo.json``).
 
@@ -210,7 +242,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                 f"Motion {name}: rendering {len(motion.frame_times(rate))} frames "
                 f"({cycles} cycle{'s' if cycles > 1 else ''}) ..."
             )
-            session = render_motion(motion, cfg, seed=opts.seed, progress=opts.progress)
+            session, knuckles = _render_with_hands(motion, cfg, opts)
             render_info[name] = {
                 "frames": len(session),
                 "render_ms_per_frame": 1e3 * float(np.mean(session.render_s)),
@@ -232,6 +264,8 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                 mask = plan.frames
                 bursts = [[round(b.start * period, 6), round(b.num_frames * period, 6)] for b in plan.bursts]
             dropout_info[name] = {"frames": int(mask.sum()), "bursts_start_duration_s": bursts}
+            if knuckles is not None:
+                knuckles[mask[: len(knuckles)]] = np.nan  # the person (hands too) lost in those frames
             runs[name] = []
             for corrector in opts.correctors:
                 record = meshcat is not None and corrector == MAIN_CORRECTOR
@@ -242,6 +276,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                     corrector=corrector,
                     replay=meas,
                     motion=motion,
+                    hand_knuckles=knuckles,
                     meshcat=meshcat if record else None,
                     start_time=rec_time if record else 0.0,
                     dropout=mask,

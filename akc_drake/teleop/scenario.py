@@ -400,7 +400,9 @@ def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_mode
         j = int(np.searchsorted(times, start + (k + 1) * period - 1e-9))
         if j >= len(times):
             break
-        state, targets, _, _ = tracker.step(state, start + k * period, values[j].reshape(-1, 3))
+        kn = td.mapper.hand_knuckles_replay
+        knuckles = None if kn is None or not len(kn) else kn[min(k, len(kn) - 1)]
+        state, targets, _, _ = tracker.step(state, start + k * period, values[j].reshape(-1, 3), knuckles)
         for side, X in zip(SIDES, targets, strict=True):
             if X is not None:
                 out[side][k] = X
