@@ -101,6 +101,12 @@ def test_run_metrics_on_known_numbers():
         assert m["jitter"]["angular_rad_s"][s] == pytest.approx(0.5)
         assert m["jitter"]["linear_m_s"][s] == pytest.approx(0.2)
         assert m["operator_jitter"]["linear_m_s"][s] == pytest.approx(0.2)
+        assert m["target_operator_rotation_error_deg"][s] == pytest.approx(0.0, abs=1e-6)
+    turned = _synthetic_run()
+    for s in teleop.SIDES:
+        turned.operator[s][:, :3, :3] = turned.operator[s][:, :3, :3] @ rotation_z(0.2)
+    assert teleop.run_metrics([turned])["target_operator_rotation_error_deg"]["left"] == pytest.approx(
+        math.degrees(0.2))
     assert m["ik_failures"] == 7 and m["ik_steps"] == 602
     assert m["ik_failure_kinds"] == {"stuck": 6, "no solution": 1}
     assert m["position_limit_hits"] == 3 and m["velocity_limit_hits"] == 4

@@ -48,7 +48,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         A dict: ``frames``; per side (``{"left", "right"}``): ``ee_tracking_error_cm`` (median after
         ``settling_s``), ``ee_tracking_error_cm_with_settling``, ``ee_tracking_error_p95_cm``,
         ``ee_reachable_error_cm`` (to the target after the IK's reach guard), ``ee_operator_error_cm`` (to the
-        operator's true mapped wrist), ``target_unreachable_share``, ``jitter`` and ``operator_jitter`` (the
+        operator's true mapped wrist), ``target_operator_rotation_error_deg`` (median angle between the target's
+        rotation and the operator's true mapped wrist's), ``target_unreachable_share``, ``jitter`` and ``operator_jitter`` (the
         true mapped wrist's, for reference; each ``angular_rad_s``, ``linear_m_s``); totals:
         ``position_limit_hits``, ``velocity_limit_hits``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
         ``tracking_lost_share``, ``dropout_frames``, ``sim_s``, ``wall_s``, ``realtime_factor``.
@@ -62,7 +63,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         return np.concatenate([fn(r, side)[a] for r, a in zip(runs, after, strict=True)])
 
     keys = ("err", "err_all", "p95", "reach", "op", "unreach", "jang", "jlin", "oang", "olin", "top", "top95")
-    keys += ("lag", "rlag", "cross", "clip")
+    keys += ("lag", "rlag", "cross", "clip", "rot")
     v: dict[str, dict] = {k: {} for k in keys}
     for side in SIDES:
         e_after = np.concatenate([r.errors[side][r.error_t[side] >= settling_s] for r in runs])
@@ -78,6 +79,9 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         top = per_frame(lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.target[s][:, :3, 3], axis=1), side)
         v["top"][side] = _median_cm(top)
         v["top95"][side] = _p95_cm(top)
+        rot = per_frame(_rotation_error_rad, side)
+        rot = rot[np.isfinite(rot)]
+        v["rot"][side] = float(np.degrees(np.median(rot))) if rot.size else None
         v["lag"][side] = _added_latency_ms(runs, side, after)
         v["rlag"][side] = _added_latency_ms(runs, side, after, rotation=True)
         v["cross"][side] = int(sum(_midline_crossings(r, side, a) for r, a in zip(runs, after, strict=True)))
@@ -105,6 +109,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "target_unreachable_share": v["unreach"],
         "target_operator_error_cm": v["top"],
         "target_operator_error_p95_cm": v["top95"],
+        "target_operator_rotation_error_deg": v["rot"],
         "smoothing_latency_ms": v["lag"],
         "smoothing_rotation_latency_ms": v["rlag"],
         "midline_crossings": v["cross"],
@@ -128,6 +133,18 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "wall_s": wall,
         "realtime_factor": sim_s / wall if wall > 0 else None,
     }
+
+
+def _rotation_error_rad(run, side: str) -> np.ndarray:
+    """Per frame, the angle (rad) between the target's rotation and the operator's true mapped wrist's (NaN where
+    either is unknown)."""
+    from akc_drake.core.frames import rotation_angle
+
+    A, B = run.target[side], run.operator[side]
+    out = np.full(len(A), np.nan)
+    for k in np.flatnonzero(np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(B), axis=(1, 2))):
+        out[k] = rotation_angle(A[k, :3, :3].T @ B[k, :3, :3])
+    return out
 
 
 def _share(num: int, den: int) -> float | None:
