@@ -187,3 +187,21 @@ def test_cache_command(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("AKC_DRAKE_CACHE", "off")
     assert cli_main(["cache"]) == 0
     assert "off" in capsys.readouterr().out
+
+
+def test_a_rig_driven_clip_counts_by_content_too(tmp_path):
+    a = tmp_path / "a.bvh"
+    a.write_text("HIERARCHY one")
+    b = tmp_path / "b" / "a.bvh"
+    b.parent.mkdir()
+    b.write_text("HIERARCHY one")
+
+    def rig_spec(p, window=None):
+        rig = {"path": str(p), "skeleton": None, "window_s": window}
+        return C.render_spec("clip", {"kind": "file", "path": str(p), "skeleton": None}, intrinsics=INTR,
+                             body="skinned", options={"rig_clip": rig})
+
+    assert C.spec_key(rig_spec(a)) == C.spec_key(rig_spec(b))
+    assert C.spec_key(rig_spec(a, [0.0, 1.0])) != C.spec_key(rig_spec(a))
+    b.write_text("HIERARCHY two")
+    assert C.spec_key(rig_spec(a)) != C.spec_key(rig_spec(b))

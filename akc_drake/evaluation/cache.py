@@ -308,6 +308,10 @@ def spec_key(spec: dict) -> str:
     if s.get("motion", {}).get("kind") == "file":
         s["motion"].pop("path", None)
         s["motion"].pop("skeleton", None)
+        rig = (s.get("options") or {}).get("rig_clip")
+        if isinstance(rig, dict):  # the same files as the motion's, already keyed by their content
+            rig.pop("path", None)
+            rig.pop("skeleton", None)
     text = json.dumps(s, sort_keys=True, separators=(",", ":"))
     deps = dependency_fingerprint(spec)
     return hashlib.sha256((text + "\n" + renderer_fingerprint() + "\n" + deps).encode()).hexdigest()
