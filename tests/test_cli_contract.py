@@ -166,3 +166,10 @@ def test_os_error_on_a_path_is_one_line(monkeypatch, capsys):
     monkeypatch.setattr(graph, "main", fail)
     assert cli.main(["graph", "--diagram", "mocap", "--out", "x"]) == 2
     assert capsys.readouterr().err == "akc-drake graph: error: /some/out.json: Is a directory\n"
+
+
+def test_record_tells_how_a_primitive_recording_replays():
+    from akc_drake.commands.record import replay_note
+
+    assert "--body skinned" in replay_note("primitive") and "MediaPipe" in replay_note("primitive")
+    assert replay_note("skinned") is None

@@ -29,6 +29,18 @@ def _check_args(args) -> None:
         raise UserError("--out: empty folder name")
 
 
+def replay_note(body: str) -> str | None:
+    """What to know before running ``run --source recording:DIR`` on a rendered recording of ``body``.
+
+    A recording folder holds images only, so reading it back runs MediaPipe whatever ``--detector`` rendered it;
+    MediaPipe takes the primitive (capsule) body for a person in only part of the frames.
+    """
+    if body != "primitive":
+        return None
+    return ("note: 'run --source recording:DIR' runs MediaPipe on these frames, and MediaPipe misses the primitive "
+            "body in many of them; record with --body skinned to replay a recording through MediaPipe")
+
+
 def _record_sim(args, out: Path) -> int:
     from tqdm import tqdm
 
@@ -69,6 +81,9 @@ def _record_sim(args, out: Path) -> int:
         f"({1e3 * float(session.render_s.mean()):.1f} ms render per frame, {elapsed:.1f} s in all); "
         f"the {getattr(args, 'detector', 'sim')} detector found the person in {100 * found:.0f} % of them"
     )
+    note = replay_note(getattr(args, "body", "primitive"))
+    if note:
+        print(note, file=sys.stderr)
     return 0
 
 
