@@ -200,8 +200,10 @@ class ArmKinematicCorrectorPlus:
         # Flat indices of each arm's nine coordinates, and (position in the arm, flat index, R) per coordinate.
         self._arm_index = tuple(tuple(o + ax for o in offs for ax in range(3)) for offs in self._offsets)
         self._sub_index = tuple(
-            tuple((i, j, self._r_axes[i % 3]) for i, j in enumerate(idx)) for idx in self._arm_index
+            tuple((i, j, self._r_axes[i % 3], 9 * side + i) for i, j in enumerate(idx))
+            for side, idx in enumerate(self._arm_index)
         )
+        self._no_measurement = [_NAN] * (3 * NUM_LANDMARKS)
         self._gate2 = config.gate_sigma**2
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
@@ -311,11 +313,12 @@ class ArmKinematicCorrectorPlus:
         a = self.config.nis_alpha
         b = 1.0 - a
         out = []
-        n0 = 9 * side
-        for i, j, r in self._sub_index[side]:
+        if m is None:
+            m = self._no_measurement
+        for i, j, r, n in self._sub_index[side]:
             p = var[j]
-            k = nis[n0 + i]
-            z = m[j] if m is not None else _NAN
+            k = nis[n]
+            z = m[j]
             if z != z:  # not measured
                 out.append(p * (k if k > 1.0 else 1.0))
                 continue
@@ -325,7 +328,7 @@ class ArmKinematicCorrectorPlus:
                 # cannot make the filter look inconsistent and so vouch for itself).
                 q = z - v[j]
                 q = q * q / d
-                k = nis[n0 + i] = b * k + a * (q if q < g2 else g2)
+                k = nis[n] = b * k + a * (q if q < g2 else g2)
             vi = p * (k if k > fl else fl)
             if vi > r:
                 d = z - f[i]

@@ -150,8 +150,8 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
     ``|s - e| = lu`` and ``|e - w| = lf``: the maximum a posteriori arm under the filter's Gaussian (a diagonal
     covariance per axis) and exact lengths. The nearly noise-free axes (x, y) then barely move and the
     correction goes to the uncertain depths, in proportion to their variances. Sequential quadratic
-    programming (the constraints linearised at the current point, ``iters`` steps), then the elbow is put on
-    the exact circle between the shoulder and the wrist (a move of the order of rounding).
+    programming (the constraints linearised at the current point, up to ``iters`` steps, fewer once the lengths
+    are met to 0.01 mm), then the elbow is put on the exact circle between the shoulder and the wrist.
 
     Before any step, ``chi2 = g^T (J V J^T + length_var I)^-1 g`` of the length residuals ``g`` tests whether
     the filter's arm is consistent with the calibrated lengths (2 degrees of freedom; ``length_var`` is the
@@ -179,6 +179,8 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
         n1, n2 = _hypot(ax, ay, az), _hypot(bx, by, bz)
         if not (n1 >= _MIN_SEGMENT_M and n2 >= _MIN_SEGMENT_M):
             return None, chi2
+        if it and abs(n1 - lu) + abs(n2 - lf) < 1e-5:
+            break  # converged: the linearisation error is below 0.01 mm (the circle below makes it exact)
         ax, ay, az = ax / n1, ay / n1, az / n1
         bx, by, bz = bx / n2, by / n2, bz / n2
         a11 = ax * ax * (vsx + vex) + ay * ay * (vsy + vey) + az * az * (vsz + vez)
