@@ -392,6 +392,7 @@ class SE3Hold:
         # Following: move toward the measurement at bounded speeds; hold again (and re-average) once there.
         p_new = p0 + (p - p0) * min(1.0, prm.speed_m_s * dt / dist) if dist > 0 else p0.copy()
         rot_new = rot0 * Rotation.from_rotvec(delta * min(1.0, prm.speed_rad_s * dt / ang)) if ang > 0 else rot0
-        settled = float(np.linalg.norm(p - p_new)) <= prm.settle_m and (rot_new.inv() * rot).magnitude() <= prm.settle_rad
+        settled = (float(np.linalg.norm(p - p_new)) <= prm.settle_m
+                   and (rot_new.inv() * rot).magnitude() <= prm.settle_rad)
         tail = [t, math.nan, 0.0, t, 1.0] if settled else [t, math.nan, 1.0, math.nan, 0.0]
         return np.concatenate([rot_new.as_quat(), p_new, tail]), rot_new.as_matrix(), p_new

@@ -10,7 +10,7 @@ renderer and the true shoulders never move. Here every bone the clip has turns t
    ``lradius``...: :data:`ASF_TO_RIG`) is the rotation of that body segment from the clip's rest pose (all
    channels zero), in the clip's world. The segment of a rig bone runs from its clip joint to the clip joint of
    the rig child that starts at the bone's tail (or the joint's End Site), so its rest direction in the clip
-   is known too.
+   is known too (through joints a conversion put at their parent's origin, down the chain).
 2. *Into the operator frame O.* The clip's world (Y up) turns into O (x forward, y left, z up) by the rest
    pose's own axes: z the up axis, y from the right to the left upper-arm joint. Each frame's heading (the
    root's forward direction about z) is taken out of every bone, so the operator keeps facing the camera; the
@@ -208,10 +208,19 @@ def clip_rotations(
     P = np.stack([np.cross(y, z), y, z])  # rows: O's axes in the clip's world
     bones = tuple(r for r in rig if r and not r.endswith("_end"))
     dirs = np.full((len(bones), 3), np.nan)
+
+    def tail_of(j):  # the clip joint ending the segment of rig bone rig[j] (a child of j), or None
+        t = index.get(children.get(rig[j], ""), index.get(f"{rig[j]}_end"))
+        return t if t is not None and parents[t] == j else None
+
     for k, b in enumerate(bones):
         j = index[b]
-        tail = index.get(children.get(b, ""), index.get(f"{b}_end"))
-        if tail is not None and parents[tail] == j:
+        tail = tail_of(j)
+        # A conversion may put the tail joint at the bone's own origin (cgspeed: Spine1's Neck, LeftHand's
+        # LeftFingerBase): the rest direction is then the next joint down that chain that lies elsewhere.
+        while tail is not None and np.linalg.norm(rest[tail] - rest[j]) < _MIN_SEGMENT_M and rig[tail] in index:
+            tail = tail_of(tail)
+        if tail is not None:
             dirs[k] = _unit(P @ (rest[tail] - rest[j]))
     # Resample every bone's rotation at the camera's times (Slerp), then into O without the heading.
     t_in = np.arange(R.shape[0]) * float(frame_time)

@@ -138,7 +138,8 @@ class FrameMapper(LeafSystem):
 
         self._input = self.DeclareVectorInputPort("landmarks_C", BasicVector(POSE_SIZE))
         self._hands = self.DeclareVectorInputPort("hand_knuckles", BasicVector(6)) if hand_knuckles_input else None
-        self._replay = None if hand_knuckles_replay is None else np.asarray(hand_knuckles_replay, float).reshape(-1, 2, 3)
+        self._replay = (None if hand_knuckles_replay is None
+                        else np.asarray(hand_knuckles_replay, float).reshape(-1, 2, 3))
         self._count = self.DeclareDiscreteState(np.zeros(1))  # updates so far (the replay's row)
         self._X_state = {
             side: self.DeclareAbstractState(AbstractValue.Make(RigidTransform(self._home[side])))

@@ -49,8 +49,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         ``settling_s``), ``ee_tracking_error_cm_with_settling``, ``ee_tracking_error_p95_cm``,
         ``ee_reachable_error_cm`` (to the target after the IK's reach guard), ``ee_operator_error_cm`` (to the
         operator's true mapped wrist), ``target_operator_rotation_error_deg`` (median angle between the target's
-        rotation and the operator's true mapped wrist's), ``target_unreachable_share``, ``jitter`` and ``operator_jitter`` (the
-        true mapped wrist's, for reference; each ``angular_rad_s``, ``linear_m_s``); totals:
+        rotation and the operator's true mapped wrist's), ``target_unreachable_share``, ``jitter`` and
+        ``operator_jitter`` (the true mapped wrist's, for reference; each ``angular_rad_s``, ``linear_m_s``); totals:
         ``position_limit_hits``, ``velocity_limit_hits``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
         ``tracking_lost_share``, ``dropout_frames``, ``sim_s``, ``wall_s``, ``realtime_factor``.
     """
