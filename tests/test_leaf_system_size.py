@@ -30,3 +30,14 @@ def test_the_scan_counts_a_class_from_its_header_to_its_last_line(tmp_path):
     body = "\n".join(f"    x{i} = {i}" for i in range(151))
     (tmp_path / "big.py").write_text(f"class Big(LeafSystem):\n{body}\n\n\nclass Other:\n    pass\n")
     assert list(leaf_systems(tmp_path)) == [(Path("big.py"), "Big", 152)]
+
+
+MAX_MODULE_LINES = 700
+
+
+def test_no_module_of_the_package_is_over_700_lines():
+    """Rooms by concern: a module that grows past 700 lines is split (the layering keeps the split honest)."""
+    sizes = {p.relative_to(PACKAGE): len(p.read_text().splitlines()) for p in PACKAGE.rglob("*.py")}
+    assert len(sizes) > 50 and max(sizes.values()) > 300  # the scan sees the package
+    too_long = sorted(f"{p}: {n} lines" for p, n in sizes.items() if n > MAX_MODULE_LINES)
+    assert not too_long, "; ".join(too_long) + f" (at most {MAX_MODULE_LINES})"
