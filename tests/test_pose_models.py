@@ -1,0 +1,112 @@
+"""MediaPipe's pose models by name, and the .task bundles built from bare landmark networks."""
+
+from __future__ import annotations
+
+import zipfile
+
+import numpy as np
+import pytest
+
+from akc_drake.core.camera import CameraFrame, CameraIntrinsics
+from akc_drake.core.skeleton import INDEX
+from akc_drake.errors import UserError
+from akc_drake.io import mediapipe_detector as mpd
+from akc_drake.io import pose_models as pm
+
+pytest.importorskip("mediapipe", reason="the 'mediapipe' extra is not installed")
+
+
+@pytest.fixture
+def full_task(monkeypatch):
+    monkeypatch.delenv(pm.POSE_MODEL_ENV, raising=False)
+    try:
+        return mpd.find_pose_model("full")
+    except UserError as e:
+        pytest.skip(f"no pose model here: {e}")
+
+
+@pytest.fixture(scope="module")
+def astronaut():
+    skdata = pytest.importorskip("skimage.data")
+    img = skdata.astronaut()  # (512, 512, 3) uint8 RGB, shipped with scikit-image
+    K = CameraIntrinsics(width=512, height=512, fx=500.0, fy=500.0, cx=255.5, cy=255.5)
+    return CameraFrame(color=img, depth_m=np.zeros((512, 512)), t=0.0, intrinsics=K)
+
+
+def _without_metadata(tflite: bytes) -> bytes:
+    """The network with its TFLITE_METADATA entry removed (what the npm package ships)."""
+    import flatbuffers
+    from mediapipe.tasks.metadata import schema_py_generated as schema
+
+    model = schema.ModelT.InitFromObj(schema.Model.GetRootAsModel(tflite, 0))
+    model.metadata = [m for m in model.metadata if m.name != b"TFLITE_METADATA"]
+    b = flatbuffers.Builder(len(tflite))
+    b.Finish(model.Pack(b), file_identifier=b"TFL3")
+    return bytes(b.Output())
+
+
+def test_built_bundle_detects_exactly_as_the_shipped_one(full_task, astronaut, tmp_path):
+    bare = _without_metadata(zipfile.ZipFile(full_task).read("pose_landmarks_detector.tflite"))
+    assert pm._metadata_entry(bare) is None
+    (tmp_path / "bare.tflite").write_bytes(bare)
+    built = pm.build_pose_task(tmp_path / "bare.tflite", full_task, tmp_path / "pose_landmarker_x.task")
+    with zipfile.ZipFile(built) as z:
+        assert sorted(z.namelist()) == ["pose_detector.tflite", "pose_landmarks_detector.tflite"]
+        assert z.read("pose_detector.tflite") == zipfile.ZipFile(full_task).read("pose_detector.tflite")
+        assert pm._metadata_entry(z.read("pose_landmarks_detector.tflite")) is not None
+    with mpd.MediaPipeDetector(model_path=full_task) as a, mpd.MediaPipeDetector(model_path=built) as b:
+        da, db = a.detect(astronaut), b.detect(astronaut)
+    assert da.person_found and db.person_found
+    np.testing.assert_array_equal(da.uv, db.uv)
+    np.testing.assert_array_equal(da.visibility, db.visibility)
+
+
+def test_bare_network_is_refused_by_mediapipe(full_task, tmp_path):
+    """Without the metadata entry MediaPipe cannot load the bundle: the entry is what the build adds."""
+    ref = zipfile.ZipFile(full_task)
+    p = tmp_path / "bare.task"
+    with zipfile.ZipFile(p, "w") as z:
+        z.writestr("pose_detector.tflite", ref.read("pose_detector.tflite"))
+        z.writestr("pose_landmarks_detector.tflite", _without_metadata(ref.read("pose_landmarks_detector.tflite")))
+    with pytest.raises(UserError, match=r"bare\.task: cannot load the MediaPipe pose model"):
+        mpd.MediaPipeDetector(model_path=p)
+
+
+def test_build_names_a_bad_file(full_task, tmp_path):
+    bad = tmp_path / "pose_landmark_heavy.tflite"
+    bad.write_bytes(b"\0" * 64)
+    with pytest.raises(UserError, match=r"pose_landmark_heavy\.tflite: not a TFLite model"):
+        pm.build_pose_task(bad, full_task, tmp_path / "out.task")
+    with pytest.raises(UserError, match=r"missing\.tflite: file not found"):
+        pm.build_pose_task(tmp_path / "missing.tflite", full_task, tmp_path / "out.task")
+    assert pm.main([str(tmp_path), str(tmp_path)]) == 2  # no full model in tmp_path: one line, exit 2
+
+
+def test_names_and_the_environment(full_task, monkeypatch, tmp_path):
+    assert mpd.find_pose_model() == full_task
+    monkeypatch.setattr(mpd, "SHARED_MODEL", tmp_path / "pose_landmarker_full.task")
+    with pytest.raises(UserError, match=r"pose_landmarker_heavy\.task: MediaPipe's heavy pose model is not "
+                                        r"installed; 'make install' builds it .*@mediapipe/pose"):
+        mpd.find_pose_model("heavy")
+    (tmp_path / "pose_landmarker_heavy.task").write_bytes(b"x")
+    assert mpd.find_pose_model("heavy") == tmp_path / "pose_landmarker_heavy.task"
+    monkeypatch.setenv(pm.POSE_MODEL_ENV, "heavy")
+    assert mpd.find_pose_model() == tmp_path / "pose_landmarker_heavy.task"
+    assert mpd.find_pose_model(str(full_task)) == full_task  # an explicit path wins over the environment
+    monkeypatch.setenv(pm.POSE_MODEL_ENV, str(tmp_path / "nope.task"))
+    with pytest.raises(UserError, match=r"nope\.task: pose model file not found"):
+        mpd.find_pose_model()
+
+
+def test_installed_heavy_model_finds_the_astronaut(monkeypatch, astronaut):
+    monkeypatch.delenv(pm.POSE_MODEL_ENV, raising=False)
+    try:
+        path = mpd.find_pose_model("heavy")
+    except UserError as e:
+        pytest.skip(f"heavy model not built here: {e}")
+    with mpd.MediaPipeDetector(model_path=path) as d:
+        det = d.detect(astronaut)
+    assert det.person_found
+    # The full model's test (test_mediapipe_detector.py) checked these pixels by hand on the image.
+    np.testing.assert_allclose(det.uv[INDEX["right_shoulder"]], [107, 242], atol=30)
+    assert det.visibility[INDEX["left_shoulder"]] > 0.9
