@@ -360,7 +360,9 @@ class ArmKinematicCorrectorPlus:
         vs = self._cur_var
         if vs is not None:
             # The filter's own (covariance-matched) depth variance of the joint.
-            return 1.0 / max(vs[5 if k % 2 == 0 else 2], 1e-12)
+            v = vs[5 if k % 2 == 0 else 2]
+            # A variance the filter does not know (NaN: not yet initialised) is no prior at all.
+            return 1.0 / max(v, 1e-12) if v == v else 0.0
         cfg = self.config
         # Drift: the frames without a depth (unless the estimate still fits the calibrated length) and twice
         # the distance the filter's depth has travelled since it was lost.
