@@ -196,6 +196,43 @@ def test_real_clips_move_the_shoulders(body):
     assert np.max(np.abs(yaw)) < 20.0
 
 
+def _rest_turned(motion: BVHMotion, Q: np.ndarray, frames: int) -> BVHMotion:
+    """The same motion (every joint at the same place in every frame) from a rest posture turned by ``Q``:
+    offsets ``Q o``, global rotations ``R Q^T`` (local ``Q L Q^T``, the root's ``L Q^T``), ZYX channels."""
+    R = motion.global_transforms()[0][:frames]
+    joints, cols = [], []
+    for j, jt in enumerate(motion.joints):
+        chans = () if jt.end_site else (("Xposition", "Yposition", "Zposition") if jt.parent < 0 else ()) + (
+            "Zrotation", "Yrotation", "Xrotation")
+        joints.append(BVHJoint(jt.name, jt.parent, Q @ jt.offset, chans, jt.end_site))
+        if jt.end_site:
+            continue
+        Rp = np.eye(3)[None] if jt.parent < 0 else R[:, jt.parent] @ Q.T
+        if jt.parent < 0:  # the root's place is unchanged
+            cols.append(motion.channels[:frames, [motion.column(jt.name, c) for c in chans[:3]]])
+        local = np.einsum("fji,fjk->fik", Rp, R[:, j] @ Q.T)
+        cols.append(Rotation.from_matrix(local).as_euler("ZYX", degrees=True))
+    return BVHMotion(joints, motion.frame_time, np.hstack(cols), motion.units, "turned")
+
+
+def test_the_clips_rest_posture_does_not_matter(body):
+    """A clip whose rest (every channel zero) is not standing (here lying on its front, as a rig built along
+    one axis is) drives the rig exactly as the same motion from a standing rest: the root aligns by the rest
+    body's axes and each bone about its own axis by them (a direction-only alignment tilted the whole trunk by
+    the rest's difference: 58 deg median on bvhtools' clips)."""
+    bvh = read_bvh(BVH)
+    Q = Rotation.from_euler("x", 90, degrees=True).as_matrix()  # about the rest's left-right axis (BVH x)
+    turned = _rest_turned(bvh, Q, 80)
+    np.testing.assert_allclose(turned.global_positions(), bvh.global_positions()[:80], atol=1e-9)
+    a = RigDrive(clip_rotations(BVHMotion(bvh.joints, bvh.frame_time, bvh.channels[:80], bvh.units, "a")), body)
+    clip = clip_rotations(turned)
+    b = RigDrive(clip, body)
+    assert np.max(np.linalg.norm(a.landmarks_O - b.landmarks_O, axis=2)) < 1e-6
+    # By direction alone (no body frame) the turned rest tilts the body: the shoulders land far off.
+    c = RigDrive(replace(clip, body_frame=None), body)
+    assert np.max(np.linalg.norm(a.landmarks_O - c.landmarks_O, axis=2)) > 0.05
+
+
 def test_bad_bone_names_name_the_file(tmp_path):
     text = BVH.read_text().replace("LeftForeArm", "LeftElbowX")
     bad = tmp_path / "renamed.bvh"

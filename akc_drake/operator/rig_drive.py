@@ -13,14 +13,17 @@ renderer and the true shoulders never move. Here every bone the clip has turns t
    is known too (through joints a conversion put at their parent's origin, down the chain).
 2. *Into the operator frame O.* The clip's world (Y up) turns into O (x forward, y left, z up) by the rest
    pose's own axes: z the up axis, y from the right to the left upper-arm joint. Each frame's heading (the
-   root's forward direction about z) is taken out of every bone, so the operator keeps facing the camera; the
-   root stays at the operator's place (positions are not used).
+   rest body's forward, :func:`body_frame`, turned by the root, about z) is taken out of every bone, so the
+   operator keeps facing the camera; the root stays at the operator's place (positions are not used).
 3. *Retarget by direction and twist.* The rig's rest (A-pose) differs from the clip's (a T-pose for CMU
-   data). For each bone, ``A`` is the smallest rotation taking the rig's rest direction (head -> tail) onto the
-   clip's rest direction; the bone's posed world rotation is ``G = D A``, ``D`` the clip's rotation in O. So
-   the posed bone points where the clip's segment points, with the clip's twist about it. A rig bone the clip
-   lacks moves rigidly with its parent; a bone without a direction (zero length in the clip: the root, a
-   joint at its parent's origin) keeps its parent's ``A``, i.e. its rig rest pose relative to the parent.
+   data; some rigs rest lying along one axis). The root's ``A`` takes the rig's rest body axes (up the spine,
+   across the hips) onto the clip's; another bone's ``A`` takes the rig's rest direction (head -> tail) onto the
+   clip's rest direction, turning the body's left axis about it onto the clip's (the smallest rotation for
+   rests a small turn apart: :func:`rest_alignments`); the bone's posed world rotation is ``G = D A``, ``D``
+   the clip's rotation in O. So the posed bone points where the clip's segment points, with the clip's twist
+   about it, whatever the clip's rest posture. A rig bone the clip lacks moves rigidly with its parent; a bone
+   without a direction (zero length in the clip: a joint at its parent's origin) keeps its parent's ``A``,
+   i.e. its rig rest pose relative to the parent.
 4. *Rig maps.* From the root down, each bone's head is carried by its parent's map, and the bone's map is the
    rigid ``v -> G (v - head_rest) + head_posed`` (:func:`rig_maps`): the ``(B, 3, 4)`` rest -> posed maps that
    :class:`~akc_drake.operator.skinned.SkinnedOperator` skins with, and whose joint centres are the truth.
@@ -32,7 +35,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -93,6 +96,9 @@ class ClipRotations:
         rest_dirs: ``(n, 3)`` each bone's unit rest direction (head -> tail) in O; NaN: no direction.
         name: the clip's label.
         source: the file, for messages.
+        body_frame: ``(3, 3)`` the clip's rest body axes in O (columns: forward, left, up; :func:`body_frame`),
+            or None (then the root aligns as the identity and every bone by its direction alone).
+        lateral: the joint pair the body frame's left axis runs between (``"UpLeg"``: the hips', or ``"Arm"``).
     """
 
     times: np.ndarray
@@ -101,6 +107,8 @@ class ClipRotations:
     rest_dirs: np.ndarray
     name: str = "clip"
     source: str = "clip"
+    body_frame: np.ndarray | None = None
+    lateral: str = "UpLeg"
 
     def window(self, window_s, name: str | None = None) -> ClipRotations:
         """The samples within ``window_s = [t0, t1]`` seconds, restarting at t = 0 (as the 10-angle path's
@@ -109,13 +117,24 @@ class ClipRotations:
         sel = (t >= float(window_s[0]) - 1e-9) & (t <= float(window_s[1]) + 1e-9)
         if sel.sum() < 2:
             raise UserError(f"{self.source}: window {list(window_s)} s holds no frames (the clip lasts {t[-1]:.1f} s)")
-        return ClipRotations(t[sel] - t[sel][0], self.bones, self.rotations[sel], self.rest_dirs,
-                             name or self.name, self.source)
+        return replace(self, times=t[sel] - t[sel][0], rotations=self.rotations[sel], name=name or self.name)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(v)
     return v / n if n > _MIN_SEGMENT_M else np.full(3, np.nan)
+
+
+def body_frame(up: np.ndarray, left: np.ndarray) -> np.ndarray | None:
+    """``(3, 3)`` orthonormal axes (columns: forward, left, up) from an up vector (hips -> upper spine) and a
+    left vector (right -> left joint); None when they are parallel or zero."""
+    z = _unit(np.asarray(up, float))
+    if not np.all(np.isfinite(z)):
+        return None
+    y = _unit(left - (left @ z) * z)
+    if not np.all(np.isfinite(y)):
+        return None
+    return np.column_stack([np.cross(y, z), y, z])
 
 
 def clip_skeleton(motion, names: dict | None = None):
@@ -222,6 +241,11 @@ def clip_rotations(
             tail = tail_of(tail)
         if tail is not None:
             dirs[k] = _unit(P @ (rest[tail] - rest[j]))
+    # The rest body's own axes (up the spine, across the hips): what a rest posture other than the rig's
+    # standing one (a rig built lying along x, say) is aligned by, and what the heading is read from.
+    lateral = "UpLeg" if "LeftUpLeg" in index and "RightUpLeg" in index else "Arm"
+    frame = body_frame(P @ (rest[index["Spine1"]] - rest[index["Hips"]]),
+                       P @ (rest[index[f"Left{lateral}"]] - rest[index[f"Right{lateral}"]]))
     # Resample every bone's rotation at the camera's times (Slerp), then into O without the heading.
     t_in = np.arange(R.shape[0]) * float(frame_time)
     t_out = resample_times(t_in[-1], rate_hz)
@@ -234,11 +258,11 @@ def clip_rotations(
         r = Rotation.from_matrix(R[:, index[b]])
         rots.append((Slerp(t_in, r)(t_out) if len(t_in) > 1 else r).as_matrix())
     G = np.einsum("ij,tnjk,lk->tnil", P, np.stack(rots, axis=1), P)
-    fwd = G[:, bones.index("Hips"), :, 0]
+    fwd = G[:, bones.index("Hips")] @ (np.eye(3)[0] if frame is None else frame[:, 0])  # the body's forward
     heading = Rotation.from_euler("z", -np.arctan2(fwd[:, 1], fwd[:, 0])[:, None]).as_matrix()
     G = np.einsum("tij,tnjk->tnik", heading, G)
     name = getattr(motion, "name", "clip")
-    return ClipRotations(t_out, bones, G, dirs, name, source)
+    return ClipRotations(t_out, bones, G, dirs, name, source, frame, lateral)
 
 
 #: The CMU-MB rig's bone -> the child whose head is the bone's tail (where a clip's segment of it ends).
@@ -301,18 +325,48 @@ def _align(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return rot.as_matrix()
 
 
+def _frame_about(d: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Columns: unit ``d``, the part of ``s`` across it, and their cross product."""
+    e = s - (s @ d) * d
+    e /= np.linalg.norm(e)
+    return np.column_stack([d, e, np.cross(d, e)])
+
+
 def rest_alignments(clip: ClipRotations, bones, parents, rest_heads, rest_tails) -> np.ndarray:
-    """``(B, 3, 3)`` each rig bone's rest alignment ``A``: the smallest rotation taking its rest direction onto
-    the clip's rest direction of the same bone; a bone without a direction (in the rig or in the clip) keeps
-    its parent's (so it keeps its rest pose relative to the parent), the root the identity."""
+    """``(B, 3, 3)`` each rig bone's rest alignment ``A``, taking the rig's rest posture onto the clip's.
+
+    The root: the rotation taking the rig's rest body axes onto the clip's (:func:`body_frame`: up the spine,
+    across the hips). Another bone: the rotation taking its rest direction onto the clip's rest direction of the
+    same bone and, about it, the body's left axis (up for a bone along it) onto the clip's, so a clip whose rest
+    posture is not standing (a rig built lying, arms forward...) turns each segment about its own axis as the
+    body does; between postures that differ by a small turn this is the smallest rotation. A bone without a
+    direction (in the rig or in the clip) keeps its parent's (so it keeps its rest pose relative to the parent).
+    Without the clip's body frame (``clip.body_frame`` None): the root the identity, each bone the smallest
+    rotation.
+    """
+    def head(name):
+        return rest_heads[list(bones).index(name)]
+
+    F_rig = None
+    if clip.body_frame is not None and "Spine1" in bones:
+        F_rig = body_frame(head("Spine1") - head(bones[0]),
+                           head(f"Left{clip.lateral}") - head(f"Right{clip.lateral}"))
     A = np.empty((len(bones), 3, 3))
     for b, name in enumerate(bones):
-        A[b] = A[parents[b]] if parents[b] >= 0 else np.eye(3)
+        if parents[b] < 0:
+            A[b] = np.eye(3) if F_rig is None else clip.body_frame @ F_rig.T
+            continue
+        A[b] = A[parents[b]]
         if name in clip.bones:
             v = clip.rest_dirs[clip.bones.index(name)]
             u = rest_tails[b] - rest_heads[b]
             if np.all(np.isfinite(v)) and np.linalg.norm(u) > _MIN_SEGMENT_M:
-                A[b] = _align(u / np.linalg.norm(u), v)
+                u = u / np.linalg.norm(u)
+                if F_rig is None:
+                    A[b] = _align(u, v)
+                    continue
+                k = 1 if max(abs(u @ F_rig[:, 1]), abs(v @ clip.body_frame[:, 1])) < 0.9 else 2
+                A[b] = _frame_about(v, clip.body_frame[:, k]) @ _frame_about(u, F_rig[:, k]).T
     return A
 
 
