@@ -20,13 +20,17 @@ mesh in the arm's plane at rest, extended and in the worst frame.
 the camera) to show how much the end-on elbow depends on shading cues; it replaces the renderer's parameters
 in this process only (an experiment, not the project's scene).
 
-Usage: .venv/bin/python tools/elbow_diagnosis.py OUT_DIR [--cycles N] [--lights NAME]   (about 40 s a cycle)
+``--pose-model heavy`` runs MediaPipe's heavy model instead of the full one (see :mod:`akc_drake.io.pose_models`).
+
+Usage: .venv/bin/python tools/elbow_diagnosis.py OUT_DIR [--cycles N] [--lights NAME] [--pose-model M]
+(about 40 s a cycle)
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -304,8 +308,16 @@ def main() -> int:
     ap.add_argument("out", type=Path)
     ap.add_argument("--cycles", type=int, default=1)
     ap.add_argument("--lights", choices=LIGHT_SETS, default="headlight")
+    ap.add_argument("--pose-model", default=None,
+                    help="full | heavy | lite | PATH (default: $AKC_DRAKE_POSE_MODEL, else full)")
     args = ap.parse_args()
     use_lights(args.lights)
+    if args.pose_model:
+        from akc_drake.io.mediapipe_detector import find_pose_model
+        from akc_drake.io.pose_models import POSE_MODEL_ENV
+
+        find_pose_model(args.pose_model)  # a missing model: its one-line message now
+        os.environ[POSE_MODEL_ENV] = args.pose_model
     K = CameraIntrinsics()
     runs = [render(sweep_motion(90.0)), render(sweep_motion(45.0))]
     runs += [render(make_motion(name, cycles=args.cycles, seed=0)) for name in ("I", "II")]
@@ -321,7 +333,8 @@ def main() -> int:
     )
     angle_figure(rows, args.out / "elbow_vs_angle.png")
     md = [
-        f"# MediaPipe's elbow on the skinned body (lights: {args.lights})\n",
+        f"# MediaPipe's elbow on the skinned body (lights: {args.lights}, pose model: "
+        f"{args.pose_model or os.environ.get('AKC_DRAKE_POSE_MODEL') or 'full'})\n",
         "Visible elbows, px median (frames) by the upper arm's angle to the camera ray:\n",
         "| run | 0-10 deg | 10-30 deg | 30-60 deg | >= 60 deg |",
         "|---|---|---|---|---|",
