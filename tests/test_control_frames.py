@@ -232,3 +232,44 @@ def test_hands_knuckles_replace_the_pose_hand_points_and_a_missed_frame_keeps_th
     s, missed, _, _ = t.step(s, 0.1, wrong, np.full((2, 3), np.nan))
     for k in range(2):
         assert F.rotation_angle(truth[k][:3, :3].T @ missed[k][:3, :3]) < np.radians(3.0)
+
+
+def test_hands_swapped_needs_a_reversed_long_image_part():
+    from akc_drake.core.control_frames import hands_swapped
+
+    ref = np.array([0.05, 0.0])
+    assert hands_swapped(np.array([-0.05, 0.01, 0.0]), ref, 0.06)
+    assert not hands_swapped(np.array([0.04, 0.03, 0.02]), ref, 0.06)  # 37 deg: a turn a person makes
+    assert not hands_swapped(np.array([-0.02, 0.0, 0.05]), ref, 0.06)  # image part 1/3 of the width: no direction
+    assert not hands_swapped(np.array([np.nan, 0.0, 0.0]), ref, 0.06)
+
+
+def test_hands_index_pinky_swap_is_held_off_until_it_persists():
+    from akc_drake.core.camera import CameraIntrinsics
+    from akc_drake.core.control_frames import HANDS_HOLD_S, hands_knuckle_vector
+
+    K = CameraIntrinsics()
+    pose = camera_pose()
+    m = F.RobotMapping.default()
+    truth = F.robot_targets(pose, m)
+    knuckles = np.zeros((2, 3))
+    for k, side in enumerate(("left", "right")):
+        hand = np.full((21, 3), np.nan)
+        for j, name in ((5, "index"), (17, "pinky")):
+            x, y, z = pose[INDEX[f"{side}_{name}"]]
+            hand[j] = [K.fx * x / z + K.cx, K.fy * y / z + K.cy, K.fx * (z - 2.0) / 2.0]
+        knuckles[k] = hands_knuckle_vector(hand, K)
+    t = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None)
+    s = t.initial_state()
+    for k in range(3):
+        s, X, _, _ = t.step(s, 0.1 * k, pose, knuckles)
+    # Hands swaps index and pinky on both hands (its knuckle line reversed): the wrist frames do not flip ...
+    errors = []
+    for k in range(3, 3 + int(round(HANDS_HOLD_S / 0.1)) + 3):
+        s, X, _, _ = t.step(s, 0.1 * k, pose, -knuckles)
+        errors.append([F.rotation_angle(truth[j][:3, :3].T @ X[j][:3, :3]) for j in range(2)])
+    errors = np.degrees(errors)
+    held = int(round(HANDS_HOLD_S / 0.1))
+    assert np.all(errors[:held] < 3.0)
+    # ... until the reversal has lasted HANDS_HOLD_S: then it is a real turn, followed.
+    assert np.all(errors[held + 1 :] > 150.0)

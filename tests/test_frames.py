@@ -258,3 +258,27 @@ def test_rotation_angle_is_accurate_for_small_and_large_angles():
         assert F.rotation_angle(F.rotation_y(a)) == pytest.approx(a, rel=1e-9, abs=1e-15)
 
 
+
+
+def test_resolve_wrist_flip_keeps_the_mirror_off_only_when_the_depth_sign_matters():
+    previous = F.wrist_frame(np.array([0.0, 0.0, 2.3]), np.array([0.0, 0.0, 2.0]), np.array([0.03, 0.0, 2.0]),
+                             np.array([-0.03, 0.0, 2.0]))
+    # Forearm along the camera ray (elbow behind the wrist): the hand's image part is across the forearm, so the
+    # frame does not depend on the depth's sign; it is trusted even with an image share of only 0.45.
+    p_e, p_w = np.array([0.0, 0.0, 2.3]), np.array([0.0, 0.0, 2.0])
+    h = np.array([-0.027, 0.0, 0.054])  # image share 0.45 (< HAND_VECTOR_RELIABLE_SHARE)
+    R = F.wrist_frame(p_e, p_w, p_w + h, p_w)
+    assert F.rotation_angle(previous.T @ R) > np.radians(170.0)  # (a reversed image part: taken as measured)
+    np.testing.assert_allclose(F.resolve_wrist_flip(R, h, previous), R)
+    # Forearm across the image, the same hand vector: it points mostly along the ray, its depth's sign sets the
+    # frame; the one nearer the previous frame (its mirror) is kept.
+    p_e2 = np.array([0.3, 0.0, 2.0])
+    prev2 = F.wrist_frame(p_e2, p_w, p_w + h * [1, 1, -1], p_w)
+    R2 = F.wrist_frame(p_e2, p_w, p_w + h, p_w)
+    out = F.resolve_wrist_flip(R2, h, prev2)
+    np.testing.assert_allclose(out, R2 @ F.R_FLIP_Y)
+    assert F.rotation_angle(prev2.T @ out) < F.rotation_angle(prev2.T @ R2)
+    # A hand vector in the image plane is trusted as measured, whatever the previous frame.
+    h3 = np.array([0.0, 0.06, 0.01])
+    R3 = F.wrist_frame(p_e2, p_w, p_w + h3, p_w)
+    np.testing.assert_allclose(F.resolve_wrist_flip(R3, h3, R3 @ F.R_FLIP_Y), R3)

@@ -100,6 +100,27 @@ HANDS_INDEX_MCP, HANDS_PINKY_MCP = 5, 17
 #: When Hands misses a hand it had, its last hand vector is kept this long (s) before the pose's two points are
 #: used again (on the demo's skinned body those are 30-100 deg off: one frame of them is a flip).
 HANDS_HOLD_S = 0.5
+#: Hands' knuckle line pointing the other way in the image (by more than this, deg) from the last one seen at
+#: least :data:`HANDS_SWAP_MIN_SHARE` of the hand's width long in the image is taken as Hands swapping the index
+#: and the pinky, not as a turn: a hand seen end-on (fingers toward the camera) reads about the same palm up and
+#: palm down, and on the demo's reaches Hands' line reversed for 0.1-0.4 s, often through a frame or two where it
+#: collapsed to a few millimetres, or when the hand came back after Hands had missed it (measured on the skinned
+#: body: the wrist frame 130-180 deg off in those frames). A person's forearm rotation (<= ~10 rad/s) takes more
+#: than a frame to turn it over, through the hand seen edge-on. The previous vector is kept, as for a missed hand;
+#: a reversal that persists :data:`HANDS_HOLD_S` (no long line the old way meanwhile) is accepted, so a real turn
+#: is followed at most that late.
+HANDS_SWAP_DEG, HANDS_SWAP_MIN_SHARE = 90.0, 0.5
+
+
+def hands_swapped(h_C, reference_xy, width_m: float) -> bool:
+    """Whether Hands' knuckle vector ``h_C`` (camera frame) points the other way in the image from
+    ``reference_xy`` (the last image part at least :data:`HANDS_SWAP_MIN_SHARE` of ``width_m`` long), by more than
+    :data:`HANDS_SWAP_DEG`; False when ``h_C``'s own image part is shorter than that (no reliable direction)."""
+    a, b = np.asarray(h_C, dtype=float)[:2], np.asarray(reference_xy, dtype=float)[:2]
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    if not (math.isfinite(na) and math.isfinite(nb)) or na < HANDS_SWAP_MIN_SHARE * width_m or nb <= 0.0:
+        return False
+    return float(a @ b) < math.cos(math.radians(HANDS_SWAP_DEG)) * na * nb
 
 
 def hands_knuckle_vector(hand_px, intrinsics) -> np.ndarray:
@@ -166,8 +187,9 @@ class ControlFrameTracker:
         self.max_speed = max_landmark_speed
         # Layout: torso filter | torso R (9) + origin (3) | per side: wrist filter, previous R_C (9), gate,
         # hand width estimate (1), previous hand vector (3), hand length estimate (1), time of the last hand
-        # knuckles (1).
-        self._side = _S + 9 + _NG + 6
+        # knuckles (1), the last long image part of Hands' knuckle vector (2), the time since which Hands has read it
+        # reversed (1).
+        self._side = _S + 9 + _NG + 9
         self._hold_at = _S + 12 + 2 * self._side  # the torso anchor's state, last
         self.state_size = self._hold_at + smoothing.HOLD_STATE_SIZE
 
@@ -213,6 +235,21 @@ class ControlFrameTracker:
         state[j] = length
         return wrist_behind_hand(p_e, p_w, p_i, p_p, length)
 
+    def _hands_accepted(self, state: np.ndarray, ref_sl: slice, hand_sl: slice, t: float, h_meas) -> bool:
+        """False when Hands' measured knuckle vector ``h_meas`` is an index/pinky swap: :func:`hands_swapped`
+        against the last long image part, read so for less than :data:`HANDS_HOLD_S`. An accepted vector with a
+        long image part becomes the reference."""
+        width = state[hand_sl][0] if np.isfinite(state[hand_sl][0]) else DEFAULT_HAND_WIDTH_M
+        ref = state[ref_sl]
+        if self.robust_wrist and np.all(np.isfinite(ref[:2])) and hands_swapped(h_meas, ref[:2], width):
+            since = ref[2] if np.isfinite(ref[2]) else t
+            if t - since < HANDS_HOLD_S:
+                state[ref_sl] = [ref[0], ref[1], since]
+                return False
+        if float(np.linalg.norm(h_meas[:2])) >= HANDS_SWAP_MIN_SHARE * width:
+            state[ref_sl] = [h_meas[0], h_meas[1], np.nan]
+        return True
+
     def step(self, state, t: float, pose, hand_knuckles=None) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
         """One camera frame.
 
@@ -243,16 +280,20 @@ class ControlFrameTracker:
             f_sl, prev_sl = slice(b, b + _S), slice(b + _S, b + _S + 9)
             gate_sl, hand_sl = slice(b + _S + 9, b + _S + 9 + _NG), slice(b + _S + 9 + _NG, b + _S + 13 + _NG)
             i_length, i_hands_t = b + _S + 13 + _NG, b + _S + 14 + _NG
+            ref_sl = slice(b + _S + 15 + _NG, b + _S + 18 + _NG)  # Hands' last long image part (2), reversed since
             p_e, p_w, p_i, p_p = (pose[INDEX[f"{side}_{n}"]] for n in ("elbow", "wrist", "index", "pinky"))
             R_w = None
             if np.all(np.isfinite([p_e, p_w, p_i, p_p])):
                 if self.robust_wrist:
                     p_w = self._wrist(state, i_length, p_e, p_w, p_i, p_p)
                 h_meas, previous = p_i - p_p, state[hand_sl][1:]
-                if knuckles is not None and np.all(np.isfinite(knuckles[k])):
+                fresh = knuckles is not None and bool(np.all(np.isfinite(knuckles[k])))
+                if fresh:
                     h_meas = knuckles[k] * (0.5 * (p_i[2] + p_p[2]))  # Hands' knuckles at the pose knuckles' depth
-                    state[i_hands_t] = t
-                if (knuckles is not None and not np.all(np.isfinite(knuckles[k])) and self.robust_wrist
+                    fresh = self._hands_accepted(state, ref_sl, hand_sl, t, h_meas)
+                    if fresh:
+                        state[i_hands_t] = t
+                if (knuckles is not None and not fresh and self.robust_wrist
                         and np.all(np.isfinite(previous)) and t - state[i_hands_t] <= HANDS_HOLD_S):
                     h = previous.copy()  # Hands missed the hand for a moment: a hand does not turn over in 0.5 s
                 else:
