@@ -323,3 +323,29 @@ def test_state_round_trips_with_the_running_nis():
         other.set_state_vector(bad)
     with pytest.raises(ValueError, match="variance"):
         akc.correct(p, measured=p, variance=np.zeros((3, 3)))
+
+
+def test_dropped_shoulder_the_filter_knows_better_than_a_rebuild_is_kept():
+    # The upper arm lies in the image plane and the shoulder's depth is dropped for a frame (the forearm in
+    # front of it): the filter's shoulder is right, with a variance (5.2 cm) above the measurement's (5 cm).
+    # The detected elbow sits 1 cm off towards the shoulder, so eq. 8 would rebuild the shoulder ~7 cm off in
+    # depth; its variance from the in-plane geometry exceeds the filter's, so the filter's depth is kept.
+    p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, 0.0), wrist_dir_l=(0.2, -0.3, -0.9))
+    akc = ArmKinematicCorrectorPlus(dims)
+    akc.correct(p, measured=p, variance=kf_var())
+    filt = p.copy()
+    filt[LE, :2] += 0.01 * (p[LS, :2] - p[LE, :2]) / np.linalg.norm(p[LS, :2] - p[LE, :2])
+    meas = filt.copy()
+    meas[LS, 2] = np.nan
+    var = kf_var(xy=1e-4)
+    var[LS, 2] = 0.052**2
+    out = akc.correct(filt, measured=meas, variance=var).pose
+    assert abs(out[LS, 2] - p[LS, 2]) < 0.01
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    # The same frame with a filter that is no surer than the rebuild (blind for long): rebuilt, not kept.
+    akc2 = ArmKinematicCorrectorPlus(dims)
+    akc2.correct(p, measured=p, variance=kf_var())
+    var[LS, 2] = 0.5**2
+    out2 = akc2.correct(filt, measured=meas, variance=var).pose
+    assert abs(out2[LS, 2] - p[LS, 2]) > 0.03

@@ -101,3 +101,26 @@ def test_circle_point_is_at_both_lengths_and_nearest():
     assert np.linalg.norm(np.array(p) - s) == pytest.approx(lu, abs=1e-12)
     assert np.linalg.norm(np.array(p) - e) < 0.02
     assert circle_point(*w, *(w + [2.0, 0, 0]), lf, lu, *e) is None
+
+
+def test_rebuild_variance_first_order_far_from_the_image_plane_and_bounded_on_it():
+    from akc_drake.core.arm_geometry import rebuild_variance
+
+    vxy, vl, vaz, length = 1e-4, 1e-4, 2e-3, 0.29
+    # A segment 60 deg out of the image plane: dz = l sin 60; the first-order propagation.
+    dxy = length * 0.5
+    dz2 = length**2 - dxy**2
+    first = vaz + (dxy**2 * 2 * vxy + length**2 * vl) / dz2
+    got = rebuild_variance(0.0, 0.0, vxy, vxy, vaz, dxy, 0.0, vxy, vxy, length, vl)
+    assert got == pytest.approx(first, rel=0.1)
+    assert got > vaz
+    # In the plane (and out of reach) the first order diverges; the rebuilt depth is still within about
+    # sqrt(sd(dz^2)) of the anchor's: a Monte Carlo of z = sqrt(max(l^2 - dx^2, 0)) agrees within a factor 2.
+    rng = np.random.default_rng(0)
+    n = 20000
+    for dx in (length, length + 0.01):
+        x = dx + rng.normal(0.0, np.sqrt(2 * vxy), n)
+        lk = length + rng.normal(0.0, np.sqrt(vl), n)
+        mc = float(np.mean(np.maximum(lk**2 - x**2, 0.0)))  # E[dz^2] about the anchor (true dz ~ 0)
+        v = rebuild_variance(0.0, 0.0, vxy, vxy, 0.0, dx, 0.0, vxy, vxy, length, vl)
+        assert np.isfinite(v) and 0.5 * mc < v < 2.0 * mc

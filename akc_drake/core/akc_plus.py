@@ -17,11 +17,13 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   weight ``nis_alpha``) scales the filter's variance into the error variance its residuals show: a lagging
   filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
   that passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's.
-* *Minimal change*: when both depths are seen (or a blind one is still known as well as a measurement), and
-  the arm passes the chi2 test against the calibrated lengths (``length_sigma_m``), the output is the arm
-  nearest the filter's in its covariance metric with the exact lengths
-  (:func:`~akc_drake.core.arm_geometry.project_lengths`): the joint the filter is least sure of moves, mostly
-  in depth.
+* *Minimal change*: when both depths are known (seen; or not measured this frame and known by the filter as
+  well as a measurement would know them or, dropped at most ``recent_frames`` ago, better than eq. 7-8 would
+  rebuild them from their neighbours: :func:`~akc_drake.core.arm_geometry.rebuild_variance`, which is large
+  for a segment near the image plane), and the arm passes the chi2 test against the calibrated lengths
+  (``length_sigma_m``), the output is the arm nearest the filter's in its covariance metric with the exact
+  lengths (:func:`~akc_drake.core.arm_geometry.project_lengths`): the joint the filter is least sure of moves,
+  mostly in depth. A shoulder so known is kept when the elbow is rebuilt.
 * A joint the detector lost altogether whose depth the filter extrapolates (variance above ``R``, moved by more
   than ``depth_sigma_m`` since last seen) is held at our last output in depth (a zero-velocity hold); a
   filter that holds it, or whose constraints inform it (an EKF), is followed.
@@ -52,13 +54,12 @@ arithmetic).
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from akc_drake.core.akc import AKCResult
+from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, project_lengths, torso_axes
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -66,6 +67,7 @@ from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import follow as _follow
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
+from akc_drake.core.arm_geometry import rebuild_variance as _rebuild_variance
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
@@ -87,79 +89,6 @@ _RHIP_Z = 3 * INDEX["right_hip"] + 2
 #: joint and axis the running mean of the normalised innovation squared (18).
 STATE_SIZE = 54
 _NIS = 36
-
-
-@dataclass(frozen=True)
-class AKCPlusConfig:
-    """Settings of AKC+ (see the module docstring). Lengths in metres.
-
-    ``consistency_m``, ``jump_m``, ``gate_frames``, ``sigma_filter_m`` and ``drift_m_per_frame`` serve only
-    without the filter's covariance; ``depth_sigma_m``, ``image_sigma_m``, ``length_sigma_m``, ``gate_sigma``,
-    ``nis_alpha`` and ``nis_floor`` only with it.
-
-    Attributes:
-        consistency_m: a measured depth farther than this from the filtered one is not trusted.
-        length_tol_m: a measured joint whose segment length (to the wrist, or to a trusted elbow) is off the
-            calibrated one by more than this is not trusted.
-        sigma_filter_m: the filter's depth standard deviation for a joint whose depth was just lost.
-        drift_m_per_frame: added to it per frame without a trusted depth (extrapolation drift).
-        sigma_temporal_m: how far a joint may move between two frames (10 Hz: 1 m/s -> 0.1 m).
-        sigma_width_m: standard deviation of the shoulder-width term (0 turns it off).
-        sigma_torso_m: standard deviation of a shoulder's depth about the hips' (torso lean; 0 turns it off).
-        temporal_cap: the temporal term is capped at this many standard deviations (squared): continuity breaks
-            ties and resists single-frame evidence, but persistent evidence (filter, torso) can undo a wrong
-            configuration instead of locking it in.
-        elbow_min_deg: candidates folded more than this (or hyperextended) are penalised.
-        xy_tol_m: a seen shoulder that would move the elbow's image position (x, y) by more than this makes
-            the elbow be placed from the shoulder and the wrist follow.
-        jump_m: a seen depth farther than this from the joint's last output is not trusted (an occluder's,
-            e.g. the elbow's surface read at the shoulder's pixel) ...
-        gate_frames: ... unless it has been so for this many frames and fits the arm's lengths.
-        occlusion_radius_m: a shoulder this close (x, y, metres) to its elbow does not count as seen (its
-            depth may be the upper arm's surface; 8 cm ~ 25 px at 2 m).
-        depth_sigma_m, image_sigma_m: the measurement's standard deviations in depth and in x, y (the
-            filter's R: ``KFConfig.sigma_z``, ``sigma_x``); without the filter's covariance they also stand
-            for it.
-        length_sigma_m: the calibrated lengths' standard deviation (a T-pose calibration: ``EKFConfig.sigma_c``).
-        gate_sigma: the statistical tests' gate in standard deviations (a measured depth against the filter,
-            the arm against the calibrated lengths: chi2 at the same tail probability, 99.7 % for 3).
-        nis_alpha: weight of the newest frame in the running mean of each joint's normalised innovation
-            squared (0.2: a time constant of 5 frames); the filter's variance times that mean is the error
-            variance the residuals show (covariance matching): a lagging joint's grows, a still one's shrinks.
-        nis_floor: the smallest factor the running mean may apply to the filter's variance.
-    """
-
-    consistency_m: float = 0.05
-    length_tol_m: float = 0.10
-    sigma_filter_m: float = 0.05
-    drift_m_per_frame: float = 0.02
-    sigma_temporal_m: float = 0.10
-    sigma_width_m: float = 0.05
-    sigma_torso_m: float = 0.20
-    temporal_cap: float = 4.0
-    elbow_min_deg: float = 40.0
-    xy_tol_m: float = 0.03
-    jump_m: float = 0.15
-    occlusion_radius_m: float = 0.08
-    gate_frames: float = 10.0
-    depth_sigma_m: float = 0.05
-    image_sigma_m: float = 0.01
-    length_sigma_m: float = 0.01
-    gate_sigma: float = 3.0
-    nis_alpha: float = 0.2
-    nis_floor: float = 0.01
-
-    def __post_init__(self):
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"AKCPlusConfig.{f.name} must be a finite number >= 0, got {v!r}")
-            object.__setattr__(self, f.name, float(v))
-        for name in ("sigma_filter_m", "sigma_temporal_m"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"AKCPlusConfig.{name} must be > 0, got {getattr(self, name)!r}")
-        if self.elbow_min_deg >= 180.0:
-            raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")
 
 
 class ArmKinematicCorrectorPlus:
@@ -353,6 +282,34 @@ class ArmKinematicCorrectorPlus:
                     self._no_prior.add(k)
         return out
 
+    def _known(self, m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy):
+        """Whether the elbow's and the shoulder's depths are known (see ``_arm``): measured and seen, or not
+        measured this frame (nor held at our last output) with a filter variance within the measurement's or,
+        when last seen at most ``recent_frames`` ago, within the variance eq. 7-8 would give the depth from
+        its neighbours (:func:`~akc_drake.core.arm_geometry.rebuild_variance`: the elbow from the wrist, fused
+        with the one from a seen shoulder; the shoulder from the elbow, whose own variance is then the smaller
+        of the filter's and its rebuilt one)."""
+        sx, sy, ex, ey, wx, wy = xy
+        r_z, lv, no, lost = self._r_z, self._len_var, self._no_prior, self._lost
+        recent = self.config.recent_frames
+        kn_e = me
+        ve = vs[5]
+        if not me:
+            rb = _rebuild_variance(wx, wy, vs[6], vs[7], vs[8], ex, ey, vs[3], vs[4], lf, lv)
+            if ms:
+                rs = _rebuild_variance(sx, sy, vs[0], vs[1], vs[2], ex, ey, vs[3], vs[4], lu, lv)
+                rb = rb * rs / (rb + rs)
+            kn_e = (ke not in no and not self._depth_measured(m, o_e)
+                    and (ve <= r_z or lost[ke] <= recent and ve <= rb))
+            if rb < ve:
+                ve = rb
+        kn_s = ms
+        if not ms:
+            rb = _rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, lv)
+            kn_s = (ks not in no and not self._depth_measured(m, o_s)
+                    and (vs[2] <= r_z or lost[ks] <= recent and vs[2] <= rb))
+        return kn_e, kn_s
+
     def _inv_f2(self, k):
         """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
         if k in self._no_prior:
@@ -500,11 +457,14 @@ class ArmKinematicCorrectorPlus:
         s = e = None
         vs = self._cur_var
         # With the filter's covariance: a depth not measured this frame that the filter still knows as well as
-        # a measurement would (its error variance within the measurement's) counts as seen here (a measured
-        # depth that a test rejected does not).
-        if vs is not None and (me or vs[5] <= self._r_z and not self._depth_measured(m, o_e)) and (
-            ms or vs[2] <= self._r_z and not self._depth_measured(m, o_s)
-        ):
+        # a measurement would, or better than eq. 7-8 would rebuild it from its neighbours (its error variance
+        # within the larger of the two), counts as known here (a measured depth that a test rejected, or one
+        # held at our last output, does not).
+        kn_e, kn_s = me, ms
+        if vs is not None:
+            kn_e, kn_s = self._known(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf,
+                                     (sx, sy, ex, ey, wx, wy))
+        if vs is not None and kn_e and kn_s:
             # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its
             # covariance), the arm nearest it in that metric with the exact lengths (the joints move least
             # where the filter is surest, and mostly in depth).
@@ -521,7 +481,7 @@ class ArmKinematicCorrectorPlus:
         # (The upper arm must then fit within consistency_m, the depth's own tolerance: a seen elbow at the
         # forearm length is the stronger evidence.)
         fit_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self.config.consistency_m
-        ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te)
+        ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te) or (kn_s and not te)
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...

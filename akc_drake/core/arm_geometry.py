@@ -251,6 +251,32 @@ def pythagoras(ax, ay, az, px, py, length):
     return (px, py, az + r), (px, py, az - r)
 
 
+def rebuild_variance(ax, ay, vax, vay, vaz, px, py, vpx, vpy, length, length_var):
+    """The variance of the depth eq. 7-8 gives joint ``p`` from anchor ``a`` (first order, regularised).
+
+    ``z_p = z_a +- dz`` with ``dz^2 = l^2 - dx^2 - dy^2`` (``dx = x_p - x_a``, ``dy = y_p - y_a``), so
+    ``var(dz^2) = 4 (dx^2 (vx_p + vx_a) + dy^2 (vy_p + vy_a) + l^2 var_l)`` and, to first order,
+    ``var dz = var(dz^2) / (4 dz^2)``. That diverges near the image plane, where the rebuilt depth is in fact
+    within about ``sqrt(sd(dz^2))`` of the anchor's: the denominator is ``4 |dz^2| + 2 sd(dz^2)``, which is
+    the first-order value far from the plane, half of ``sd(dz^2)`` on it (``E max(u, 0)`` is 0.4 sd for a
+    Gaussian ``u`` of mean 0) and less again out of reach (eq. 9's fallback puts the joint at the anchor's
+    depth, which the data then favour). Plus the anchor's depth variance ``vaz``. The candidates' mirror
+    ambiguity is left aside (this is the variance of the right branch).
+
+    Args:
+        ax, ay: the anchor's x, y; vax, vay, vaz: its variances.
+        px, py: the joint's x, y; vpx, vpy: their variances.
+        length: the segment's calibrated length; length_var: its variance.
+    """
+    dx, dy = px - ax, py - ay
+    dx2, dy2 = dx * dx, dy * dy
+    l2 = length * length
+    dz2 = l2 - dx2 - dy2
+    v4 = 4.0 * (dx2 * (vpx + vax) + dy2 * (vpy + vay) + l2 * length_var)
+    den = 4.0 * abs(dz2) + 2.0 * math.sqrt(v4)
+    return vaz + (v4 / den if den > 0.0 else 0.0)
+
+
 def candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
     """The joint's candidates at ``length`` from anchor ``a``: the Pythagorean pair (eq. 7-8) when its x, y
     were detected this frame; when they were not (the filter holds them, less reliable 2D) and ``p`` is

@@ -1,0 +1,86 @@
+"""Settings of AKC+ (:mod:`akc_drake.core.akc_plus`), in their own module to keep the corrector's short."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class AKCPlusConfig:
+    """Settings of AKC+ (see the module docstring). Lengths in metres.
+
+    ``consistency_m``, ``jump_m``, ``gate_frames``, ``sigma_filter_m`` and ``drift_m_per_frame`` serve only
+    without the filter's covariance; ``depth_sigma_m``, ``image_sigma_m``, ``length_sigma_m``, ``gate_sigma``,
+    ``nis_alpha`` and ``nis_floor`` only with it.
+
+    Attributes:
+        consistency_m: a measured depth farther than this from the filtered one is not trusted.
+        length_tol_m: a measured joint whose segment length (to the wrist, or to a trusted elbow) is off the
+            calibrated one by more than this is not trusted.
+        sigma_filter_m: the filter's depth standard deviation for a joint whose depth was just lost.
+        drift_m_per_frame: added to it per frame without a trusted depth (extrapolation drift).
+        sigma_temporal_m: how far a joint may move between two frames (10 Hz: 1 m/s -> 0.1 m).
+        sigma_width_m: standard deviation of the shoulder-width term (0 turns it off).
+        sigma_torso_m: standard deviation of a shoulder's depth about the hips' (torso lean; 0 turns it off).
+        temporal_cap: the temporal term is capped at this many standard deviations (squared): continuity breaks
+            ties and resists single-frame evidence, but persistent evidence (filter, torso) can undo a wrong
+            configuration instead of locking it in.
+        elbow_min_deg: candidates folded more than this (or hyperextended) are penalised.
+        xy_tol_m: a seen shoulder that would move the elbow's image position (x, y) by more than this makes
+            the elbow be placed from the shoulder and the wrist follow.
+        jump_m: a seen depth farther than this from the joint's last output is not trusted (an occluder's,
+            e.g. the elbow's surface read at the shoulder's pixel) ...
+        gate_frames: ... unless it has been so for this many frames and fits the arm's lengths.
+        occlusion_radius_m: a shoulder this close (x, y, metres) to its elbow does not count as seen (its
+            depth may be the upper arm's surface; 8 cm ~ 25 px at 2 m).
+        depth_sigma_m, image_sigma_m: the measurement's standard deviations in depth and in x, y (the
+            filter's R: ``KFConfig.sigma_z``, ``sigma_x``); without the filter's covariance they also stand
+            for it.
+        length_sigma_m: the calibrated lengths' standard deviation (a T-pose calibration: ``EKFConfig.sigma_c``).
+        gate_sigma: the statistical tests' gate in standard deviations (a measured depth against the filter,
+            the arm against the calibrated lengths: chi2 at the same tail probability, 99.7 % for 3).
+        nis_alpha: weight of the newest frame in the running mean of each joint's normalised innovation
+            squared (0.2: a time constant of 5 frames); the filter's variance times that mean is the error
+            variance the residuals show (covariance matching): a lagging joint's grows, a still one's shrinks.
+        nis_floor: the smallest factor the running mean may apply to the filter's variance.
+        recent_frames: a depth not measured for up to this many frames (0.3 s at 10 Hz) whose filter variance
+            is below the variance eq. 7-8 would rebuild it with counts as known: the filter's variance is a
+            trustworthy error measure only shortly after a measurement (the running NIS was measured then;
+            further on, unmodelled motion, or an EKF's bone constraints, which are the rebuild's own lengths,
+            dominate it).
+    """
+
+    consistency_m: float = 0.05
+    length_tol_m: float = 0.10
+    sigma_filter_m: float = 0.05
+    drift_m_per_frame: float = 0.02
+    sigma_temporal_m: float = 0.10
+    sigma_width_m: float = 0.05
+    sigma_torso_m: float = 0.20
+    temporal_cap: float = 4.0
+    elbow_min_deg: float = 40.0
+    xy_tol_m: float = 0.03
+    jump_m: float = 0.15
+    occlusion_radius_m: float = 0.08
+    gate_frames: float = 10.0
+    depth_sigma_m: float = 0.05
+    image_sigma_m: float = 0.01
+    length_sigma_m: float = 0.01
+    gate_sigma: float = 3.0
+    nis_alpha: float = 0.2
+    nis_floor: float = 0.01
+    recent_frames: float = 3.0
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"AKCPlusConfig.{f.name} must be a finite number >= 0, got {v!r}")
+            object.__setattr__(self, f.name, float(v))
+        for name in ("sigma_filter_m", "sigma_temporal_m"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"AKCPlusConfig.{name} must be > 0, got {getattr(self, name)!r}")
+        if self.elbow_min_deg >= 180.0:
+            raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")

@@ -1,0 +1,22 @@
+import math
+
+import pytest
+
+from akc_drake.core.akc_plus import AKCPlusConfig as ReExported
+from akc_drake.core.akc_plus_config import AKCPlusConfig
+
+
+def test_defaults_are_the_measurement_model_of_the_kf():
+    c = AKCPlusConfig()
+    assert ReExported is AKCPlusConfig
+    assert c.depth_sigma_m == 0.05 and c.image_sigma_m == 0.01 and c.length_sigma_m == 0.01
+    assert c.gate_sigma == 3.0 and c.recent_frames == 3.0
+    assert isinstance(AKCPlusConfig(gate_frames=4).gate_frames, float)
+
+
+@pytest.mark.parametrize("field, value", [("recent_frames", -1.0), ("gate_sigma", math.nan),
+                                          ("sigma_temporal_m", 0.0), ("elbow_min_deg", 180.0),
+                                          ("nis_alpha", True)])
+def test_bad_settings_name_the_field(field, value):
+    with pytest.raises(ValueError, match=field):
+        AKCPlusConfig(**{field: value})
