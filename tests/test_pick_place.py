@@ -69,3 +69,26 @@ def test_pick_and_place_with_ground_truth_landmarks_succeeds(motion):
     assert out.moved and out.released and out.upright
     assert out.success, out
     assert out.box_error_cm < 2.0
+
+
+def test_hand_recorder_keeps_the_apertures_and_the_knuckle_vectors():
+    from types import SimpleNamespace
+
+    from akc_drake.core.camera import CameraIntrinsics
+    from akc_drake.io.hand_detector import HandMeasurement
+    from akc_drake.teleop.task import HandRecorder
+
+    K = CameraIntrinsics()
+    hands = np.full((2, 21, 3), np.nan)
+    hands[1, 5], hands[1, 17] = [330.0, 200.0, -4.0], [300.0, 210.0, 2.0]  # the right hand's two knuckles
+    found = HandMeasurement(aperture_m=np.array([np.nan, 0.02]), found=np.array([False, True]), landmarks_px=hands,
+                            score=np.array([0.0, 0.9]))
+    detector = SimpleNamespace(detect=lambda frame, wrists: found)
+    rec = HandRecorder(detector)
+    rec(SimpleNamespace(intrinsics=K))
+    rec(SimpleNamespace(intrinsics=K))
+    np.testing.assert_allclose(rec.apertures, [[np.nan, 0.02]] * 2)
+    kn = rec.knuckles
+    assert kn.shape == (2, 2, 3)
+    assert np.all(np.isnan(kn[:, 0]))  # no left hand
+    np.testing.assert_allclose(kn[0, 1], [30.0 / K.fx, -10.0 / K.fy, -6.0 / K.fx])

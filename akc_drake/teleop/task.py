@@ -143,15 +143,26 @@ class HandRecorder:
         self.detector = detector
         self.pose = pose
         self.rows: list[np.ndarray] = []
+        self.knuckle_rows: list[np.ndarray] = []
 
     def __call__(self, frame) -> None:
+        from akc_drake.core.control_frames import hands_knuckle_vector
+
         wrists = self.pose.wrists_px() if self.pose is not None else None
-        self.rows.append(self.detector.detect(frame, wrists).aperture_m)
+        found = self.detector.detect(frame, wrists)
+        self.rows.append(found.aperture_m)
+        self.knuckle_rows.append(np.array([hands_knuckle_vector(h, frame.intrinsics) for h in found.landmarks_px]))
 
     @property
     def apertures(self) -> np.ndarray:
         """``(frames, 2)`` thumb-index distances (left, right; metres; NaN: not found)."""
         return np.array(self.rows, dtype=float).reshape(-1, 2)
+
+    @property
+    def knuckles(self) -> np.ndarray:
+        """``(frames, 2, 3)`` each hand's knuckle vector in normalised image units
+        (:func:`~akc_drake.core.control_frames.hands_knuckle_vector`; NaN: not found), for the wrist frames."""
+        return np.array(self.knuckle_rows, dtype=float).reshape(-1, 2, 3)
 
 
 def hand_truth(motion, times, params=None) -> np.ndarray:
@@ -234,9 +245,10 @@ def run_pick_place(
             if pose is not None and hasattr(pose.inner, "close"):
                 pose.inner.close()
             meas = Measurements.from_session(session)
-            apertures = None
+            apertures = knuckles = None
             if recorder is not None:
-                apertures = recorder.apertures
+                # the same frames' hands set the wrist frames, as in the demo's motions
+                apertures, knuckles = recorder.apertures, recorder.knuckles
                 truth = hand_truth(motion, session.t) if getattr(cfg, "body", "") == "skinned" else np.full(
                     apertures.shape, np.nan)
                 intended = motion.closure(motion.start + session.t) > 0.5
@@ -258,6 +270,7 @@ def run_pick_place(
                     meshcat=meshcat if record else None,
                     start_time=start_time if record else 0.0,
                     hand_apertures=apertures,
+                    hand_knuckles=knuckles,
                 )
                 out = score_box(run.box_pose, target_W, start_W, run.box_contacts, seed=seed, corrector=corrector)
                 outcomes.append(out)
