@@ -29,8 +29,9 @@ def test_quick_bench_writes_finite_contract_figures(quick_run, capsys):
     assert code == 0
     data = json.loads(out.read_text(encoding="utf-8"))
     assert data["quick"] is True
-    for key in ("akc_us_per_frame", "kf_us_per_frame", "ekf_us_per_frame", "mocap_diagram_fps",
-                "teleop_realtime_factor", "render_extract_fps", "memory_growth_pct", "peak_rss_mb"):
+    for key in ("akc_us_per_frame", "akc_plus_us_per_frame", "kf_us_per_frame", "ekf_us_per_frame",
+                "mocap_diagram_fps", "teleop_realtime_factor", "render_extract_fps", "memory_growth_pct",
+                "peak_rss_mb"):
         assert _finite(data[key]), key
         if key != "memory_growth_pct":
             assert data[key] > 0, key
@@ -48,7 +49,7 @@ def test_quick_bench_writes_finite_contract_figures(quick_run, capsys):
 def test_quick_bench_reports_median_and_max_of_every_core_stage(quick_run):
     _, out = quick_run
     data = json.loads(out.read_text(encoding="utf-8"))
-    for name in ("occlusion", "kf", "ekf", "akc", "frames"):
+    for name in ("occlusion", "kf", "ekf", "akc", "akc_plus", "frames"):
         s = data["core"][name]
         assert s["n"] > 0
         assert 0 < s["median"] <= s["max"], name

@@ -4,8 +4,9 @@ Every figure is measured in the same run on the same machine, after a warm-up, w
 reported as a median and a maximum (plus mean, 95th percentile and sample count):
 
 * **core, per frame** (both arms, 12 landmarks): the occlusion filter, the constant-velocity KF, the EKF,
-  AKC, COIK with each solver (SNOPT, IPOPT, NLopt; warm start) and the control frames; and the ratio
-  COIK / AKC of the medians;
+  AKC, AKC+ (with the KF's covariance and the occlusion filter's measurement, as the evaluation runs it),
+  COIK with each solver (SNOPT, IPOPT, NLopt; warm start) and the control frames; and the ratio COIK / AKC
+  of the medians;
 * **LeafSystem overhead**: each stage's system alone, fed by a :class:`MeasurementReplay` and stepped by a
   ``Simulator`` at its own rate; the replay alone is the baseline, so ``net_us`` is what the stage costs in a
   diagram and ``overhead_us`` what the Drake wrapping adds on top of the core call;
@@ -45,6 +46,7 @@ from akc_drake.fileio import write_json
 #: Speed targets on the reference machine (2 cores, no GPU): figure key -> (comparison, bound).
 TARGETS: dict[str, tuple[str, float]] = {
     "akc_us_per_frame": ("<=", 25.0),
+    "akc_plus_us_per_frame": ("<=", 25.0),
     "kf_us_per_frame": ("<=", 20.0),
     "ekf_us_per_frame": ("<=", 60.0),
     "coik_snopt_ms_per_frame": ("<=", 3.0),
@@ -290,7 +292,8 @@ class BenchInput:
         t: ``(T,)`` frame times, s. raw: ``(T, 12, 3)`` extracted landmarks in C.
         visibility: ``(T, 12)``. pixels: ``(T, 12, 2)``. truth: ``(T, 12, 3)``.
         intrinsics: the camera. dims: the operator's dimensions.
-        accepted: occlusion-filter output. kf: KF estimates. ekf: EKF estimates. akc: AKC(KF) output.
+        accepted: occlusion-filter output. kf: KF estimates. kf_var: the KF's posterior variance of each
+        coordinate. ekf: EKF estimates. akc: AKC(KF) output.
         kind: ``"rendered"`` or ``"synthetic"``.
     """
 
@@ -304,6 +307,7 @@ class BenchInput:
     kind: str
     accepted: np.ndarray | None = None
     kf: np.ndarray | None = None
+    kf_var: np.ndarray | None = None
     ekf: np.ndarray | None = None
     akc: np.ndarray | None = None
 
@@ -326,7 +330,11 @@ class BenchInput:
         self.accepted = np.stack([occlusion_filter(z, p, v, w)[0] for z, p, v in frames])
         kf, ekf = ConstantVelocityKF(), ExtendedKalmanFilterCV(self.dims)
         dt = self.dt
-        self.kf = np.stack([kf.step(z, dt) for z in self.accepted])
+        kf_out, kf_var = [], []
+        for z in self.accepted:
+            kf_out.append(kf.step(z, dt))
+            kf_var.append(kf.position_variance)
+        self.kf, self.kf_var = np.stack(kf_out), np.stack(kf_var)
         self.ekf = np.stack([ekf.step(z, dt) for z in self.accepted])
         akc = ArmKinematicCorrector(self.dims)
         self.akc = np.stack([akc.correct(p).pose for p in self.kf])
@@ -462,6 +470,16 @@ def bench_core(inp: BenchInput, s: BenchSettings, progress: Callable[[str], None
     akc = ArmKinematicCorrector(inp.dims)
     ns = time_calls(akc.correct, list(inp.kf), repeats=reps, warmup=wu, before_pass=akc.reset)
     out["akc"] = summarize(ns / 1e3, "us")
+
+    say("core: AKC+")
+    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+
+    plus = ArmKinematicCorrectorPlus(inp.dims)
+    # As the evaluation runs it: the KF's output, the occlusion filter's measurement and the KF's variance.
+    triples = list(zip(inp.kf, inp.accepted, inp.kf_var, strict=True))
+    ns = time_calls(lambda x: plus.correct(x[0], x[1], x[2]), triples, repeats=reps, warmup=wu,
+                    before_pass=plus.reset)
+    out["akc_plus"] = summarize(ns / 1e3, "us")
 
     say("core: control frames")
     mapping = RobotMapping.default()  # built once, as FrameMapper does

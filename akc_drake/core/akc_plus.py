@@ -134,10 +134,13 @@ class ArmKinematicCorrectorPlus:
         )
         self._no_measurement = [_NAN] * (3 * NUM_LANDMARKS)
         self._gate2 = config.gate_sigma**2
+        self._occ_r2 = config.occlusion_radius_m**2
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = None
         self._v = None
+        self._v0 = None
+        self._axes = None
         self._cur_var = None
         self.reset()
 
@@ -242,6 +245,7 @@ class ArmKinematicCorrectorPlus:
         a = self.config.nis_alpha
         b = 1.0 - a
         out = []
+        app = out.append
         if m is None:
             m = self._no_measurement
         for i, j, r, n in self._sub_index[side]:
@@ -249,7 +253,7 @@ class ArmKinematicCorrectorPlus:
             k = nis[n]
             z = m[j]
             if z != z:  # not measured
-                out.append(p * (k if k > 1.0 else 1.0))
+                app(p * (k if k > 1.0 else 1.0))
                 continue
             d = r - p
             if d > 0.0:
@@ -264,7 +268,7 @@ class ArmKinematicCorrectorPlus:
                 if d * d <= g2 * ((r - p if r > p else 0.0) + (vi - p if vi > p else 0.0)) + 1e-12:
                     f[i] = z
                     vi = r
-            out.append(vi)
+            app(vi)
         return out
 
     def _hold_blind(self, p, vs, base, f0, prev, k):
@@ -350,6 +354,10 @@ class ArmKinematicCorrectorPlus:
         cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
         if cos_t > self._cos_min:
             return _BACKWARDS
+        if axes is None:  # the torso's axes, computed once per frame and only when needed
+            axes = self._axes
+            if axes is None:
+                axes = self._axes = torso_axes(self._v0)
         if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
             return _BACKWARDS
         return 0.0
@@ -373,7 +381,15 @@ class ArmKinematicCorrectorPlus:
         self._no_prior = set()
         tol = self.config.length_tol_m
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
-        me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
+        var = self._var
+        if m is None or var is None:
+            me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
+        else:  # (``_measured``'s innovation test, inlined: this runs every frame)
+            g2, rz = self._gate2, self._r_z
+            d, q = m[o_e + 2] - ez, rz - var[o_e + 2]
+            me = _isfinite(m[o_e] + m[o_e + 1] + d) and d * d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
+            d, q = m[o_s + 2] - sz, rz - var[o_s + 2]
+            ms = _isfinite(m[o_s] + m[o_s + 1] + d) and d * d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
         me_nis, ms_nis = me, ms
         if prev is not None and self._var is None:
             geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
@@ -416,8 +432,7 @@ class ArmKinematicCorrectorPlus:
                     sx, sy, sz = self._hold_blind((sx, sy, sz), vs, 0, self._f0[ks], prev, 2 * side + 1)
         # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
         # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface.
-        r2 = self.config.occlusion_radius_m ** 2
-        if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < r2:
+        if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < self._occ_r2:
             ms = False
         if self._cur_var is not None:
             # A depth measured this frame that agrees with the filter (innovation test) but that another rule
@@ -430,9 +445,9 @@ class ArmKinematicCorrectorPlus:
                 self._no_prior.add(ks)
         # A lost depth whose filtered estimate still fits the calibrated length (to the wrist, or to the
         # filtered elbow) within consistency_m shows no drift: its filter prior keeps its full weight.
-        cons = self.config.consistency_m
-        self._fits = set()
         if self._cur_var is None:  # (only the no-covariance prior uses it)
+            cons = self.config.consistency_m
+            self._fits = set()
             if not me and ke not in self._no_prior and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= cons:
                 self._fits.add(ke)
             if not ms and ks not in self._no_prior and abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons:
@@ -440,17 +455,19 @@ class ArmKinematicCorrectorPlus:
         # How far the filter's depth has travelled since the depth was lost, from the filter's depth in the
         # last frame it was seen (a filter that jumps to, or drifts towards, another depth while blind is no
         # evidence for it; one that stays where it was is).
-        for k, seen, px, py, pz in ((ke, me, ex, ey, ez), (ks, ms, sx, sy, sz)):
-            if seen:
-                self._f0[k] = (px, py, pz)
-                self._travel[k] = 0.0
-            elif self._f0[k] is None:
-                self._f0[k] = (px, py, pz)
-                self._travel[k] = 0.0
-            else:
-                self._travel[k] = abs(pz - self._f0[k][2])
-        self._lost[ke] = 0.0 if me else self._lost[ke] + 1.0
-        self._lost[ks] = 0.0 if ms else self._lost[ks] + 1.0
+        f0, travel, lost = self._f0, self._travel, self._lost
+        if me or f0[ke] is None:
+            f0[ke] = (ex, ey, ez)
+            travel[ke] = 0.0
+        else:
+            travel[ke] = abs(ez - f0[ke][2])
+        if ms or f0[ks] is None:
+            f0[ks] = (sx, sy, sz)
+            travel[ks] = 0.0
+        else:
+            travel[ks] = abs(sz - f0[ks][2])
+        lost[ke] = 0.0 if me else lost[ke] + 1.0
+        lost[ks] = 0.0 if ms else lost[ks] + 1.0
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         w = (wx, wy, wz)
@@ -461,7 +478,7 @@ class ArmKinematicCorrectorPlus:
         # within the larger of the two), counts as known here (a measured depth that a test rejected, or one
         # held at our last output, does not).
         kn_e, kn_s = me, ms
-        if vs is not None:
+        if vs is not None and not (me and ms):
             kn_e, kn_s = self._known(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf,
                                      (sx, sy, ex, ey, wx, wy))
         if vs is not None and kn_e and kn_s:
@@ -607,7 +624,8 @@ class ArmKinematicCorrectorPlus:
                 raise ValueError(f"variance must have shape ({NUM_LANDMARKS}, 3), got {c.shape}")
             self._var = c.ravel().tolist()
         self._v = v
-        axes = torso_axes(v)
+        axes = self._axes = None  # (see ``_penalty``)
+        self._v0 = v[:]
         hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z])
         self._hip_z = hz if _isfinite(hz) else None
         chosen = [-1, -1]
