@@ -124,3 +124,21 @@ def test_rebuild_variance_first_order_far_from_the_image_plane_and_bounded_on_it
         mc = float(np.mean(np.maximum(lk**2 - x**2, 0.0)))  # E[dz^2] about the anchor (true dz ~ 0)
         v = rebuild_variance(0.0, 0.0, vxy, vxy, 0.0, dx, 0.0, vxy, vxy, length, vl)
         assert np.isfinite(v) and 0.5 * mc < v < 2.0 * mc
+
+
+def test_rebuild_variance_adds_the_mirror_candidates_risk():
+    from math import erfc, sqrt
+
+    from akc_drake.core.arm_geometry import rebuild_variance
+
+    vxy, vl, length, dxy = 1e-4, 1e-4, 0.29, 0.25
+    base = rebuild_variance(0.0, 0.0, vxy, vxy, 1e-3, dxy, 0.0, vxy, vxy, length, vl)
+    dz2 = length**2 - dxy**2
+    for prior in (1e-4, 2.5e-3, 0.04):
+        got = rebuild_variance(0.0, 0.0, vxy, vxy, 1e-3, dxy, 0.0, vxy, vxy, length, vl, prior)
+        # P(wrong candidate) = Phi(-dz / sd), at (2 dz)^2.
+        assert got - base == pytest.approx(0.5 * erfc(sqrt(dz2 / prior) / sqrt(2)) * 4 * dz2, rel=1e-9)
+    # A sure prior never picks the mirror; a vague one does half the time.
+    assert rebuild_variance(0.0, 0.0, vxy, vxy, 1e-3, dxy, 0.0, vxy, vxy, length, vl, 1e-8) == pytest.approx(base)
+    vague = rebuild_variance(0.0, 0.0, vxy, vxy, 1e-3, dxy, 0.0, vxy, vxy, length, vl, 1e6)
+    assert vague - base == pytest.approx(2 * dz2, rel=1e-3)

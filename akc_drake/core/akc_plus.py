@@ -20,7 +20,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
 * *Minimal change*: when both depths are known (seen; or not measured this frame and known by the filter as
   well as a measurement would know them or, dropped at most ``recent_frames`` ago, better than eq. 7-8 would
   rebuild them from their neighbours: :func:`~akc_drake.core.arm_geometry.rebuild_variance`, which is large
-  for a segment near the image plane), and the arm passes the chi2 test against the calibrated lengths
+  for a segment near the image plane, plus the risk of choosing the mirror candidate under the filter's
+  depth variance), and the arm passes the chi2 test against the calibrated lengths
   (``length_sigma_m``), the output is the arm nearest the filter's in its covariance metric with the exact
   lengths (:func:`~akc_drake.core.arm_geometry.project_lengths`): the joint the filter is least sure of moves,
   mostly in depth. A shoulder so known is kept when the elbow is rebuilt.
@@ -299,9 +300,9 @@ class ArmKinematicCorrectorPlus:
         kn_e = me
         ve = vs[5]
         if not me:
-            rb = _rebuild_variance(wx, wy, vs[6], vs[7], vs[8], ex, ey, vs[3], vs[4], lf, lv)
+            rb = _rebuild_variance(wx, wy, vs[6], vs[7], vs[8], ex, ey, vs[3], vs[4], lf, lv, ve)
             if ms:
-                rs = _rebuild_variance(sx, sy, vs[0], vs[1], vs[2], ex, ey, vs[3], vs[4], lu, lv)
+                rs = _rebuild_variance(sx, sy, vs[0], vs[1], vs[2], ex, ey, vs[3], vs[4], lu, lv, ve)
                 rb = rb * rs / (rb + rs)
             kn_e = (ke not in no and not self._depth_measured(m, o_e)
                     and (ve <= r_z or lost[ke] <= recent and ve <= rb))
@@ -309,7 +310,7 @@ class ArmKinematicCorrectorPlus:
                 ve = rb
         kn_s = ms
         if not ms:
-            rb = _rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, lv)
+            rb = _rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, lv, vs[2])
             kn_s = (ks not in no and not self._depth_measured(m, o_s)
                     and (vs[2] <= r_z or lost[ks] <= recent and vs[2] <= rb))
         return kn_e, kn_s

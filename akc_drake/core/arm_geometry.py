@@ -251,7 +251,7 @@ def pythagoras(ax, ay, az, px, py, length):
     return (px, py, az + r), (px, py, az - r)
 
 
-def rebuild_variance(ax, ay, vax, vay, vaz, px, py, vpx, vpy, length, length_var):
+def rebuild_variance(ax, ay, vax, vay, vaz, px, py, vpx, vpy, length, length_var, prior_var=0.0):
     """The variance of the depth eq. 7-8 gives joint ``p`` from anchor ``a`` (first order, regularised).
 
     ``z_p = z_a +- dz`` with ``dz^2 = l^2 - dx^2 - dy^2`` (``dx = x_p - x_a``, ``dy = y_p - y_a``), so
@@ -260,13 +260,15 @@ def rebuild_variance(ax, ay, vax, vay, vaz, px, py, vpx, vpy, length, length_var
     within about ``sqrt(sd(dz^2))`` of the anchor's: the denominator is ``4 |dz^2| + 2 sd(dz^2)``, which is
     the first-order value far from the plane, half of ``sd(dz^2)`` on it (``E max(u, 0)`` is 0.4 sd for a
     Gaussian ``u`` of mean 0) and less again out of reach (eq. 9's fallback puts the joint at the anchor's
-    depth, which the data then favour). Plus the anchor's depth variance ``vaz``. The candidates' mirror
-    ambiguity is left aside (this is the variance of the right branch).
+    depth, which the data then favour). Plus the anchor's depth variance ``vaz``. With ``prior_var`` (the
+    variance of the prior that chooses between the two candidates ``z_a +- dz``, e.g. the filter's depth), plus
+    the mirror's risk: the wrong candidate, ``2 dz`` away, is chosen with probability ``Phi(-dz / sd)``.
 
     Args:
         ax, ay: the anchor's x, y; vax, vay, vaz: its variances.
         px, py: the joint's x, y; vpx, vpy: their variances.
         length: the segment's calibrated length; length_var: its variance.
+        prior_var: the variance of the prior that chooses the candidate (0: the mirror's risk left out).
     """
     dx, dy = px - ax, py - ay
     dx2, dy2 = dx * dx, dy * dy
@@ -274,7 +276,10 @@ def rebuild_variance(ax, ay, vax, vay, vaz, px, py, vpx, vpy, length, length_var
     dz2 = l2 - dx2 - dy2
     v4 = 4.0 * (dx2 * (vpx + vax) + dy2 * (vpy + vay) + l2 * length_var)
     den = 4.0 * abs(dz2) + 2.0 * math.sqrt(v4)
-    return vaz + (v4 / den if den > 0.0 else 0.0)
+    out = vaz + (v4 / den if den > 0.0 else 0.0)
+    if prior_var > 0.0 and dz2 > 0.0:
+        out += 2.0 * dz2 * math.erfc(math.sqrt(dz2 / (2.0 * prior_var)))  # Phi(-dz/sd) (2 dz)^2
+    return out
 
 
 def candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
