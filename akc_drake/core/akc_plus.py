@@ -632,32 +632,32 @@ class ArmKinematicCorrectorPlus:
         chosen = [-1, -1]
         held = [True, True]
         fallback = [False, False]
+        prevs, lost, offsets = self._prev, self._lost, self._offsets
         for side in (0, 1):
             # The other shoulder for the width term: its last corrected position (the filtered one may be
             # drifting on a lost depth), else the filtered one.
             # (Only a shoulder seen when last corrected: a rebuilt one may be a wrong configuration, which
             # the width term would copy to this side.)
-            po = self._prev[1 - side]
-            if po is not None and self._lost[2 * (1 - side) + 1] > 0:
-                other = None
-            elif po is not None:
-                other = (po[0], po[1], po[2])
+            po = prevs[1 - side]
+            if po is not None:
+                other = None if lost[3 - 2 * side] > 0 else (po[0], po[1], po[2])
             else:
-                o_other = self._offsets[1 - side][0]
+                o_other = offsets[1 - side][0]
                 other = (v[o_other], v[o_other + 1], v[o_other + 2])
-                if not _isfinite(sum(other)):
+                if not _isfinite(other[0] + other[1] + other[2]):
                     other = None
-            lost_before = (self._lost[2 * side], self._lost[2 * side + 1])
+            ke = 2 * side
+            lost_e, lost_s = lost[ke], lost[ke + 1]
             out = self._arm(v, m, side, axes, other)
             if out is not None and _isfinite(sum(out)):
-                self._prev[side] = out
+                prevs[side] = out
                 held[side] = False
                 chosen[side] = 0
-                fallback[side] = self._lost[2 * side] > 0 and self._lost[2 * side + 1] > 0
+                fallback[side] = lost[ke] > 0 and lost[ke + 1] > 0
             else:
-                self._lost[2 * side], self._lost[2 * side + 1] = lost_before
-                out = self._prev[side] if self._prev[side] is not None else (_NAN,) * 9
-            o_s, o_e, o_w = self._offsets[side]
+                lost[ke], lost[ke + 1] = lost_e, lost_s
+                out = prevs[side] if prevs[side] is not None else (_NAN,) * 9
+            o_s, o_e, o_w = offsets[side]
             v[o_s : o_s + 3] = out[0:3]
             v[o_e : o_e + 3] = out[3:6]
             v[o_w : o_w + 3] = out[6:9]
