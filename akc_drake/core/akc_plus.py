@@ -103,6 +103,12 @@ class ArmKinematicCorrectorPlus:
     output (NaN if none); a missing elbow/shoulder x, y reuses the last output's (held if none).
     """
 
+    # Slots: this object's attributes are read tens of times a frame on the hot path.
+    __slots__ = ("config", "_arm_index", "_axes", "_chi2_gate", "_cos_min", "_cur_var", "_dims", "_f0", "_fits",
+                 "_gate2", "_hip_z", "_inv_t2", "_inv_torso2", "_inv_w2", "_inv_wrist2", "_len_var", "_lf", "_lost",
+                 "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
+                 "_r_z", "_sub_index", "_t_cap", "_travel", "_v", "_v0", "_var")
+
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
             raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
@@ -511,13 +517,12 @@ class ArmKinematicCorrectorPlus:
             elif not me:
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
                 if pair is not None:
-                    cands = []
-                    for c in pair:
-                        q = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, c[0], c[1], c[2])
-                        cands.append(q if q is not None else c)
-                    extra = [self._penalty(s, c, w, lu, lf, axes) for c in cands]
-                    e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
-                    e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, e[0], e[1], e[2])
+                    # (The circle exists for both candidates or for neither: it depends on s and w alone.)
+                    q = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *pair[0])
+                    if q is not None:
+                        cands = (q, _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *pair[1]))
+                        extra = [self._penalty(s, c, w, lu, lf, axes) for c in cands]
+                        e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
             if e is None or _hypot(e[0] - ex, e[1] - ey) > self.config.xy_tol_m:
                 # ... unless that moves the elbow off its image position (the filtered wrist lags, is off, or
                 # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen,
