@@ -553,7 +553,7 @@ class ArmKinematicCorrectorPlus:
                 e_cands = _candidates(wx, wy, wz, ex, ey, ez, lf, exy, tol)
                 best = None
                 best_j = math.inf
-                inv_fe2 = self._inv_f2(ke)
+                inv_fe2, inv_fs2 = self._inv_f2(ke), self._inv_f2(ks)
                 for ec in e_cands:
                     je = _d2(ec, ex, ey, ez) * inv_fe2
                     if pe is not None:
@@ -561,11 +561,12 @@ class ArmKinematicCorrectorPlus:
                     s_pair = _candidates(ec[0], ec[1], ec[2], sx, sy, sz, lu, sxy, tol)
                     if len(s_pair) == 1:
                         sc = s_pair[0]
-                        js = self._shoulder_cost(sc, ec, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
+                        js = self._shoulder_cost(sc, ec, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other_shoulder)
                     else:
                         sc, js = None, math.inf
                         for c in s_pair:
-                            jc = self._shoulder_cost(c, ec, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
+                            jc = self._shoulder_cost(c, ec, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes,
+                                                     other_shoulder)
                             if jc < js:
                                 sc, js = c, jc
                     if je + js < best_j:
@@ -573,10 +574,15 @@ class ArmKinematicCorrectorPlus:
                 s, e = best
         return (*s, *e, *w)
 
-    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
-        j = _d2(c, sx, sy, sz) * self._inv_f2(ks)
+    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other):
+        """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``)."""
+        cx, cy, cz = c
+        dx, dy, dz = cx - sx, cy - sy, cz - sz
+        j = (dx * dx + dy * dy + dz * dz) * inv_fs2
         if ps is not None:
-            j += min(_d2(c, ps[0], ps[1], ps[2]) * self._inv_t2, self._t_cap)
+            dx, dy, dz = cx - ps[0], cy - ps[1], cz - ps[2]
+            t = (dx * dx + dy * dy + dz * dz) * self._inv_t2
+            j += t if t < self._t_cap else self._t_cap
         if other is not None and self._inv_w2:
             dw = _hypot(c[0] - other[0], c[1] - other[1], c[2] - other[2]) - self._ls
             j += dw * dw * self._inv_w2
@@ -590,8 +596,9 @@ class ArmKinematicCorrectorPlus:
 
     def _choose_shoulder(self, pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
         best, best_j = pair[0], math.inf
+        inv_fs2 = self._inv_f2(ks)
         for c in pair:
-            j = self._shoulder_cost(c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other)
+            j = self._shoulder_cost(c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other)
             if j < best_j:
                 best, best_j = c, j
         return best
