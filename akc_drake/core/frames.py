@@ -626,8 +626,7 @@ def calibrated_mapping(dims, **kwargs) -> RobotMapping:
     return RobotMapping.from_shoulders(human_reach_m=float(reach), human_shoulder_width_m=float(dims.SW), **kwargs)
 
 
-#: A hand vector ``p_i - p_p`` whose image-plane (x, y of C) share of its length is at least this is trusted
-#: as measured; below it, it points mostly along the camera ray and its sign rests on two noisy depths.
+#: A hand vector ``p_i - p_p`` with this image-plane share (forearm in the image plane) is trusted (resolve_wrist_flip).
 HAND_VECTOR_RELIABLE_SHARE = 0.6
 #: Rotation about the wrist frame's y axis by pi: the mirror configuration of eq. (17) (z and x negated).
 R_FLIP_Y: np.ndarray = np.diag([-1.0, 1.0, -1.0])
@@ -635,16 +634,13 @@ R_FLIP_Y: np.ndarray = np.diag([-1.0, 1.0, -1.0])
 
 def resolve_wrist_flip(R_C, hand_vector_C, R_previous_C) -> np.ndarray:
     """Keep a camera-frame wrist frame of eq. (17) on the same side as the previous one when its hand vector
-    is unreliable.
-
-    When ``p_i - p_p`` points mostly along the camera ray (the palm seen edge-on, e.g. palms down in a T-pose),
-    its sign comes from two noisy (and self-occluded) depths and the frame flips by pi about its y axis from one
-    frame to the next. Then, of the measured frame and its mirror (``R_C @ R_FLIP_Y``), the one closer to the
-    previous frame is taken. A reliable hand vector is taken as measured, which also re-seeds the branch: one whose
-    depth's sign barely matters to the frame, i.e. whose parts across the forearm with either sign of its depth
-    are at most ``acos(2 s^2 - 1)`` apart (``s`` = :data:`HAND_VECTOR_RELIABLE_SHARE`: with the forearm in the image
-    plane, an image-plane share >= ``s``). (Measured on the demo with MediaPipe Hands: with the forearm toward the
-    camera the image-plane share alone called the hand vector unreliable and held a mirrored frame for 1.5 s.)
+    is unreliable: when ``p_i - p_p`` points mostly along the camera ray (the palm seen edge-on, e.g. palms down in a
+    T-pose), its sign comes from two noisy (and self-occluded) depths and the frame flips by pi about its y axis from
+    one frame to the next; of the measured frame and its mirror (``R_C @ R_FLIP_Y``), the one closer to the previous
+    frame is taken. A hand vector whose depth's sign barely matters is taken as measured (and re-seeds the branch):
+    its parts across the forearm (the frame's y) with either sign are at most ``acos(2 s^2 - 1)`` apart, ``s`` =
+    :data:`HAND_VECTOR_RELIABLE_SHARE` (forearm in the image plane: image share >= ``s``; a forearm toward the camera
+    sees the hand across it in the image, where the image share alone held a mirrored frame 1.5 s).
 
     Args:
         R_C: ``(3, 3)`` the measured wrist frame in C; hand_vector_C: ``(3,)`` ``p_i - p_p`` in C;
@@ -653,12 +649,7 @@ def resolve_wrist_flip(R_C, hand_vector_C, R_previous_C) -> np.ndarray:
     if R_previous_C is None:
         return R_C
     h = np.asarray(hand_vector_C, dtype=float)
-    # The frame depends on h only through its part across the forearm (its y axis); the depth's sign is what is
-    # uncertain: when the two signs give parts across the forearm at most ~106 deg apart the frame is trusted (with
-    # the forearm in the image plane this is the image-plane share >= HAND_VECTOR_RELIABLE_SHARE; a forearm pointing
-    # at the camera sees the hand across it in the image plane, whatever the depths).
-    y = np.asarray(R_C, dtype=float)[:, 1]
-    g = h * np.array([1.0, 1.0, -1.0])
+    y, g = np.asarray(R_C, dtype=float)[:, 1], h * np.array([1.0, 1.0, -1.0])  # g: the other sign of the depth
     a, b = h - float(h @ y) * y, g - float(g @ y) * y
     na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
     if na > MIN_NORM_M and nb > MIN_NORM_M and float(a @ b) >= (2 * HAND_VECTOR_RELIABLE_SHARE**2 - 1) * na * nb:
