@@ -11,7 +11,8 @@ frame:
    (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard). Missing: the last torso is held.
 2. **Wrists** (eq. 17) in the camera frame: a wrist hidden by its own hand (the forearm pointing at the camera,
    the depth reading the back of the hand) is first moved back behind the hand (:func:`wrist_behind_hand`); the
-   hand vector ``p_i - p_p`` is rebuilt from its image-plane part and the hand's learnt width
+   hand vector ``p_i - p_p`` (MediaPipe Hands' knuckle line when given, :func:`hands_knuckle_vector`, its
+   index/pinky swaps held off, :func:`hands_swapped`) is rebuilt from its image-plane part and the hand's learnt width
    (:func:`~akc_drake.core.frames.reconstruct_hand_vector`: the knuckles'
    depths are the noisiest inputs of eq. 17); a frame whose hand vector is unreliable is kept on the side of
    the previous one (:func:`~akc_drake.core.frames.resolve_wrist_flip`), then expressed in the torso frame and
