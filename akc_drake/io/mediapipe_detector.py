@@ -126,7 +126,26 @@ def _import_mediapipe():
     return mp, vision, base.BaseOptions
 
 
-class MediaPipeDetector:
+class LandmarkerHandle:
+    """A MediaPipe Tasks landmarker held in ``self._landmarker``: a context manager, and ``close()`` releases it
+    (later calls of the subclass's ``detect`` raise ``RuntimeError``); closing twice is a no-op."""
+
+    _landmarker = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Release MediaPipe's graph; later ``detect`` calls raise ``RuntimeError``."""
+        if self._landmarker is not None:
+            self._landmarker.close()
+            self._landmarker = None
+
+
+class MediaPipeDetector(LandmarkerHandle):
     """MediaPipe's PoseLandmarker in VIDEO mode, giving our 12 landmarks' pixels and visibility.
 
     Pixel coordinates follow :mod:`akc_drake.core.camera` (origin at the top-left pixel's centre):
@@ -198,18 +217,6 @@ class MediaPipeDetector:
         """Forget the tracked person (start a new sequence)."""
         self.close()
         self._open()
-
-    def __enter__(self) -> MediaPipeDetector:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def close(self) -> None:
-        """Release MediaPipe's graph; later :meth:`detect` calls raise ``RuntimeError``."""
-        if self._landmarker is not None:
-            self._landmarker.close()
-            self._landmarker = None
 
     def _timestamp_ms(self, t: float) -> int:
         if not math.isfinite(t):
