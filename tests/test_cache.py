@@ -205,3 +205,19 @@ def test_a_rig_driven_clip_counts_by_content_too(tmp_path):
     assert C.spec_key(rig_spec(a, [0.0, 1.0])) != C.spec_key(rig_spec(a))
     b.write_text("HIERARCHY two")
     assert C.spec_key(rig_spec(a)) != C.spec_key(rig_spec(b))
+
+
+def test_the_pose_model_named_by_the_environment_is_in_the_key(tmp_path, monkeypatch):
+    """The default pose model follows ``$AKC_DRAKE_POSE_MODEL``; changing it within one process changes the key."""
+    a, b = tmp_path / "a.task", tmp_path / "b.task"
+    a.write_bytes(b"model a")
+    b.write_bytes(b"model b")
+    spec = {"detector": "mediapipe"}
+    monkeypatch.setenv("AKC_DRAKE_POSE_MODEL", str(a))
+    fa = C.dependency_fingerprint(spec)
+    monkeypatch.setenv("AKC_DRAKE_POSE_MODEL", str(b))
+    fb = C.dependency_fingerprint(spec)
+    assert fa != fb
+    monkeypatch.setenv("AKC_DRAKE_POSE_MODEL", str(a))
+    assert C.dependency_fingerprint(spec) == fa
+    assert C.dependency_fingerprint({"detector": "mediapipe", "options": {"pose_model": str(b)}}) == fb

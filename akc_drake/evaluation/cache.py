@@ -278,8 +278,16 @@ def _version(dist: str) -> str:
         return "-"
 
 
-@functools.lru_cache(maxsize=8)
 def _pose_model_sha256(model_path: str | None) -> str:
+    """SHA-256 of the pose model file ``model_path`` names (None: the default, which ``$AKC_DRAKE_POSE_MODEL`` may
+    change within a process, so it is part of the memo's key)."""
+    from akc_drake.io.pose_models import POSE_MODEL_ENV
+
+    return _pose_model_sha256_of(model_path, None if model_path else os.environ.get(POSE_MODEL_ENV))
+
+
+@functools.lru_cache(maxsize=8)
+def _pose_model_sha256_of(model_path: str | None, env_model: str | None) -> str:
     from akc_drake.io.mediapipe_detector import find_pose_model
 
     try:
