@@ -79,3 +79,21 @@ def test_mediapipe_finds_the_rendered_tpose_within_10_px():
     arm = [INDEX[f"{s}_{n}"] for s in ("left", "right") for n in ("shoulder", "elbow", "wrist")]
     err = np.linalg.norm(d.uv[arm] - np.array([project(truth[j], K) for j in arm]), axis=1)
     assert np.all(err < 10.0), err
+
+
+def test_shells_have_the_illustration_role_only_when_asked(body):
+    for illustration in (False, True):
+        sg = SceneGraph()
+        _, ids = register_skinned_body(sg, body, illustration=illustration)
+        inspector = sg.model_inspector()
+        for gid in ids.values():
+            assert inspector.GetPerceptionProperties(gid) is not None
+            assert (inspector.GetIllustrationProperties(gid) is not None) == illustration
+
+
+def test_a_mediapipe_session_does_not_render_labels():
+    from akc_drake.io.mediapipe_detector import MediaPipeDetector
+    from akc_drake.systems.depth_camera_source import images_needed
+
+    # images_needed reads the class attributes: no MediaPipe model needs to load.
+    assert images_needed(MediaPipeDetector) == (True, False)

@@ -169,6 +169,8 @@ class MediaPipeDetector(LandmarkerHandle):
     """
 
     name = "mediapipe"
+    #: MediaPipe reads the colour image only: a source need not render the label image for it (a third render).
+    needs_label = False
 
     def __init__(
         self,

@@ -50,7 +50,11 @@ def hands_follow(motion):
 
 
 def register_skinned_body(
-    scene_graph, body: SkinnedOperator, X_WO: RigidTransform | None = None, source_name: str = "skinned_operator"
+    scene_graph,
+    body: SkinnedOperator,
+    X_WO: RigidTransform | None = None,
+    source_name: str = "skinned_operator",
+    illustration: bool = False,
 ):
     """Register ``body``'s region shells with ``scene_graph`` (before the diagram is built).
 
@@ -60,6 +64,9 @@ def register_skinned_body(
         X_WO: pose of the operator frame O in the world (default identity); the shells' vertices are
             given in the world frame.
         source_name: the geometry source's name.
+        illustration: give the shells the illustration role too (for a visualizer such as Meshcat). Off by
+            default: SceneGraph then recomputes every deformed shell once per role and frame, and the camera
+            only needs perception (the illustration copy costs ~2 ms a frame that nothing reads).
 
     Returns:
         ``(source_id, {region: GeometryId})``.
@@ -75,9 +82,10 @@ def register_skinned_body(
         region = body.piece_region[name]
         props.AddProperty("label", "id", RenderLabel(REGION_LABEL_BASE + REGIONS.index(region)))
         instance.set_perception_properties(props)
-        illus = IllustrationProperties()
-        illus.AddProperty("phong", "diffuse", rgba)
-        instance.set_illustration_properties(illus)
+        if illustration:
+            illus = IllustrationProperties()
+            illus.AddProperty("phong", "diffuse", rgba)
+            instance.set_illustration_properties(illus)
         ids[name] = scene_graph.RegisterDeformableGeometry(
             source_id, scene_graph.world_frame_id(), instance, _RESOLUTION_HINT
         )
