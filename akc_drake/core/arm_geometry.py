@@ -166,7 +166,7 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
         iters: SQP steps.
 
     Returns:
-        ``(arm as nine floats, chi2)``; the arm is None when chi2 > gate or no arm with these lengths exists
+        ``(arm as a tuple of nine floats, chi2)``; the arm is None when chi2 > gate or no arm with these lengths exists
         near ``f`` (the shoulder-wrist distance out of reach, a zero-length segment).
     """
     fsx, fsy, fsz, fex, fey, fez, fwx, fwy, fwz = f
@@ -205,12 +205,10 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
         sx, sy, sz = fsx - vsx * ax * l1, fsy - vsy * ay * l1, fsz - vsz * az * l1
         ex, ey, ez = fex - vex * (bx * l2 - ax * l1), fey - vey * (by * l2 - ay * l1), fez - vez * (bz * l2 - az * l1)
         wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
-    x = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
-    e = circle_point(x[6], x[7], x[8], x[0], x[1], x[2], lf, lu, x[3], x[4], x[5])
+    e = circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
     if e is None:
         return None, chi2
-    x[3], x[4], x[5] = e
-    return x, chi2
+    return (sx, sy, sz, *e, wx, wy, wz), chi2
 
 
 def circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
