@@ -186,17 +186,21 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
         a11 = ax * ax * (vsx + vex) + ay * ay * (vsy + vey) + az * az * (vsz + vez)
         a22 = bx * bx * (vex + vwx) + by * by * (vey + vwy) + bz * bz * (vez + vwz)
         a12 = -(ax * bx * vex + ay * by * vey + az * bz * vez)
-        # The constraints linearised at x, for the target f: g(x) + J (f - x).
-        dsx, dsy, dsz = fsx - sx, fsy - sy, fsz - sz
-        dex, dey, dez = fex - ex, fey - ey, fez - ez
-        b1 = n1 - lu + ax * (dsx - dex) + ay * (dsy - dey) + az * (dsz - dez)
-        b2 = n2 - lf + bx * (dex - (fwx - wx)) + by * (dey - (fwy - wy)) + bz * (dez - (fwz - wz))
         if it == 0:
+            # At x = f the linearised constraints g(x) + J (f - x) below are the residuals g(f) themselves
+            # (their J terms are exact zeros).
+            b1, b2 = n1 - lu, n2 - lf
             c11, c22 = a11 + length_var, a22 + length_var
             det = c11 * c22 - a12 * a12
             chi2 = (c22 * b1 * b1 - 2.0 * a12 * b1 * b2 + c11 * b2 * b2) / det if det > 0.0 else math.inf
             if not chi2 <= gate:
                 return None, chi2
+        else:
+            # The constraints linearised at x, for the target f: g(x) + J (f - x).
+            dsx, dsy, dsz = fsx - sx, fsy - sy, fsz - sz
+            dex, dey, dez = fex - ex, fey - ey, fez - ez
+            b1 = n1 - lu + ax * (dsx - dex) + ay * (dsy - dey) + az * (dsz - dez)
+            b2 = n2 - lf + bx * (dex - (fwx - wx)) + by * (dey - (fwy - wy)) + bz * (dez - (fwz - wz))
         det = a11 * a22 - a12 * a12
         if not det > 1e-30:
             return None, chi2
