@@ -254,8 +254,7 @@ class ArmKinematicCorrectorPlus:
         """
         var, fl, g2, nis, v, a = self._var, self._nis_floor, self._gate2, self._nis, self._v, self._nis_a
         b = 1.0 - a
-        out = []
-        app = out.append
+        out = [0.0] * 9
         if m is None:
             m = self._no_measurement
         for i, j, r, n in self._sub_index[side]:
@@ -263,7 +262,7 @@ class ArmKinematicCorrectorPlus:
             k = nis[n]
             z = m[j]
             if z != z:  # not measured
-                app(p * (k if k > 1.0 else 1.0))
+                out[i] = p * (k if k > 1.0 else 1.0)
                 continue
             d = r - p
             if d > 0.0:
@@ -278,7 +277,7 @@ class ArmKinematicCorrectorPlus:
                 if d * d <= g2 * ((r - p if r > p else 0.0) + (vi - p if vi > p else 0.0)) + 1e-12:
                     f[i] = z
                     vi = r
-            app(vi)
+            out[i] = vi
         return out
 
     def _hold_blind(self, p, vs, base, f0, prev, k):
