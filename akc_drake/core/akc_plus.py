@@ -558,6 +558,8 @@ class ArmKinematicCorrectorPlus:
                     je = _d2(ec, ex, ey, ez) * inv_fe2
                     if pe is not None:
                         je += min(_d2(ec, pe[0], pe[1], pe[2]) * self._inv_t2, self._t_cap)
+                    if je >= best_j:
+                        continue  # cannot win: the shoulder's cost is >= 0
                     s_pair = _candidates(ec[0], ec[1], ec[2], sx, sy, sz, lu, sxy, tol)
                     if len(s_pair) == 1:
                         sc = s_pair[0]
@@ -566,7 +568,7 @@ class ArmKinematicCorrectorPlus:
                         sc, js = None, math.inf
                         for c in s_pair:
                             jc = self._shoulder_cost(c, ec, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes,
-                                                     other_shoulder)
+                                                     other_shoulder, js)
                             if jc < js:
                                 sc, js = c, jc
                     if je + js < best_j:
@@ -574,8 +576,12 @@ class ArmKinematicCorrectorPlus:
                 s, e = best
         return (*s, *e, *w)
 
-    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other):
-        """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``)."""
+    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other, bound=math.inf):
+        """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``).
+
+        A candidate whose cost already reaches ``bound`` (the best so far) before the anatomical penalty cannot
+        win (the penalty is >= 0): that partial cost is returned without computing the penalty.
+        """
         cx, cy, cz = c
         dx, dy, dz = cx - sx, cy - sy, cz - sz
         j = (dx * dx + dy * dy + dz * dz) * inv_fs2
@@ -592,13 +598,15 @@ class ArmKinematicCorrectorPlus:
             # would otherwise keep the shoulder width).
             dz = c[2] - hz
             j += dz * dz * self._inv_torso2
+        if j >= bound:
+            return j
         return j + self._penalty(c, e, w, lu, lf, axes)
 
     def _choose_shoulder(self, pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
         best, best_j = pair[0], math.inf
         inv_fs2 = self._inv_f2(ks)
         for c in pair:
-            j = self._shoulder_cost(c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other)
+            j = self._shoulder_cost(c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other, best_j)
             if j < best_j:
                 best, best_j = c, j
         return best
