@@ -305,22 +305,24 @@ class ArmKinematicCorrectorPlus:
         sx, sy, ex, ey, wx, wy = xy
         r_z, lv, no, lost = self._r_z, self._len_var, self._no_prior, self._lost
         recent = self.config.recent_frames
-        kn_e = me
-        ve = vs[5]
-        if not me:
+        ve, vsz = vs[5], vs[2]
+        # Each test without its rebuilt variance; that variance is computed only where the test turns on it
+        # (a filter variance above the measurement's, ``not v <= r_z`` so that NaN counts as above).
+        kn_e = me or (ke not in no and not self._depth_measured(m, o_e) and (ve <= r_z or lost[ke] <= recent))
+        kn_s = ms or (ks not in no and not self._depth_measured(m, o_s) and (vsz <= r_z or lost[ks] <= recent))
+        need_e = not me and kn_e and not ve <= r_z
+        need_s = not ms and kn_s and not vsz <= r_z
+        if need_e or (need_s and not me):
             rb = _rebuild_variance(wx, wy, vs[6], vs[7], vs[8], ex, ey, vs[3], vs[4], lf, lv, ve)
             if ms:
                 rs = _rebuild_variance(sx, sy, vs[0], vs[1], vs[2], ex, ey, vs[3], vs[4], lu, lv, ve)
                 rb = rb * rs / (rb + rs)
-            kn_e = (ke not in no and not self._depth_measured(m, o_e)
-                    and (ve <= r_z or lost[ke] <= recent and ve <= rb))
+            if need_e:
+                kn_e = ve <= rb
             if rb < ve:
                 ve = rb
-        kn_s = ms
-        if not ms:
-            rb = _rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, lv, vs[2])
-            kn_s = (ks not in no and not self._depth_measured(m, o_s)
-                    and (vs[2] <= r_z or lost[ks] <= recent and vs[2] <= rb))
+        if need_s:
+            kn_s = vsz <= _rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, lv, vsz)
         return kn_e, kn_s
 
     def _inv_f2(self, k):
