@@ -145,13 +145,7 @@ class HandDetector(LandmarkerHandle):
         Raises:
             ValueError: ``frame.color`` is not ``(H, W, 3)`` uint8. RuntimeError: the detector is closed.
         """
-        if self._landmarker is None:
-            raise RuntimeError("HandDetector is closed")
-        img = np.asarray(frame.color)
-        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
-            raise ValueError(f"frame.color must be (H, W, 3) uint8 RGB, got {img.dtype} {img.shape}")
-        H, W = img.shape[:2]
-        mp_image = self._mp.Image(image_format=self._mp.ImageFormat.SRGB, data=np.ascontiguousarray(img))
+        mp_image, (H, W) = self._image(frame)
         with quiet_native_stderr() if self._quiet_first else contextlib.nullcontext():
             t0 = time.perf_counter()
             result = self._landmarker.detect(mp_image)

@@ -144,6 +144,20 @@ class LandmarkerHandle:
             self._landmarker.close()
             self._landmarker = None
 
+    def _image(self, frame: CameraFrame):
+        """``frame.color`` as MediaPipe's SRGB image, and its ``(H, W)``.
+
+        Raises:
+            RuntimeError: the detector is closed. ValueError: ``frame.color`` is not ``(H, W, 3)`` uint8.
+        """
+        if self._landmarker is None:
+            raise RuntimeError(f"{type(self).__name__} is closed")
+        img = np.asarray(frame.color)
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+            raise ValueError(f"frame.color must be (H, W, 3) uint8 RGB, got {img.dtype} {img.shape}")
+        mp_image = self._mp.Image(image_format=self._mp.ImageFormat.SRGB, data=np.ascontiguousarray(img))
+        return mp_image, img.shape[:2]
+
 
 class MediaPipeDetector(LandmarkerHandle):
     """MediaPipe's PoseLandmarker in VIDEO mode, giving our 12 landmarks' pixels and visibility.
@@ -246,14 +260,8 @@ class MediaPipeDetector(LandmarkerHandle):
             ValueError: ``frame.color`` is not ``(H, W, 3)`` uint8.
             RuntimeError: the detector is closed.
         """
-        if self._landmarker is None:
-            raise RuntimeError("MediaPipeDetector is closed")
-        img = np.asarray(frame.color)
-        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
-            raise ValueError(f"frame.color must be (H, W, 3) uint8 RGB, got {img.dtype} {img.shape}")
-        H, W = img.shape[:2]
+        mp_image, (H, W) = self._image(frame)
         ms = self._timestamp_ms(float(frame.t))
-        mp_image = self._mp.Image(image_format=self._mp.ImageFormat.SRGB, data=np.ascontiguousarray(img))
         quiet = quiet_native_stderr() if self._quiet_first else contextlib.nullcontext()
         with quiet:  # the first call logs a calculator warning
             t0 = time.perf_counter()
