@@ -4,6 +4,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import numpy as np
 import pytest
@@ -96,11 +97,16 @@ def test_two_processes_over_multicast_that_stays_on_this_host():
         assert child.stdout.readline().strip() == "ready"
         diagram, _ = _diagram(lcm, prefix=channel)
         sim = Simulator(diagram)
-        for k in range(1, 100):
+        # Publish until the child has its five messages (it then exits), for at most 45 s: a burst of 1 s of
+        # simulated time (about 100 datagrams in a few ms) once reached the child short of five under load, and
+        # the parent stopped publishing while the child waited.
+        deadline = time.monotonic() + 45.0
+        k = 0
+        while child.poll() is None and time.monotonic() < deadline:
+            k += 1
             sim.AdvanceTo(0.01 * k)
-            if child.poll() is not None:
-                break
-        out, _ = child.communicate(timeout=30)
+            time.sleep(0.002)
+        out, _ = child.communicate(timeout=90)
     finally:
         child.kill()
     n, *vals = out.split()
