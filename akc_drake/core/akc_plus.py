@@ -220,21 +220,18 @@ class ArmKinematicCorrectorPlus:
     def _measured(self, m, o, fz):
         """Whether row ``m[o:o+3]`` was measured this frame and agrees with the filtered depth ``fz``.
 
-        With the filter's covariance, agreeing is the innovation test: for a Kalman update with measurement
-        variance ``R`` the residual ``z - fz`` has variance ``R - P`` (``P`` the filter's posterior variance),
-        and ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared ``y^2 / S``; it must be
-        within ``gate_sigma``. Without it, within ``consistency_m``.
+        Without the filter's covariance (the only case this is called for), agreeing is being within
+        ``consistency_m``. With it, ``_arm`` runs the innovation test inline: for a Kalman update with
+        measurement variance ``R`` the residual ``z - fz`` has variance ``R - P`` (``P`` the filter's posterior
+        variance), and ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared ``y^2 / S``; it must
+        be within ``gate_sigma``.
         """
         if m is None:
             return False
         mx, my, mz = m[o], m[o + 1], m[o + 2]
         if not _isfinite(mx + my + mz):
             return False
-        var = self._var
-        if var is None:
-            return abs(mz - fz) <= self.config.consistency_m
-        d = mz - fz
-        return d * d <= self._gate2 * max(self._r_z - var[o + 2], 0.0) + 1e-12
+        return abs(mz - fz) <= self.config.consistency_m
 
     @staticmethod
     def _depth_measured(m, o):
@@ -281,19 +278,15 @@ class ArmKinematicCorrectorPlus:
         return out
 
     def _hold_blind(self, p, vs, base, f0, prev, k):
-        """A joint the detector lost altogether: each axis the filter extrapolates (see ``_arm``) is held at
-        our last output; if the depth is, the filter prior of joint ``k`` is left out of the candidate choice."""
-        if f0 is None:
-            f0 = prev[base : base + 3]
-        out = list(p)
-        rr = self._r_axes
-        for ax in range(3):
-            r = rr[ax]
-            if vs[base + ax] > r and (p[ax] - f0[ax]) ** 2 > r and ax == 2:
-                out[ax] = prev[base + ax]
-                if ax == 2:
-                    self._no_prior.add(k)
-        return out
+        """A joint the detector lost altogether: a depth the filter extrapolates (see ``_arm``) is held at our
+        last output, and the filter prior of joint ``k`` is then left out of the candidate choice; x and y
+        are kept as the filter gives them."""
+        rz = self._r_z
+        f0z = prev[base + 2] if f0 is None else f0[2]
+        if vs[base + 2] > rz and (p[2] - f0z) ** 2 > rz:
+            self._no_prior.add(k)
+            return p[0], p[1], prev[base + 2]
+        return p
 
     def _known(self, m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy):
         """Whether the elbow's and the shoulder's depths are known (see ``_arm``): measured and seen, or not
