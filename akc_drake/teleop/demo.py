@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -28,7 +29,6 @@ from akc_drake.teleop.scenario import (
     TeleopRun,
     calibrate_from_tpose,
     quiet_drake_warnings,
-    render_motion,
     run_teleop,
     truncate_motion,
 )
@@ -142,38 +142,6 @@ def _prepare_out_dir(out: Path) -> Path:
     return out
 
 
-def _render_with_hands(motion, cfg, opts: DemoOptions):
-    """Render ``motion``; with MediaPipe, also run MediaPipe Hands on each frame for the wrist frames.
-
-    Returns:
-        ``(session, knuckles)``: ``knuckles`` is ``(frames, 2, 3)`` each hand's knuckle vector in normalised image
-        units (:func:`~akc_drake.core.control_frames.hands_knuckle_vector`; NaN: no hand), None without MediaPipe.
-        The hands are told apart by the pose detector's wrists of the same frame.
-    """
-    if getattr(cfg, "detector", "sim") != "mediapipe":
-        return render_motion(motion, cfg, seed=opts.seed, progress=opts.progress), None
-    from akc_drake.core.control_frames import hands_knuckle_vector
-    from akc_drake.io.hand_detector import HandDetector
-    from akc_drake.systems.session_render import make_detector
-    from akc_drake.teleop.task import RememberingDetector
-
-    rows: list[np.ndarray] = []
-    with HandDetector(opts.hand_model) as hands:
-        pose = RememberingDetector(make_detector("mediapipe", opts.seed))
-
-        def record(frame) -> None:
-            found = hands.detect(frame, pose.wrists_px())
-            rows.append(np.array([hands_knuckle_vector(h, frame.intrinsics) for h in found.landmarks_px]))
-
-        try:
-            session = render_motion(motion, cfg, seed=opts.seed, progress=opts.progress, frame_callback=record,
-                                    detector=pose)
-        finally:
-            if hasattr(pose.inner, "close"):
-                pose.inner.close()
-    return session, np.array(rows, dtype=float).reshape(-1, 2, 3)
-
-
 def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
     """Run the demo (see the module docstring) and write its outputs; returns the summary (``demo.json``).
 
@@ -233,7 +201,15 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
     if meshcat is not None:
         # Draw live only when the user watches (--meshcat); the recording is what the HTML page shows.
         meshcat.StartRecording(set_visualizations_while_recording=opts.meshcat is not None)
-    with quiet_drake_warnings():
+    # With MediaPipe, MediaPipe Hands runs on each rendered frame: its knuckle vectors set the wrist frames.
+    hands = None
+    if getattr(cfg, "detector", "sim") == "mediapipe":
+        from akc_drake.io.hand_detector import HandDetector
+
+        hands = HandDetector(opts.hand_model)
+    from akc_drake.teleop.task import render_with_hands
+
+    with quiet_drake_warnings(), hands if hands is not None else contextlib.nullcontext():
         for m_index, name in enumerate(MOTIONS):
             motion = make_motion(name, cycles, opts.seed)
             if opts.max_frames is not None:
@@ -242,7 +218,8 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
                 f"Motion {name}: rendering {len(motion.frame_times(rate))} frames "
                 f"({cycles} cycle{'s' if cycles > 1 else ''}) ..."
             )
-            session, knuckles = _render_with_hands(motion, cfg, opts)
+            session, recorder = render_with_hands(motion, cfg, opts.seed, opts.progress, hands)
+            knuckles = None if recorder is None else recorder.knuckles
             render_info[name] = {
                 "frames": len(session),
                 "render_ms_per_frame": 1e3 * float(np.mean(session.render_s)),

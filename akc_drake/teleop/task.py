@@ -131,6 +131,28 @@ class RememberingDetector:
         return np.asarray(self.last.uv)[[LANDMARKS.index("left_wrist"), LANDMARKS.index("right_wrist")]]
 
 
+def render_with_hands(motion, cfg, seed: int, progress, hand_detector):
+    """Render ``motion`` through the render's own pose detector, running ``hand_detector`` (None: no hands) on
+    each frame, the hands told apart by that frame's pose wrists.
+
+    Returns:
+        ``(session, recorder)``: the :class:`HandRecorder` holding the frames' hands (None without a detector).
+    """
+    if hand_detector is None:
+        return render_motion(motion, cfg, seed=seed, progress=progress), None
+    from akc_drake.systems.session_render import make_detector
+
+    # the render's own pose detector (as render_session would make it), remembered for its wrists
+    pose = RememberingDetector(make_detector(getattr(cfg, "detector", None), seed))
+    recorder = HandRecorder(hand_detector, pose)
+    try:
+        session = render_motion(motion, cfg, seed=seed, progress=progress, frame_callback=recorder, detector=pose)
+    finally:
+        if hasattr(pose.inner, "close"):
+            pose.inner.close()
+    return session, recorder
+
+
 class HandRecorder:
     """A render's frame callback: the hand detector on each frame, the thumb-index distances collected.
 
@@ -234,16 +256,7 @@ def run_pick_place(
         for seed in range(int(seeds)):
             # The operator works with the mapping the pipeline uses (calibrated from the T-pose).
             motion = pick_place(seed, mapping=calibrated_mapping(calib.dims), landmarks=landmarks)
-            recorder = pose = None
-            if hand_detector is not None:
-                from akc_drake.systems.session_render import make_detector
-
-                # the render's own pose detector (as render_session would make it), remembered for its wrists
-                pose = RememberingDetector(make_detector(getattr(cfg, "detector", None), seed))
-                recorder = HandRecorder(hand_detector, pose)
-            session = render_motion(motion, cfg, seed=seed, progress=progress, frame_callback=recorder, detector=pose)
-            if pose is not None and hasattr(pose.inner, "close"):
-                pose.inner.close()
+            session, recorder = render_with_hands(motion, cfg, seed, progress, hand_detector)
             meas = Measurements.from_session(session)
             apertures = knuckles = None
             if recorder is not None:
