@@ -109,14 +109,15 @@ def render(motion: OperatorMotion) -> dict:
 
 def elbow_rows(run: dict, K: CameraIntrinsics) -> list[dict]:
     """Per frame and side: upper arm angle to the ray, flexion, visible?, px error, its part along the forearm."""
-    err = np.linalg.norm(run["pixels"] - _project(run["truth"], K), axis=2)
+    proj = _project(run["truth"], K)
+    err = np.linalg.norm(run["pixels"] - proj, axis=2)
     occ = true_occlusion(run["truth"], K)
     ang = upper_arm_ray_angle(run["truth"])
     rows = []
     for k in range(len(err)):
         for i, side in enumerate(SIDES):
             j, w = INDEX[f"{side}_elbow"], INDEX[f"{side}_wrist"]
-            pe, pw = _project(run["truth"][k, [j, w]], K)
+            pe, pw = proj[k, j], proj[k, w]
             fore = (pw - pe) / np.linalg.norm(pw - pe)
             along = float((run["pixels"][k, j] - pe) @ fore)
             rows.append(

@@ -157,9 +157,7 @@ class SkinnedBody(LeafSystem):
     def rig_configuration(self, t: float) -> dict[str, np.ndarray]:
         """``{region: (n, 3)}`` world-frame shell vertices of the rig-driven body at diagram time ``t``."""
         P = self.body.posed_points_from_maps(self._rig.maps_at(t), out=self._buffer)
-        if not np.array_equal(self._R, np.eye(3)) or np.any(self._p):
-            P = P @ self._R.T + self._p
-        return self.body.region_points(P)
+        return self._regions_W(P)
 
     def closure(self, t: float):
         """``(2,)`` hand closure at diagram time ``t`` (None without a motion's closure)."""
@@ -170,6 +168,10 @@ class SkinnedBody(LeafSystem):
         relaxed hands); raises UserError if the pose is impossible."""
         q = self.body.check_q(q)[0]
         P = self.body.posed_points(q, out=self._buffer, closure=closure)
+        return self._regions_W(P)
+
+    def _regions_W(self, P: np.ndarray) -> dict[str, np.ndarray]:
+        """The posed points ``P`` (operator frame) in the world, split into the shell regions."""
         if not np.array_equal(self._R, np.eye(3)) or np.any(self._p):
             P = P @ self._R.T + self._p
         return self.body.region_points(P)
