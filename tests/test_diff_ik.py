@@ -17,8 +17,6 @@ from akc_drake.robot.diff_ik import (
     DEFAULT_POSITION_LIMIT_MARGIN,
     DEFAULT_VELOCITY_LIMIT_SCALE,
     AddArmDifferentialIK,
-    JointCommandGuard,
-    PoseTargetGuard,
     arm_ik_parameters,
     make_arm_ik_plant,
 )
@@ -193,63 +191,6 @@ def test_starts_from_measured_or_given_posture(ik_plants):
     np.testing.assert_allclose(rig.q()[0], q0, atol=1e-9)
     with pytest.raises(ValueError, match="initial_q"):
         IKRig(plant, side, initial_q=[0.0, 1.0])
-
-
-def test_joint_command_guard():
-    lower, upper = -np.ones(2), np.ones(2)
-    vel = np.array([1.0, 2.0])
-    guard = JointCommandGuard(lower, upper, vel, 0.1)
-    context = guard.CreateDefaultContext()
-    guard.GetInputPort("q_initial").FixValue(context, [0.0, 5.0])
-    guard.GetInputPort("q").FixValue(context, [0.5, 0.5])
-    out = guard.GetOutputPort("q_commanded")
-    # Before initialisation: the (clipped) initial positions.
-    np.testing.assert_allclose(out.Eval(context), [0.0, 1.0])
-    simulator = Simulator(guard, context)
-    simulator.Initialize()
-    # Steps are limited to vel * period from the last command, positions to the limits.
-    np.testing.assert_allclose(out.Eval(context), [0.1, 0.8])
-    simulator.AdvanceTo(0.05)  # the update at t = 0 stored [0.1, 0.8]
-    np.testing.assert_allclose(out.Eval(context), [0.2, 0.6])
-    np.testing.assert_allclose(guard.GetOutputPort("v_commanded").Eval(context), [1.0, -2.0])
-    simulator.AdvanceTo(0.25)  # updates at 0.1, 0.2
-    np.testing.assert_allclose(out.Eval(context), [0.4, 0.5])
-    guard.GetInputPort("q").FixValue(context, [np.nan, 0.0])
-    np.testing.assert_allclose(out.Eval(context), [0.3, 0.5])  # the last stored command
-    np.testing.assert_allclose(guard.GetOutputPort("v_commanded").Eval(context), [0.0, 0.0])
-    simulator.AdvanceTo(0.45)
-    assert guard.held_count(context) == 2
-    np.testing.assert_allclose(out.Eval(context), [0.3, 0.5])
-    with pytest.raises(ValueError):
-        JointCommandGuard(lower, upper, np.array([1.0, 0.0]), 0.1)
-
-
-def test_pose_target_guard(ik_plants):
-    side = "left"
-    plant = ik_plants[side]
-    guard = PoseTargetGuard(plant, side, 0.15, 0.85)
-    np.testing.assert_allclose(guard.p_TS, [0.0, 0.2, 0.0], atol=1e-12)
-    context = guard.CreateDefaultContext()
-    q = NOMINAL_ARM_Q + 0.1
-    guard.GetInputPort("ik_state").FixValue(context, np.concatenate([q, np.zeros(7)]))
-    out = guard.GetOutputPort("X_AE_desired")
-    R = RotationMatrix(RollPitchYaw(0.1, 0.2, 0.3))
-    inside = RigidTransform(R, [0.4, 0.3, -0.2])
-    guard.GetInputPort("X_TE_desired").FixValue(context, inside)
-    assert out.Eval(context).IsExactlyEqualTo(inside)
-    guard.GetInputPort("X_TE_desired").FixValue(context, RigidTransform(R, [2.0, 0.2, 0.0]))
-    X = out.Eval(context)
-    np.testing.assert_allclose(X.translation(), [0.85, 0.2, 0.0], atol=1e-12)
-    np.testing.assert_array_equal(X.rotation().matrix(), R.matrix())
-    guard.GetInputPort("X_TE_desired").FixValue(context, RigidTransform(R, [0.0, 0.25, 0.0]))
-    np.testing.assert_allclose(out.Eval(context).translation(), [0.0, 0.35, 0.0], atol=1e-12)
-    guard.GetInputPort("X_TE_desired").FixValue(context, RigidTransform(R, [0.1, np.inf, 0.0]))
-    plant_context = plant.CreateDefaultContext()
-    plant.SetPositions(plant_context, q)
-    expected = ee_frame(plant, side).CalcPose(plant_context, torso_frame(plant))
-    assert out.Eval(context).IsNearlyEqualTo(expected, 1e-12)
-    with pytest.raises(ValueError, match="r_min"):
-        PoseTargetGuard(plant, side, 0.9, 0.85)
 
 
 def test_parameters(ik_plants):

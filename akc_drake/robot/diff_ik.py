@@ -11,12 +11,13 @@ straight line in SE(3) for as long as the limits allow.
 
 Two guards make the command safe whatever arrives:
 
-* :class:`PoseTargetGuard` (before the integrator): a target that is not a finite proper rigid transform is
-  replaced by the current commanded pose (the arm holds still); a target out of reach is moved onto the
-  reachable shell around the shoulder (the closest point the arm can get to).
-* :class:`JointCommandGuard` (after the integrator): a non-finite command is replaced by the last command
-  (and counted); every command is clipped to the joint position limits and to ``velocity limit * IK period``
-  from the previous command. The robot is therefore never commanded with NaN nor faster than its limits.
+* :class:`~akc_drake.robot.pose_target_guard.PoseTargetGuard` (before the integrator): a target that is not
+  a finite proper rigid transform is replaced by the current commanded pose (the arm holds still); a target
+  out of reach is moved onto the reachable shell around the shoulder (the closest point the arm can get to).
+* :class:`~akc_drake.robot.joint_command_guard.JointCommandGuard` (after the integrator): a non-finite command
+  is replaced by the last command (and counted); every command is clipped to the joint position limits and to
+  ``velocity limit * IK period`` from the previous command. The robot is therefore never commanded with NaN nor
+  faster than its limits.
   The integrator linearises around this guarded command, so it always starts from a feasible point.
 """
 
@@ -35,9 +36,11 @@ from pydrake.multibody.inverse_kinematics import (
 )
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.solvers import OsqpSolver
-from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
+from pydrake.systems.framework import Context, DiagramBuilder, InputPort, OutputPort
 from pydrake.systems.primitives import AffineSystem, ConstantValueSource, ConstantVectorSource
 
+from akc_drake.robot.ik_fallback_selector import IKFallbackSelector
+from akc_drake.robot.joint_command_guard import JointCommandGuard
 from akc_drake.robot.model import (
     HEAD_JOINTS,
     NOMINAL_ARM_Q,
@@ -48,10 +51,12 @@ from akc_drake.robot.model import (
     arm_joint_limits,
     arm_joint_names,
     arm_position_indices,
+    check_side,
     ee_frame,
     gripper_joint_names,
     torso_frame,
 )
+from akc_drake.robot.pose_target_guard import PoseTargetGuard
 
 #: Default IK rate: 100 Hz.
 DEFAULT_IK_TIME_STEP = 0.01
@@ -85,7 +90,7 @@ def make_arm_ik_plant(side: str | None = None) -> MultibodyPlant:
     Returns:
         The plant; its positions are the free arm joints' angles.
     """
-    free_sides = SIDES if side is None else (_check_side(side),)
+    free_sides = SIDES if side is None else (check_side(side),)
     to_weld = [TORSO_JOINT, *HEAD_JOINTS]
     for s in SIDES:
         to_weld += gripper_joint_names(s)
@@ -96,12 +101,6 @@ def make_arm_ik_plant(side: str | None = None) -> MultibodyPlant:
     add_dual_arm_robot(plant, weld_base=True, weld_joints=to_weld)
     plant.Finalize()
     return plant
-
-
-def _check_side(side: str) -> str:
-    if side not in SIDES:
-        raise ValueError(f"side must be 'left' or 'right', got {side!r}")
-    return side
 
 
 def _static_affine(D: np.ndarray, y0: np.ndarray) -> AffineSystem:
@@ -115,252 +114,6 @@ def _static_affine(D: np.ndarray, y0: np.ndarray) -> AffineSystem:
         D=D,
         y0=np.asarray(y0, float),
     )
-
-
-def _is_valid_pose(X: RigidTransform) -> bool:
-    M = X.GetAsMatrix4()
-    if not np.all(np.isfinite(M)):
-        return False
-    R = M[:3, :3]
-    return bool(np.allclose(R.T @ R, np.eye(3), atol=1e-6) and abs(np.linalg.det(R) - 1.0) < 1e-6)
-
-
-class PoseTargetGuard(LeafSystem):
-    """Makes the end-effector target safe for the IK: valid, and within the arm's reach.
-
-    A target that is not a finite proper rigid transform (non-finite entries, or a rotation that is not
-    orthonormal with determinant +1) is replaced by the pose of the current command, so the arm holds still.
-    A valid target whose position lies outside the spherical shell ``r_min <= |p - p_shoulder| <= r_max``
-    around the arm's shoulder is moved radially onto the shell (the closest point of the shell; its rotation
-    is kept), so an unreachable target is approached as closely as the arm allows without stretching it into
-    the singular straight-arm configuration. Stateless, direct feedthrough.
-
-    .. pydrake_system::
-
-        name: PoseTargetGuard
-        input_ports:
-        - X_TE_desired
-        - ik_state
-        output_ports:
-        - X_AE_desired
-
-    ``ik_state`` is the IK plant's state ``[q, v]`` of the current command (only read for an invalid target).
-    """
-
-    def __init__(self, plant: MultibodyPlant, side: str, r_min: float, r_max: float):
-        """Args:
-        plant: the IK plant.
-        side: ``"left"`` or ``"right"``.
-        r_min, r_max: the reachable shell around the shoulder, metres (0 <= r_min < r_max).
-        """
-        super().__init__()
-        if not (0.0 <= r_min < r_max and math.isfinite(r_max)):
-            raise ValueError(f"PoseTargetGuard: need 0 <= r_min < r_max, got r_min={r_min!r}, r_max={r_max!r}")
-        self._plant = plant
-        self._plant_context = plant.CreateDefaultContext()
-        self._frame_T = torso_frame(plant)
-        self._frame_E = ee_frame(plant, _check_side(side))
-        shoulder = plant.GetJointByName(arm_joint_names(side)[0]).frame_on_child()
-        #: Shoulder centre in T (the first joint's origin; joints 1-3 intersect there).
-        self.p_TS = shoulder.CalcPose(self._plant_context, self._frame_T).translation().copy()
-        self._r_min, self._r_max = float(r_min), float(r_max)
-        self._target = self.DeclareAbstractInputPort("X_TE_desired", AbstractValue.Make(RigidTransform()))
-        self._x = self.DeclareVectorInputPort("ik_state", plant.num_multibody_states())
-        self.DeclareAbstractOutputPort(
-            "X_AE_desired",
-            lambda: AbstractValue.Make(RigidTransform()),
-            self._calc_target,
-            {self.all_input_ports_ticket()},
-        )
-
-    def project(self, X: RigidTransform) -> RigidTransform:
-        """``X`` with its position moved radially into the reachable shell around the shoulder."""
-        d = X.translation() - self.p_TS
-        r = float(np.linalg.norm(d))
-        if r > self._r_max:
-            return RigidTransform(X.rotation(), self.p_TS + d * (self._r_max / r))
-        if r < self._r_min:
-            # Straight ahead when the target sits on the shoulder centre itself.
-            u = d / r if r > 1e-9 else np.array([1.0, 0.0, 0.0])
-            return RigidTransform(X.rotation(), self.p_TS + u * self._r_min)
-        return X
-
-    def _calc_target(self, context: Context, output: AbstractValue) -> None:
-        X = self._target.Eval(context)
-        if _is_valid_pose(X):
-            X = self.project(X)
-        else:
-            self._plant.SetPositions(self._plant_context, self._x.Eval(context)[: self._plant.num_positions()])
-            X = self._frame_E.CalcPose(self._plant_context, self._frame_T)
-        output.set_value(X)
-
-
-class JointCommandGuard(LeafSystem):
-    """Makes the arm's joint position command safe: finite, within the position limits, and never more than
-    ``velocity limit * period`` from the previous command.
-
-    A non-finite input holds the previous command and increments ``held_count``. The previous command is
-    discrete state, updated at the IK period (offset 0, the same instants as the integrator) and initialised
-    from ``q_initial`` by an initialisation event; until then the output is ``q_initial`` (clipped).
-
-    .. pydrake_system::
-
-        name: JointCommandGuard
-        input_ports:
-        - q
-        - q_initial
-        output_ports:
-        - q_commanded
-        - v_commanded
-
-    ``v_commanded`` is the velocity of the current command step, ``(q_commanded - previous) / period``: a
-    velocity feedforward for the position controller (zero before the first step and while holding).
-    """
-
-    def __init__(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray, period: float):
-        """Args:
-        lower, upper: joint position limits (rad), shape ``(n,)``.
-        velocity: joint velocity limits (rad/s, > 0), shape ``(n,)``.
-        period: the command period, seconds (> 0).
-        """
-        super().__init__()
-        self._lower = np.asarray(lower, dtype=float)
-        self._upper = np.asarray(upper, dtype=float)
-        self._step = np.asarray(velocity, dtype=float) * float(period)
-        n = len(self._lower)
-        if not (len(self._upper) == n == len(self._step)) or np.any(self._step <= 0) or period <= 0:
-            raise ValueError("JointCommandGuard: limits must have equal lengths, velocities and period > 0")
-        if np.any(self._lower > self._upper):
-            raise ValueError(f"JointCommandGuard: lower limits above upper limits: {self._lower}, {self._upper}")
-        self._q_in = self.DeclareVectorInputPort("q", n)
-        self._q_init = self.DeclareVectorInputPort("q_initial", n)
-        self._last = self.DeclareDiscreteState(n)
-        # [held count, initialised flag]
-        self._info = self.DeclareDiscreteState(2)
-        self._period = float(period)
-        # The outputs depend on the IK's output and the discrete state only (not on time, and not on
-        # ``q_initial``, which is read once by the initialisation event and is typically the measured
-        # robot state that changes every plant step), so they stay cached between IK steps.
-        deps = {self.xd_ticket(), self._q_in.ticket()}
-        self.DeclareVectorOutputPort("q_commanded", n, self._calc_command, deps)
-        self.DeclareVectorOutputPort("v_commanded", n, self._calc_velocity, deps)
-        self.DeclarePeriodicDiscreteUpdateEvent(float(period), 0.0, self._update)
-        self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
-
-    def _initial(self, context: Context) -> np.ndarray:
-        q0 = self._q_init.Eval(context)
-        if not np.all(np.isfinite(q0)):
-            raise ValueError(f"JointCommandGuard: initial joint positions are not finite: {q0}")
-        return np.clip(q0, self._lower, self._upper)
-
-    def _command(self, context: Context) -> tuple[np.ndarray, bool]:
-        if context.get_discrete_state(self._info).get_value()[1] == 0.0:
-            return self._initial(context), False
-        last = context.get_discrete_state(self._last).get_value()
-        q = self._q_in.Eval(context)
-        if not np.all(np.isfinite(q)):
-            return last.copy(), True
-        lo = np.maximum(self._lower, last - self._step)
-        hi = np.minimum(self._upper, last + self._step)
-        return np.clip(q, lo, hi), False
-
-    def _calc_command(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._command(context)[0])
-
-    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
-        q, held = self._command(context)
-        if held or context.get_discrete_state(self._info).get_value()[1] == 0.0:
-            output.SetFromVector(np.zeros(len(q)))
-            return
-        output.SetFromVector((q - context.get_discrete_state(self._last).get_value()) / self._period)
-
-    def _update(self, context: Context, discrete_state) -> None:
-        q, held = self._command(context)
-        discrete_state.get_mutable_vector(self._last).SetFromVector(q)
-        count = context.get_discrete_state(self._info).get_value()[0]
-        discrete_state.get_mutable_vector(self._info).SetFromVector([count + (1.0 if held else 0.0), 1.0])
-
-    def _initialize(self, context: Context, discrete_state) -> None:
-        discrete_state.get_mutable_vector(self._last).SetFromVector(self._initial(context))
-        discrete_state.get_mutable_vector(self._info).SetFromVector([0.0, 1.0])
-
-    def held_count(self, context: Context) -> int:
-        """How many IK periods the command was held because the IK output was not finite."""
-        return int(context.get_discrete_state(self._info).get_value()[0])
-
-
-class IKFallbackSelector(LeafSystem):
-    """Chooses, per IK step, the full-pose IK's command or, when that one is stuck, the position-only IK's.
-
-    Drake's differential IK moves the end effector along the straight line in SE(3) toward the target, scaled
-    down to the limits; when a joint limit blocks that exact direction it cannot move at all ("stuck") and the
-    arm would freeze while the operator moves on. A second integrator solves for the position alone (the
-    orientation left to the joint centering) from the same guarded command. The position-only command is used
-    when the tool point is more than ``min_error_m`` from the target and the full-pose step moved it less than a
-    tenth of what the position-only step would; otherwise (tracking, or converged) the full pose is used, and
-    it takes over again as soon as it can move.
-
-    .. pydrake_system::
-
-        name: IKFallbackSelector
-        input_ports:
-        - q_full
-        - q_position
-        - X_AE_desired
-        output_ports:
-        - q
-
-    ``q_*`` are the IK plant's positions; ``X_AE_desired`` the (guarded) target of the end effector in the torso
-    frame. State: the previous IK step's choice and target position (NaN before the first), updated every
-    ``time_step``.
-    """
-
-    def __init__(self, plant: MultibodyPlant, side: str, time_step: float, min_error_m: float = 0.005):
-        super().__init__()
-        self._plant = plant
-        self._ctx = plant.CreateDefaultContext()
-        self._E, self._T = ee_frame(plant, side), torso_frame(plant)
-        self._min_error = float(min_error_m)
-        nq = plant.num_positions()
-        self._full = self.DeclareVectorInputPort("q_full", nq)
-        self._pos = self.DeclareVectorInputPort("q_position", nq)
-        self._target = self.DeclareAbstractInputPort("X_AE_desired", AbstractValue.Make(RigidTransform()))
-        # [previous choice (nq), target position latched at the previous step (3)]
-        self._prev = self.DeclareDiscreteState(np.full(nq + 3, np.nan))
-        self._nq = nq
-        # The output does not depend on the target input (it is latched), so the loop through the target guard
-        # (which reads the command) is not algebraic.
-        self.DeclareVectorOutputPort(
-            "q",
-            nq,
-            self._calc,
-            {self._full.ticket(), self._pos.ticket(), self.all_state_ticket()},
-        )
-        self.DeclarePeriodicDiscreteUpdateEvent(time_step, 0.0, self._update)
-
-    def _p(self, q: np.ndarray) -> np.ndarray:
-        self._plant.SetPositions(self._ctx, q)
-        return self._E.CalcPose(self._ctx, self._T).translation()
-
-    def _choose(self, context: Context) -> np.ndarray:
-        full, pos = self._full.Eval(context), self._pos.Eval(context)
-        state = context.get_discrete_state(self._prev).get_value()
-        prev, target = state[: self._nq], state[self._nq :]
-        if not (np.all(np.isfinite(prev)) and np.all(np.isfinite(pos)) and np.all(np.isfinite(full))):
-            return full
-        p0 = self._p(prev)
-        if not np.all(np.isfinite(target)) or np.linalg.norm(target - p0) <= self._min_error:
-            return full
-        d_full = float(np.linalg.norm(self._p(full) - p0))
-        d_pos = float(np.linalg.norm(self._p(pos) - p0))
-        return pos if d_full < 0.1 * d_pos else full
-
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._choose(context))
-
-    def _update(self, context: Context, discrete_state) -> None:
-        target = self._target.Eval(context).translation()
-        discrete_state.get_mutable_vector(self._prev).SetFromVector(np.concatenate([self._choose(context), target]))
 
 
 def arm_ik_parameters(
@@ -410,7 +163,7 @@ def arm_ik_parameters(
     nq, nv = plant.num_positions(), plant.num_velocities()
     if nq != nv:
         raise ValueError(f"arm_ik_parameters: the IK plant must have nq == nv, got {nq} and {nv}")
-    idx = arm_position_indices(plant, _check_side(side))
+    idx = arm_position_indices(plant, check_side(side))
     q0 = plant.GetDefaultPositions()
     lower, upper, vel = arm_joint_limits(side)
     q_lo, q_hi = q0 - 1.0, q0 + 1.0
@@ -526,7 +279,7 @@ def AddArmDifferentialIK(
     Returns:
         The :class:`ArmDifferentialIK`: input ``X_TE_desired_input``, output ``q_commanded_output``.
     """
-    _check_side(side)
+    check_side(side)
     if not (isinstance(time_step, (int, float)) and math.isfinite(time_step) and time_step > 0.0):
         raise ValueError(f"AddArmDifferentialIK: time_step must be a positive number of seconds, got {time_step!r}")
     if parameters is None:

@@ -55,7 +55,8 @@ NOMINAL_TORSO_LIFT = 0.15
 NOMINAL_FINGER_OPENING = 0.02
 
 
-def _check_side(side: str) -> str:
+def check_side(side: str) -> str:
+    """``side`` if it is ``"left"`` or ``"right"``; else ValueError."""
     if side not in SIDES:
         raise ValueError(f"side must be 'left' or 'right', got {side!r}")
     return side
@@ -70,19 +71,19 @@ def arm_joint_names(side: str) -> list[str]:
     Returns:
         ``["arm_<side>_1_joint", ..., "arm_<side>_7_joint"]``.
     """
-    _check_side(side)
+    check_side(side)
     return [f"arm_{side}_{i}_joint" for i in range(1, NUM_ARM_JOINTS + 1)]
 
 
 def gripper_joint_names(side: str) -> list[str]:
     """Names of the two finger joints of one gripper (0 = closed, positive opens)."""
-    _check_side(side)
+    check_side(side)
     return [f"gripper_{side}_left_finger_joint", f"gripper_{side}_right_finger_joint"]
 
 
 def ee_frame_name(side: str) -> str:
     """Name of the end-effector frame of ``side`` (``"left_ee"`` or ``"right_ee"``)."""
-    return f"{_check_side(side)}_ee"
+    return f"{check_side(side)}_ee"
 
 
 # Published TIAGo Pro arm limits (degrees) and the velocity limits of the brief (rad/s), joints 1-7.
@@ -100,7 +101,7 @@ def arm_joint_limits(side: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns:
         ``(lower, upper, velocity)``: radians, radians, rad/s, each of shape ``(7,)``.
     """
-    _check_side(side)
+    check_side(side)
     return np.deg2rad(_ARM_LOWER_DEG), np.deg2rad(_ARM_UPPER_DEG), _ARM_VEL.copy()
 
 
