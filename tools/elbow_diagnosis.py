@@ -310,7 +310,7 @@ def main() -> int:
     ap.add_argument("--cycles", type=int, default=1)
     ap.add_argument("--lights", choices=LIGHT_SETS, default="headlight")
     ap.add_argument("--pose-model", default=None,
-                    help="full | heavy | lite | PATH (default: $AKC_DRAKE_POSE_MODEL, else full)")
+                    help="full | heavy | lite | PATH (default: $AKC_DRAKE_POSE_MODEL, else heavy)")
     args = ap.parse_args()
     use_lights(args.lights)
     if args.pose_model:

