@@ -215,13 +215,13 @@ def test_lagging_filter_yields_to_a_consistent_measurement_but_not_to_an_outlier
         out = akc.correct(f, measured=p, variance=kf_var()).pose
     np.testing.assert_allclose(out[LW], p[LW], atol=1e-9)
     np.testing.assert_allclose(out[LE], p[LE], atol=1e-6)
-    # An outlier (50 cm off: far outside the innovation test) against a filter consistent with its
-    # measurements so far is not used.
+    # An outlier (a depth 50 cm off: far outside the innovation test; deprojected, so the measured point moves
+    # along the wrist's pixel ray) against a filter consistent with its measurements so far is not used.
     akc = ArmKinematicCorrectorPlus(dims)
     for _ in range(10):
         akc.correct(p, measured=p, variance=kf_var())
     m = p.copy()
-    m[LW, 2] += 0.5
+    m[LW] *= (p[LW, 2] + 0.5) / p[LW, 2]
     out = akc.correct(p, measured=m, variance=kf_var()).pose
     np.testing.assert_allclose(out[LW], p[LW], atol=1e-9)
 
@@ -349,3 +349,26 @@ def test_dropped_shoulder_the_filter_knows_better_than_a_rebuild_is_kept():
     var[LS, 2] = 0.5**2
     out2 = akc2.correct(filt, measured=meas, variance=var).pose
     assert abs(out2[LS, 2] - p[LS, 2]) > 0.03
+
+
+def test_a_filter_whose_ray_the_detector_contradicts_yields_to_the_measurement():
+    # An EKF's bone constraint moved a seen shoulder 10 cm in y (and its depth 25 cm) while the detector sees it
+    # where it is: the filter's point, scaled to the measured depth, is off the measured ray by far more than
+    # the image noise, so the measured shoulder replaces the filter's (and is kept: it is seen).
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(5):
+        akc.correct(p, measured=p, variance=kf_var())
+    f = p.copy()
+    f[LS, 1] += 0.10
+    f[LS, 2] += 0.25
+    out = akc.correct(f, measured=p, variance=kf_var()).pose
+    np.testing.assert_allclose(out[LS], p[LS], atol=1e-9)
+    # A depth read 25 cm short on the same ray (an occluder's surface) is not the joint's: the filter's stays.
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(5):
+        akc.correct(p, measured=p, variance=kf_var())
+    m = p.copy()
+    m[LS] *= (p[LS, 2] - 0.25) / p[LS, 2]
+    out = akc.correct(p, measured=m, variance=kf_var()).pose
+    assert abs(out[LS, 2] - p[LS, 2]) < 0.01

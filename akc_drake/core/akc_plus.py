@@ -13,6 +13,11 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   ``R - P``, so ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared; within ``gate_sigma``.
   A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's
   occlusion filter lacks); the filter that followed such a rejected depth is then no prior for it.
+* *Ray test*: the image measures a joint's ray (x / z, y / z); an occluder's depth moves the measured point
+  along it, not off it. A joint measured this frame whose filtered point, scaled to the measured depth, is
+  off the measured ray by more than the gate (chi2, 2 dof, image and filter variances) is one the filter has
+  wrong (e.g. the paper's per-joint EKF, whose bone constraint moves a seen joint towards a lost neighbour):
+  the measured point replaces the filter's, with the measurement's variance.
 * *Covariance matching*: a running mean of each arm coordinate's NIS (each frame's winsorised at the gate,
   weight ``nis_alpha``) scales the filter's variance into the error variance its residuals show: a lagging
   filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
@@ -277,6 +282,29 @@ class ArmKinematicCorrectorPlus:
             out[i] = vi
         return out
 
+    def _ray_check(self, side, m, f, vs):
+        """A joint measured this frame (x, y and depth) whose filtered position the detector contradicts in the
+        image: the measured point replaces the filter's, with the measurement's variance.
+
+        The image measures a joint's ray (x / z, y / z); an occluder's depth read at the joint's pixel moves the
+        measured point along that ray (x, y scale with the depth), not off it. So the filter's point, scaled to
+        the measured depth, is compared with the measured one in x, y (chi2, 2 degrees of freedom, at
+        ``gate_sigma``'s tail probability; the residual's variance is the measurement's plus the filter's
+        covariance-matched one): a filter whose ray the detector contradicts is wrong about the joint (e.g. an
+        EKF whose bone constraint moved a seen joint towards a lost neighbour), and its estimate is no evidence.
+        """
+        ri, g = self._r_axes[0], self._chi2_gate
+        for b, o in enumerate(self._offsets[side]):
+            mz = m[o + 2]
+            fz = f[3 * b + 2]
+            if not (mz == mz and fz > 0.0):
+                continue
+            k = mz / fz
+            dx, dy = m[o] - f[3 * b] * k, m[o + 1] - f[3 * b + 1] * k
+            if dx * dx / (ri + vs[3 * b] * k * k) + dy * dy / (ri + vs[3 * b + 1] * k * k) > g:
+                f[3 * b], f[3 * b + 1], f[3 * b + 2] = m[o], m[o + 1], mz
+                vs[3 * b], vs[3 * b + 1], vs[3 * b + 2] = ri, ri, self._r_z
+
     def _hold_blind(self, p, vs, base, f0, prev, k):
         """A joint the detector lost altogether: a depth the filter extrapolates (see ``_arm``) is held at our
         last output, and the filter prior of joint ``k`` is then left out of the candidate choice; x and y
@@ -377,6 +405,8 @@ class ArmKinematicCorrectorPlus:
         if var is not None:
             f = list(joints)
             vs = self._cur_var = self._arm_var(side, m, f)
+            if m is not None:
+                self._ray_check(side, m, f, vs)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
