@@ -372,3 +372,44 @@ def test_a_filter_whose_ray_the_detector_contradicts_yields_to_the_measurement()
     m[LS] *= (p[LS, 2] - 0.25) / p[LS, 2]
     out = akc.correct(p, measured=m, variance=kf_var()).pose
     assert abs(out[LS, 2] - p[LS, 2]) < 0.01
+
+
+def test_a_wrist_lost_altogether_is_no_anchor():
+    # The detector lost the wrist (no x, y) and the filter extrapolates it 20 cm off with a blind variance;
+    # the shoulder's and elbow's depths were read 30 cm short along their rays (an occluder's: the innovation
+    # test rejects them). The arm is built from the shoulder out: shoulder and elbow stay where the filter
+    # has them (exact lengths already), only the wrist moves, onto the forearm length.
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(5):
+        akc.correct(p, measured=p, variance=kf_var())
+    f = p.copy()
+    f[LW] += [0.10, 0.10, 0.15]
+    var = kf_var()
+    var[LW] = 0.3**2
+    m = p.copy()
+    m[LW] = np.nan
+    for j in (LS, LE):
+        m[j] *= (p[j, 2] - 0.3) / p[j, 2]
+    out = akc.correct(f, measured=m, variance=var).pose
+    np.testing.assert_allclose(out[LS], p[LS], atol=1e-9)
+    np.testing.assert_allclose(out[LE], p[LE], atol=1e-9)
+    assert abs(np.linalg.norm(out[LW] - out[LE]) - dims.LLA) < 1e-9
+    # x, y of the wrist kept where the forearm allows (its depth moves instead).
+    np.testing.assert_allclose(out[LW, :2], f[LW, :2], atol=1e-9)
+
+
+def test_a_filter_counts_as_following_a_rejected_depth_only_within_one_residual_sigma():
+    # The upper arm points at the camera (shoulder within 8 cm of its elbow in the image: the shoulder's depth
+    # is rejected by our proximity rule). A filter 2 cm from that depth followed it: no prior. One 13 cm from
+    # it (within the 3-sigma test, R = 25 cm^2, P = 1 cm^2) did not: it stays the shoulder's prior.
+    p, dims = arm_pose(elbow_dir_l=(0.05, 0.1, -1.0))
+    ks = 3  # the right shoulder's key (the right arm is corrected last: its set is the one left)
+    for dz, no_prior in ((0.02, True), (0.13, False)):
+        akc = ArmKinematicCorrectorPlus(dims)
+        var = kf_var(z=1e-4)
+        akc.correct(p, measured=p, variance=var)
+        m = p.copy()
+        m[RS] *= (p[RS, 2] - dz) / p[RS, 2]
+        akc.correct(p, measured=m, variance=var)
+        assert (ks in akc._no_prior) is no_prior

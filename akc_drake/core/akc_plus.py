@@ -12,7 +12,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   Kalman update with measurement variance ``R`` (``depth_sigma_m``) the residual ``z - fz`` has variance
   ``R - P``, so ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared; within ``gate_sigma``.
   A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's
-  occlusion filter lacks); the filter that followed such a rejected depth is then no prior for it.
+  occlusion filter lacks); the filter that followed such a rejected depth (within one standard deviation of
+  an update's residual, ``R - P``) is then no prior for it.
 * *Ray test*: the image measures a joint's ray (x / z, y / z); an occluder's depth moves the measured point
   along it, not off it. A joint measured this frame whose filtered point, scaled to the measured depth, is
   off the measured ray by more than the gate (chi2, 2 dof, image and filter variances) is one the filter has
@@ -30,6 +31,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   (``length_sigma_m``), the output is the arm nearest the filter's in its covariance metric with the exact
   lengths (:func:`~akc_drake.core.arm_geometry.project_lengths`): the joint the filter is least sure of moves,
   mostly in depth. A shoulder so known is kept when the elbow is rebuilt.
+* A wrist the detector lost altogether (no x, y) that the filter knows worse than the shoulder and the elbow
+  is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist follows.
 * A joint the detector lost altogether whose depth the filter extrapolates (variance above ``R``, moved by more
   than ``depth_sigma_m`` since last seen) is held at our last output in depth (a zero-velocity hold); a
   filter that holds it, or whose constraints inform it (an EKF), is followed.
@@ -66,7 +69,7 @@ import numpy as np
 
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
-from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, project_lengths, torso_axes
+from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, project_lengths, ray_check, torso_axes
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
@@ -223,14 +226,8 @@ class ArmKinematicCorrectorPlus:
 
     # ------------------------------------------------------------------ hot path (plain floats)
     def _measured(self, m, o, fz):
-        """Whether row ``m[o:o+3]`` was measured this frame and agrees with the filtered depth ``fz``.
-
-        Without the filter's covariance (the only case this is called for), agreeing is being within
-        ``consistency_m``. With it, ``_arm`` runs the innovation test inline: for a Kalman update with
-        measurement variance ``R`` the residual ``z - fz`` has variance ``R - P`` (``P`` the filter's posterior
-        variance), and ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared ``y^2 / S``; it must
-        be within ``gate_sigma``.
-        """
+        """Without the filter's covariance: whether row ``m[o:o+3]`` was measured this frame and its depth is
+        within ``consistency_m`` of the filtered ``fz`` (with it, ``_arm`` runs the innovation test inline)."""
         if m is None:
             return False
         mx, my, mz = m[o], m[o + 1], m[o + 2]
@@ -281,29 +278,6 @@ class ArmKinematicCorrectorPlus:
                     vi = r
             out[i] = vi
         return out
-
-    def _ray_check(self, side, m, f, vs):
-        """A joint measured this frame (x, y and depth) whose filtered position the detector contradicts in the
-        image: the measured point replaces the filter's, with the measurement's variance.
-
-        The image measures a joint's ray (x / z, y / z); an occluder's depth read at the joint's pixel moves the
-        measured point along that ray (x, y scale with the depth), not off it. So the filter's point, scaled to
-        the measured depth, is compared with the measured one in x, y (chi2, 2 degrees of freedom, at
-        ``gate_sigma``'s tail probability; the residual's variance is the measurement's plus the filter's
-        covariance-matched one): a filter whose ray the detector contradicts is wrong about the joint (e.g. an
-        EKF whose bone constraint moved a seen joint towards a lost neighbour), and its estimate is no evidence.
-        """
-        ri, g = self._r_axes[0], self._chi2_gate
-        for b, o in enumerate(self._offsets[side]):
-            mz = m[o + 2]
-            fz = f[3 * b + 2]
-            if not (mz == mz and fz > 0.0):
-                continue
-            k = mz / fz
-            dx, dy = m[o] - f[3 * b] * k, m[o + 1] - f[3 * b + 1] * k
-            if dx * dx / (ri + vs[3 * b] * k * k) + dy * dy / (ri + vs[3 * b + 1] * k * k) > g:
-                f[3 * b], f[3 * b + 1], f[3 * b + 2] = m[o], m[o + 1], mz
-                vs[3 * b], vs[3 * b + 1], vs[3 * b + 2] = ri, ri, self._r_z
 
     def _hold_blind(self, p, vs, base, f0, prev, k):
         """A joint the detector lost altogether: a depth the filter extrapolates (see ``_arm``) is held at our
@@ -406,7 +380,7 @@ class ArmKinematicCorrectorPlus:
             f = list(joints)
             vs = self._cur_var = self._arm_var(side, m, f)
             if m is not None:
-                self._ray_check(side, m, f, vs)
+                ray_check(m, self._offsets[side], f, vs, self._r_axes[0], self._r_z, self._chi2_gate)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
@@ -424,7 +398,17 @@ class ArmKinematicCorrectorPlus:
             me = _isfinite(m[o_e] + m[o_e + 1] + d) and d * d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
             d, q = m[o_s + 2] - sz, rz - var[o_s + 2]
             ms = _isfinite(m[o_s] + m[o_s + 1] + d) and d * d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
-        me_nis, ms_nis = me, ms
+        # Did the filter follow this frame's depth? A Kalman update that used it leaves a residual of variance
+        # R - P; a filter within one standard deviation of it is where such an update most likely left it (the
+        # 3-sigma test above says only that the depth is plausible: a filter whose constraints put it 13 cm from
+        # a depth read at a 5 cm sigma passes that, without having followed it).
+        me_nis = ms_nis = False
+        if m is not None and var is not None:
+            rz = self._r_z
+            d, q = m[o_e + 2] - ez, rz - var[o_e + 2]
+            me_nis = me and d * d <= (q if q > 0.0 else 0.0) + 1e-12
+            d, q = m[o_s + 2] - sz, rz - var[o_s + 2]
+            ms_nis = ms and d * d <= (q if q > 0.0 else 0.0) + 1e-12
         if prev is not None and var is None:
             geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
             geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
@@ -468,10 +452,10 @@ class ArmKinematicCorrectorPlus:
         if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < self._occ_r2:
             ms = False
         if vs is not None:
-            # A depth measured this frame that agrees with the filter (innovation test) but that another rule
-            # rejects (proximity): the filter followed it, so its estimate and (small) variance are no
-            # independent evidence; its prior is left out. (A filter that disagrees with a rejected depth did
-            # not follow it and stays a prior.)
+            # A depth measured this frame that the filter followed (within one residual standard deviation)
+            # but that another rule rejects (proximity): its estimate and (small) variance are no independent
+            # evidence; its prior is left out. (A filter farther from a rejected depth did not follow it and
+            # stays a prior.)
             if not me and me_nis:
                 no_prior.add(ke)
             if not ms and ms_nis:
@@ -531,6 +515,13 @@ class ArmKinematicCorrectorPlus:
         # forearm length is the stronger evidence.)
         fit_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self._cons
         ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te) or (kn_s and not te)
+        # A wrist the detector lost altogether (no x, y) that the filter knows worse than the elbow and the
+        # shoulder is no anchor: nothing measured it, and eq. 7-8 from it would carry its extrapolation into
+        # the joints the camera sees. The arm is then built from the shoulder out and the wrist follows.
+        w_lost = (vs is not None and m is not None and not _isfinite(m[offsets[2]] + m[offsets[2] + 1])
+                  and vs[8] > vs[2] and vs[8] > vs[5])
+        if w_lost:
+            ts, te = True, False
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
@@ -539,7 +530,7 @@ class ArmKinematicCorrectorPlus:
                 e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
                 if e is not None and _d2(e, ex, ey, ez) > self._xy_tol ** 2:
                     e = None  # the wrist (a lagging filter's) would move the seen elbow: the wrist moves instead
-            elif not me:
+            elif not me and not w_lost:
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
                 if pair is not None:
                     # (The circle exists for both candidates or for neither: it depends on s and w alone.)
@@ -560,9 +551,10 @@ class ArmKinematicCorrectorPlus:
                     # (the filter's own elbow when only the lengths contradict it).
                     cands = _candidates(sx, sy, sz, ex, ey, ez, lu, exy, tol) + (_radial(sx, sy, sz, ex, ey, ez, lu),)
                     extra = []
+                    inv_w2 = 1.0 / max(vs[8], 1.0 / self._inv_wrist2) if w_lost else self._inv_wrist2
                     for c in cands:
                         dw = _hypot(c[0] - wx, c[1] - wy, c[2] - wz) - lf
-                        extra.append(dw * dw * self._inv_wrist2 + self._penalty(s, c, w, lu, lf, axes))
+                        extra.append(dw * dw * inv_w2 + self._penalty(s, c, w, lu, lf, axes))
                     e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
                 w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)

@@ -215,6 +215,36 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
     return (sx, sy, sz, *e, wx, wy, wz), chi2
 
 
+def ray_check(m, offsets, f, vs, r_xy, r_z, gate) -> None:
+    """Joints measured this frame whose filtered point the detector's ray contradicts take the measured point.
+
+    The image measures a joint's ray (x / z, y / z); an occluder's depth read at the joint's pixel moves the
+    measured (deprojected) point along that ray, not off it. So the filter's point, scaled to the measured
+    depth, is compared with the measured one in x, y (chi2 with 2 degrees of freedom against ``gate``; the
+    residual's variance is the image's ``r_xy`` plus the filter's scaled): a filter whose ray the detector
+    contradicts is wrong about the joint (e.g. an EKF whose bone constraint moved a seen joint towards a lost
+    neighbour), and its estimate is no evidence: the measured point replaces it in ``f`` with the measurement's
+    variances (``r_xy``, ``r_xy``, ``r_z``) in ``vs`` (both changed in place).
+
+    Args:
+        m: the flat (36) measurement, NaN where missing.
+        offsets: flat indices of the arm's shoulder, elbow and wrist x.
+        f, vs: the arm's nine filtered coordinates and their variances (lists).
+        r_xy, r_z: the measurement's variances; gate: the largest chi2 accepted.
+    """
+    for b, o in enumerate(offsets):
+        mz = m[o + 2]
+        i = 3 * b
+        fz = f[i + 2]
+        if not (mz == mz and fz > 0.0):
+            continue
+        k = mz / fz
+        dx, dy = m[o] - f[i] * k, m[o + 1] - f[i + 1] * k
+        if dx * dx / (r_xy + vs[i] * k * k) + dy * dy / (r_xy + vs[i + 1] * k * k) > gate:
+            f[i], f[i + 1], f[i + 2] = m[o], m[o + 1], mz
+            vs[i], vs[i + 1], vs[i + 2] = r_xy, r_xy, r_z
+
+
 def circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
     """The elbow at ``lf`` from the wrist and ``lu`` from the shoulder nearest to ``p``; None if none exists.
 
