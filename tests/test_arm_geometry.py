@@ -148,20 +148,27 @@ def test_ray_check_takes_the_measurement_only_off_the_measured_ray():
     from akc_drake.core.arm_geometry import ray_check
 
     offs = (0, 3, 6)
-    m = [0.18, 0.0, 2.0, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7] + [float("nan")] * 27
+    nan = float("nan")
+    m = [0.18, 0.0, 2.0, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7] + [nan] * 27
     var = [1e-4, 1e-4, 1e-3] * 3
+    fvar = var + [1e-4] * 27  # the filter's flat variances (P)
+    args = (fvar, 1e-4, 2.5e-3, 9.0, 11.8)
     # The filter's shoulder on the measured ray but 30 cm deeper (an occluder's depth measured): kept.
     f = [0.18 * 2.3 / 2.0, 0.0, 2.3] + m[3:9]
     vs = list(var)
-    ray_check(m, offs, f, vs, 1e-4, 2.5e-3, 11.8)
+    ray_check(m, offs, f, vs, *args)
     assert f[:3] == [0.18 * 2.3 / 2.0, 0.0, 2.3] and vs == var
     # The filter's shoulder 10 cm off the ray in y: the measured point and its variances replace it.
     f = [0.18, 0.10, 2.3] + m[3:9]
-    ray_check(m, offs, f, vs, 1e-4, 2.5e-3, 11.8)
+    ray_check(m, offs, f, vs, *args)
     assert f[:3] == m[:3] and vs[:3] == [1e-4, 1e-4, 2.5e-3] and vs[3:] == var[3:]
+    # Off the ray but the depth passes the innovation test (2 cm): the test has nothing to decide.
+    f = [0.18, 0.10, 2.02] + m[3:9]
+    ray_check(m, offs, f, list(var), *args)
+    assert f[:3] == [0.18, 0.10, 2.02]
     # A joint without a measured depth is left alone.
     m2 = list(m)
-    m2[2] = float("nan")
+    m2[2] = nan
     f = [0.18, 0.10, 2.3] + m[3:9]
-    ray_check(m2, offs, f, list(var), 1e-4, 2.5e-3, 11.8)
+    ray_check(m2, offs, f, list(var), *args)
     assert f[:3] == [0.18, 0.10, 2.3]

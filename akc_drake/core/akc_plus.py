@@ -14,11 +14,11 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's
   occlusion filter lacks); the filter that followed such a rejected depth (within one standard deviation of
   an update's residual, ``R - P``) is then no prior for it.
-* *Ray test*: the image measures a joint's ray (x / z, y / z); an occluder's depth moves the measured point
-  along it, not off it. A joint measured this frame whose filtered point, scaled to the measured depth, is
-  off the measured ray by more than the gate (chi2, 2 dof, image and filter variances) is one the filter has
-  wrong (e.g. the paper's per-joint EKF, whose bone constraint moves a seen joint towards a lost neighbour):
-  the measured point replaces the filter's, with the measurement's variance.
+* *Ray test*: a measured depth the innovation test rejects is an occluder's or the filter's error. The image
+  measures the joint's ray (x / z, y / z), and an occluder's depth moves the measured point along it, not off
+  it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
+  (chi2, 2 dof) is the filter's error (e.g. the paper's per-joint EKF, whose bone constraint moves a seen
+  joint towards a lost neighbour), and the measured point replaces it, with the measurement's variance.
 * *Covariance matching*: a running mean of each arm coordinate's NIS (each frame's winsorised at the gate,
   weight ``nis_alpha``) scales the filter's variance into the error variance its residuals show: a lagging
   filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
@@ -380,7 +380,12 @@ class ArmKinematicCorrectorPlus:
             f = list(joints)
             vs = self._cur_var = self._arm_var(side, m, f)
             if m is not None:
-                ray_check(m, self._offsets[side], f, vs, self._r_axes[0], self._r_z, self._chi2_gate)
+                # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
+                g2, rz, o_w = self._gate2, self._r_z, offsets[2]
+                d0, d1, d2 = m[o_s + 2] - f[2], m[o_e + 2] - f[5], m[o_w + 2] - f[8]
+                if (d0 * d0 > g2 * (rz - var[o_s + 2]) or d1 * d1 > g2 * (rz - var[o_e + 2])
+                        or d2 * d2 > g2 * (rz - var[o_w + 2])):
+                    ray_check(m, offsets, f, vs, var, self._r_axes[0], rz, self._gate2, self._chi2_gate)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
@@ -390,25 +395,21 @@ class ArmKinematicCorrectorPlus:
         no_prior = self._no_prior = set()
         tol = self._tol
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
+        # ``*_nis``: the filter also followed the depth: within one standard deviation of an update's residual
+        # (R - P; the 3-sigma test says only that the depth is plausible).
         if m is None or var is None:
             me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
+            me_nis = ms_nis = False
         else:  # (``_measured``'s innovation test, inlined: this runs every frame)
             g2, rz = self._gate2, self._r_z
             d, q = m[o_e + 2] - ez, rz - var[o_e + 2]
-            me = _isfinite(m[o_e] + m[o_e + 1] + d) and d * d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
+            d, q = d * d, (q if q > 0.0 else 0.0)
+            me = _isfinite(m[o_e] + m[o_e + 1] + d) and d <= g2 * q + 1e-12
+            me_nis = me and d <= q + 1e-12
             d, q = m[o_s + 2] - sz, rz - var[o_s + 2]
-            ms = _isfinite(m[o_s] + m[o_s + 1] + d) and d * d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
-        # Did the filter follow this frame's depth? A Kalman update that used it leaves a residual of variance
-        # R - P; a filter within one standard deviation of it is where such an update most likely left it (the
-        # 3-sigma test above says only that the depth is plausible: a filter whose constraints put it 13 cm from
-        # a depth read at a 5 cm sigma passes that, without having followed it).
-        me_nis = ms_nis = False
-        if m is not None and var is not None:
-            rz = self._r_z
-            d, q = m[o_e + 2] - ez, rz - var[o_e + 2]
-            me_nis = me and d * d <= (q if q > 0.0 else 0.0) + 1e-12
-            d, q = m[o_s + 2] - sz, rz - var[o_s + 2]
-            ms_nis = ms and d * d <= (q if q > 0.0 else 0.0) + 1e-12
+            d, q = d * d, (q if q > 0.0 else 0.0)
+            ms = _isfinite(m[o_s] + m[o_s + 1] + d) and d <= g2 * q + 1e-12
+            ms_nis = ms and d <= q + 1e-12
         if prev is not None and var is None:
             geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
             geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
@@ -515,9 +516,8 @@ class ArmKinematicCorrectorPlus:
         # forearm length is the stronger evidence.)
         fit_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self._cons
         ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te) or (kn_s and not te)
-        # A wrist the detector lost altogether (no x, y) that the filter knows worse than the elbow and the
-        # shoulder is no anchor: nothing measured it, and eq. 7-8 from it would carry its extrapolation into
-        # the joints the camera sees. The arm is then built from the shoulder out and the wrist follows.
+        # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
+        # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out.
         w_lost = (vs is not None and m is not None and not _isfinite(m[offsets[2]] + m[offsets[2] + 1])
                   and vs[8] > vs[2] and vs[8] > vs[5])
         if w_lost:

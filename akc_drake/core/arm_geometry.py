@@ -215,34 +215,36 @@ def project_lengths(f, var, lu, lf, length_var=0.0, gate=math.inf, iters=2):
     return (sx, sy, sz, *e, wx, wy, wz), chi2
 
 
-def ray_check(m, offsets, f, vs, r_xy, r_z, gate) -> None:
-    """Joints measured this frame whose filtered point the detector's ray contradicts take the measured point.
+def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate) -> None:
+    """Measured depths the innovation test rejects: an occluder's, or the filter's error? The ray decides.
 
     The image measures a joint's ray (x / z, y / z); an occluder's depth read at the joint's pixel moves the
-    measured (deprojected) point along that ray, not off it. So the filter's point, scaled to the measured
-    depth, is compared with the measured one in x, y (chi2 with 2 degrees of freedom against ``gate``; the
-    residual's variance is the image's ``r_xy`` plus the filter's scaled): a filter whose ray the detector
-    contradicts is wrong about the joint (e.g. an EKF whose bone constraint moved a seen joint towards a lost
-    neighbour), and its estimate is no evidence: the measured point replaces it in ``f`` with the measurement's
-    variances (``r_xy``, ``r_xy``, ``r_z``) in ``vs`` (both changed in place).
+    measured (deprojected) point along that ray, not off it. So for each joint whose measured depth fails the
+    innovation test (``(z - fz)^2 > g2 (R - P)``), the filter's point, scaled to the measured depth, is compared
+    with the measured one in x, y (chi2 with 2 degrees of freedom against ``gate``; the residual's variance is
+    the image's ``r_xy`` plus the filter's, scaled): a filter whose ray the detector contradicts is wrong about
+    the joint (e.g. an EKF whose bone constraint moved a seen joint towards a lost neighbour) and is no evidence:
+    the measured point replaces it in ``f``, with the measurement's variances in ``vs`` (both changed in place).
+    A rejected depth on the filter's ray stays rejected (an occluder's).
 
     Args:
         m: the flat (36) measurement, NaN where missing.
         offsets: flat indices of the arm's shoulder, elbow and wrist x.
         f, vs: the arm's nine filtered coordinates and their variances (lists).
-        r_xy, r_z: the measurement's variances; gate: the largest chi2 accepted.
+        var: the filter's flat (36) posterior variances (the innovation test's ``P``).
+        r_xy, r_z: the measurement's variances; g2: the innovation gate squared; gate: the largest chi2 accepted.
     """
-    for b, o in enumerate(offsets):
+    for i, o in ((0, offsets[0]), (3, offsets[1]), (6, offsets[2])):
         mz = m[o + 2]
-        i = 3 * b
         fz = f[i + 2]
-        if not (mz == mz and fz > 0.0):
-            continue
-        k = mz / fz
-        dx, dy = m[o] - f[i] * k, m[o + 1] - f[i + 1] * k
-        if dx * dx / (r_xy + vs[i] * k * k) + dy * dy / (r_xy + vs[i + 1] * k * k) > gate:
-            f[i], f[i + 1], f[i + 2] = m[o], m[o + 1], mz
-            vs[i], vs[i + 1], vs[i + 2] = r_xy, r_xy, r_z
+        d, q = mz - fz, r_z - var[o + 2]
+        if d * d > g2 * (q if q > 0.0 else 0.0) + 1e-12 and fz > 0.0:
+            k = mz / fz
+            mx, my = m[o], m[o + 1]
+            dx, dy, k2 = mx - f[i] * k, my - f[i + 1] * k, k * k
+            if dx * dx / (r_xy + vs[i] * k2) + dy * dy / (r_xy + vs[i + 1] * k2) > gate:
+                f[i], f[i + 1], f[i + 2] = mx, my, mz
+                vs[i], vs[i + 1], vs[i + 2] = r_xy, r_xy, r_z
 
 
 def circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
