@@ -413,3 +413,26 @@ def test_a_filter_counts_as_following_a_rejected_depth_only_within_one_residual_
         m[RS] *= (p[RS, 2] - dz) / p[RS, 2]
         akc.correct(p, measured=m, variance=var)
         assert (ks in akc._no_prior) is no_prior
+
+
+def test_a_lost_elbow_that_cannot_close_the_arm_at_its_image_position_moves_in_depth():
+    # Elbow depth dropped (a blind variance), its image position 7 cm off the true one and the wrist 3 cm off:
+    # no elbow at its image x, y closes the arm from the seen shoulder. The correction is shared by the elbow
+    # and the wrist in the filter's metric: both keep their image x, y (3 mm; the elbow moved up to 2.9 cm in
+    # x, y when the wrist alone followed) and the depths, which the filter knows least, move.
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    akc.correct(p, measured=p, variance=kf_var())
+    f = p.copy()
+    f[LE] += [0.004, 0.069, 0.0]
+    f[LW] += [-0.031, 0.023, -0.008]
+    m = f.copy()
+    m[LE, 2] = np.nan
+    var = kf_var()
+    var[LE, 2] = 0.25
+    out = akc.correct(f, measured=m, variance=var).pose
+    np.testing.assert_allclose(out[LS], f[LS], atol=1e-12)
+    np.testing.assert_allclose(out[LE, :2], f[LE, :2], atol=3e-3)
+    np.testing.assert_allclose(out[LW, :2], f[LW, :2], atol=3e-3)
+    assert abs(np.linalg.norm(out[LS] - out[LE]) - dims.LUA) < 1e-9
+    assert abs(np.linalg.norm(out[LE] - out[LW]) - dims.LLA) < 1e-9

@@ -33,6 +33,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   mostly in depth. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y) that the filter knows worse than the shoulder and the elbow
   is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist follows.
+* A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
+  the correction in the filter's metric (mostly in depth), not the wrist alone.
 * A joint the detector lost altogether whose depth the filter extrapolates (variance above ``R``, moved by more
   than ``depth_sigma_m`` since last seen) is held at our last output in depth (a zero-velocity hold); a
   filter that holds it, or whose constraints inform it (an EKF), is followed.
@@ -425,16 +427,9 @@ class ArmKinematicCorrectorPlus:
         exy = m is None or _isfinite(m[o_e] + m[o_e + 1])
         sxy = m is None or _isfinite(m[o_s] + m[o_s + 1])
         if prev is not None and m is not None:
-            # A joint the detector lost altogether: a filter without a hold extrapolates it (x, y too) at its
-            # last velocity; our last output is then the better estimate.
-            # (Only when the filter has moved it away from our last output by more than jump_m: a holding
-            # filter's estimate is kept.)
-            # Our own last output is no evidence: the filter prior is then left out of the candidate choice.
-            # With the filter's covariance, axis by axis: where the filter knows the joint less well than a
-            # measurement would (its variance above the measurement's: no constraint informs it) and has moved
-            # it, blind, by more than the measurement's standard deviation since its depth was last seen (a
-            # hold is the filter's own best knowledge; a moving blind estimate is an extrapolated velocity,
-            # which a zero-velocity hold beats).
+            # A joint the detector lost altogether: a filter without a hold extrapolates it at its last velocity,
+            # and our last output (no evidence: the filter prior is then left out) is the better estimate: without
+            # the covariance when the filter moved it more than jump_m from it; with it, see ``_hold_blind``.
             if vs is None:
                 jump = self.config.jump_m
                 if not exy and _hypot(ex - prev[3], ey - prev[4], ez - prev[5]) > jump:
@@ -508,12 +503,9 @@ class ArmKinematicCorrectorPlus:
         s = e = None
         geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
         te = me and geo_f  # elbow seen and at the forearm length from the wrist
-        # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one:
-        # e.g. the depth of an occluding upper arm read at the shoulder's pixel).
-        # A shoulder the detector lost altogether (no x, y) is kept where it is held (eq. 8 would need its 2D
-        # position): the proximal joint moves least, and a wrong elbow is likelier than a wrong held shoulder.
-        # (The upper arm must then fit within consistency_m, the depth's own tolerance: a seen elbow at the
-        # forearm length is the stronger evidence.)
+        # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one: e.g.
+        # an occluding upper arm's depth at the shoulder's pixel). A shoulder lost altogether (no x, y) is kept
+        # where held (eq. 8 needs its 2D position; a wrong elbow is likelier than a wrong held shoulder).
         fit_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self._cons
         ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te) or (kn_s and not te)
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
@@ -556,6 +548,14 @@ class ArmKinematicCorrectorPlus:
                         dw = _hypot(c[0] - wx, c[1] - wy, c[2] - wz) - lf
                         extra.append(dw * dw * inv_w2 + self._penalty(s, c, w, lu, lf, axes))
                     e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
+                if vs is not None and not w_lost:
+                    # With the covariance, the wrist does not take the whole correction: the elbow (at its image
+                    # x, y and this depth) and the wrist move as little as their variances allow (the kept
+                    # shoulder fixed), mostly in depth.
+                    arm, _ = project_lengths((sx, sy, sz, ex, ey, e[2], wx, wy, wz), (0.0, 0.0, 0.0, *vs[3:]),
+                                             lu, lf)
+                    if arm is not None:
+                        return arm
                 w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         if not ts:
