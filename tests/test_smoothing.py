@@ -40,8 +40,8 @@ def test_noise_on_a_constant_frame_is_reduced_by_a_measured_factor():
     ang_in, lin_in = frame_jitter(noisy[20:], DT)
     ang_out, lin_out = frame_jitter(out[20:], DT)
     print(f"jitter reduction: angular x{ang_in / ang_out:.1f}, linear x{lin_in / lin_out:.1f}")
-    # Measured with seed 0: angular jitter / 2.9, linear / 1.8 (both cutoffs 2 Hz at rest, for <= 50 ms of lag;
-    # the rotation's 8 deg noise is also clipped at 2 rad/s x dt per frame).
+    # Measured with seed 0: angular jitter / 2.7 (/ 2.9 with the rotation's previous beta of 1), linear / 1.8 (both
+    # cutoffs 2 Hz at rest, for <= 50 ms of lag; the rotation's 8 deg noise is also clipped at 2 rad/s x dt).
     assert ang_out < ang_in / 2.5
     assert lin_out < lin_in / 1.5
     # The estimate stays near the true frame (no drift).
@@ -111,14 +111,15 @@ def _ramp_lag(params, speed: float, frames: int = 60) -> float:
 def test_wrist_rotation_latency_on_a_ramp_and_a_flip_pulls_by_a_bounded_angle():
     """The rotation's added latency at the operator's speeds (a synthetic ramp at the 10 Hz camera rate), the
     rate limit above them, and one mirrored frame."""
-    # Measured: 65 ms at 0.3 rad/s, 55 at 0.5, 45 at 1.0 (the cutoff rises with the speed); the old setting
-    # (0.3 Hz + 0.02 Hz per rad/s) lagged 300-500 ms on the same ramps.
-    for speed, bound in ((0.3, 0.070), (0.5, 0.060), (1.0, 0.050)):
+    # Measured: 55 ms at 0.3 rad/s, 45 at 0.5, 40 at 0.8, 35 at 1.0, 25 at 1.5 (the cutoff rises with the speed);
+    # the old setting (0.3 Hz + 0.02 Hz per rad/s) lagged 300-500 ms on the same ramps.
+    for speed, bound in ((0.3, 0.060), (0.5, 0.050), (0.8, 0.045), (1.0, 0.040), (1.5, 0.030)):
         assert _ramp_lag(sm.WRIST_SMOOTHING, speed) <= bound
     old = sm.SE3SmoothingParams(position=sm.WRIST_SMOOTHING.position,
                                 rotation=sm.OneEuroParams(min_cutoff_hz=0.3, beta=0.02))
     assert _ramp_lag(old, 0.5) > 0.25
-    # The price of the 2 rad/s innovation clip: a turn faster than ~1.4 rad/s is followed at that rate.
+    # The price of the 2 rad/s innovation clip: a turn faster than ~1.6 rad/s (alpha at the 6 Hz cutoff the
+    # clipped speed opens x 2 rad/s) is followed at that rate.
     assert _ramp_lag(sm.WRIST_SMOOTHING, 2.0) > 0.2
     # A step of 0.3 rad: half of it after one frame, 90 % after two.
     Rs = [np.eye(3)] * 5 + [Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix()] * 10
@@ -131,6 +132,32 @@ def test_wrist_rotation_latency_on_a_ramp_and_a_flip_pulls_by_a_bounded_angle():
     out = _run(sm.SE3OneEuro(sm.WRIST_SMOOTHING), Rs, [np.zeros(3)] * len(Rs))
     dev = [rotation_angle(R0.T @ X[:3, :3]) for X in out]
     assert max(dev) <= 0.12 and dev[-1] < 1e-3
+
+
+def test_wrist_rotation_cutoff_reaches_50_ms_from_the_operators_speed_and_its_step_response():
+    """The rotation's beta is set so that the cutoff reaches 1 / (2 pi 50 ms) = 3.2 Hz at 0.6 rad/s (below the
+    demo operator's 0.8 rad/s RMS wrist speed): every ramp from 0.6 to 1.5 rad/s lags <= 50 ms; with the previous
+    beta of 1 Hz per rad/s the cutoff got there only at 1.2 rad/s."""
+    rot = sm.WRIST_SMOOTHING.rotation
+    assert rot.min_cutoff_hz + rot.beta * 0.6 >= 1.0 / (2.0 * math.pi * 0.050)
+    for speed in (0.6, 0.8, 1.0, 1.2, 1.5):
+        assert _ramp_lag(sm.WRIST_SMOOTHING, speed) <= 0.050
+    previous = sm.SE3SmoothingParams(position=sm.WRIST_SMOOTHING.position,
+                                     rotation=sm.OneEuroParams(min_cutoff_hz=2.0, beta=1.0),
+                                     max_innovation_rad_s=2.0, robust_derivative=True)
+    assert _ramp_lag(previous, 0.6) > 0.050  # measured 55 ms at 0.5-0.6 rad/s, 240 ms at 1.5 (rate-limited)
+    assert _ramp_lag(previous, 1.5) > 0.2
+    # Step response to a 0.15 rad (8.6 deg) turn held after one frame: the median-of-three derivative reads a
+    # one-frame jump as an outlier, so the first frame moves by alpha at the 2 Hz rest cutoff (0.557), then the
+    # cutoff opens: measured 56 %, 83 %, 94 % of the step after 1, 2, 3 frames (50 % reached within one 100 ms
+    # camera period, as a 2 Hz first-order filter would: 1 - alpha = 0.443 left).
+    Rs = [np.eye(3)] * 5 + [Rotation.from_rotvec([0.0, 0.0, 0.15]).as_matrix()] * 10
+    out = _run(sm.SE3OneEuro(sm.WRIST_SMOOTHING), Rs, [np.zeros(3)] * len(Rs))
+    frac = [rotation_angle(out[k, :3, :3]) / 0.15 for k in range(5, 9)]
+    assert frac[0] == pytest.approx(sm.alpha(2.0, DT), abs=1e-9)
+    assert frac[1] >= 0.80 and frac[2] >= 0.90 and frac[3] >= 0.96
+    assert all(b > a for a, b in zip(frac[:-1], frac[1:], strict=True))  # monotone, no overshoot
+    assert max(frac) <= 1.0 + 1e-12
 
 
 def test_robust_lag_estimate_ignores_the_frames_a_filter_rejected():

@@ -108,20 +108,36 @@ class SE3SmoothingParams:
 
 #: Wrist targets (robot frame T). Position: cutoff 2 Hz at rest rising by 10 Hz per m/s (a hand moving at
 #: 0.5 m/s is followed at 7 Hz: about 20 ms of lag). Rotation, for <= 50 ms of lag at the operator's speeds
-#: (10 Hz camera): One Euro at 2 Hz at rest (a first-order filter lags 1 / (2 pi fc) = 80 ms at rest, less once
-#: the cutoff rises) + 1 Hz per rad/s, its speed the median of the last three innovation rates (one outlier does
-#: not open it), and each innovation clipped to 2 rad/s x dt: the wrist frame's errors are mostly mirror flips
-#: of 150-175 deg in one frame and MediaPipe's knuckle outliers (measured on the demo: 80-90 % of the squared
-#: angular speed), which then move the estimate by at most ~0.15 rad instead of following them, while the
-#: operator's wrist (RMS 0.8 rad/s) passes unclipped. The price is a rate limit: a turn faster than ~1.5 rad/s
-#: is followed at that rate (see ``tests/test_smoothing.py`` for the ramp and step lags). No flip guard (mirror
-#: flips are also resolved before the filter: :func:`akc_drake.core.frames.reconstruct_hand_vector`,
-#: :func:`akc_drake.core.frames.resolve_wrist_flip`). Chosen on the demo's recordings of both detectors, seed 0
-#: (``--body skinned --detector mediapipe`` and ``--body primitive --detector sim``), among min cutoffs 1-2.5 Hz,
-#: betas 0.5-2, clips 1.5-3 rad/s; the previous setting (0.3 Hz + 0.02 Hz per rad/s) lagged 250-350 ms.
+#: (10 Hz camera). A first-order low-pass at cutoff ``fc`` lags a ramp by ``tau = 1 / (2 pi fc)`` (in discrete
+#: time exactly ``dt (1 - alpha) / alpha = tau``), so 50 ms needs ``fc >= 3.2 Hz``:
+#:
+#: * ``min_cutoff_hz = 2``: at rest (80 ms of lag, but a still wrist has nothing to lag) the noise above the
+#:   operator's band is cut (97 % of the wrist motion's power is below 2 Hz; the rebuilt wrist rotation's error is
+#:   broadband up to the 5 Hz Nyquist frequency);
+#: * ``beta = 2`` Hz per rad/s: the cutoff reaches 3.2 Hz at 0.6 rad/s, below the operator's RMS wrist speed
+#:   (0.8 rad/s in both demo motions), so a turn at the operator's usual speed is followed within 50 ms
+#:   (ramps: 55 ms at 0.3 rad/s, 45 at 0.5, 40 at 0.8, 35 at 1.0, 25 at 1.5; a slow turn's lag is a small angle:
+#:   0.3 rad/s x 55 ms = 1 deg). With ``beta = 1`` (the previous setting) the cutoff reached 3.2 Hz only at
+#:   1.2 rad/s: 57-60 ms on the demo (both seeds) for 1.18-1.22x the operator's angular jitter; ``beta = 2``
+#:   gives 35-42 ms for 1.23-1.29x (the target: <= 1.5x), ``beta = 2.5`` 30-35 ms for 1.25-1.31x;
+#: * ``d_cutoff_hz = 1`` (the One Euro default): the speed that sets the cutoff is the component-wise median of
+#:   the last three innovation rates (``robust_derivative``), so one outlier does not open the filter, and a
+#:   one-frame step is treated as one (56 % of it after one frame, 94 % after three); 2 Hz changed the demo's lag
+#:   and jitter by < 3 ms and 0.01x;
+#: * each innovation clipped to 2 rad/s x dt (``max_innovation_rad_s``): the wrist frame's errors are mostly
+#:   mirror flips of 150-175 deg in one frame and MediaPipe's knuckle outliers (80-90 % of the squared angular
+#:   speed on the demo), which then move the estimate by at most ~0.11 rad instead of being followed, while the
+#:   operator's wrist passes unclipped. The price is a rate limit: a turn faster than ~1.6 rad/s is followed at
+#:   that rate (see ``tests/test_smoothing.py`` for the ramp and step lags). A 2.5 rad/s clip lowered the lag by
+#:   3-7 ms only and raised the angular jitter to 1.31-1.45x.
+#:
+#: No flip guard (mirror flips are also resolved before the filter:
+#: :func:`akc_drake.core.frames.reconstruct_hand_vector`, :func:`akc_drake.core.frames.resolve_wrist_flip`).
+#: Measured by replaying the demo's recordings (``--body skinned --detector mediapipe --pose-model heavy``, seeds 0
+#: and 1, AKC(KF)); the setting before the previous (0.3 Hz + 0.02 Hz per rad/s) lagged 250-350 ms.
 WRIST_SMOOTHING = SE3SmoothingParams(
     position=OneEuroParams(min_cutoff_hz=2.0, beta=10.0, d_cutoff_hz=1.0),
-    rotation=OneEuroParams(min_cutoff_hz=2.0, beta=1.0, d_cutoff_hz=1.0),
+    rotation=OneEuroParams(min_cutoff_hz=2.0, beta=2.0, d_cutoff_hz=1.0),
     max_angular_speed=None,
     max_innovation_rad_s=2.0,
     robust_derivative=True,
