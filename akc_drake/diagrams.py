@@ -114,8 +114,11 @@ class MocapPorts:
 
 
 def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay: Measurements | None = None,
-                         frame_source=None, detector=None, motion=None) -> dict:
+                         frame_source=None, detector=None, motion=None, operator_input: bool = False) -> dict:
     """Add stage S1 + S2: the rendered camera and the landmark extractor, a replay, or a real frame source.
+
+    ``operator_input``: the rendered operator's posture comes from the camera source's ``q_operator`` input
+    (the closed-loop operator) instead of ``motion``.
 
     Returns:
         ``{"landmarks_C", "visibility", "pixels", "truth"}`` output ports and ``"systems"``: the systems added.
@@ -167,7 +170,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
         src = builder.AddSystem(
             DepthCameraSource(motion, intrinsics=intrinsics, camera_pose=placement, noise=noise, seed=cfg.seed,
                               render_color=needs_color or cfg.camera.render_color, render_label=needs_label,
-                              body=cfg.body)
+                              body=cfg.body, q_input=operator_input)
         )
         src.set_name("DepthCameraSource")
         num_frames = int(np.floor(motion.duration * cfg.camera.rate_hz + 1e-9)) + 1
@@ -466,6 +469,7 @@ class TeleopDiagram(MocapDiagram):
     ik_time_step: float = 0.01
     clip_log: object = None
     gripper: object = None
+    operator: object = None
 
     def simulate(self, num_frames: int | None = None, *, duration: float | None = None, progress: bool = False,
                  simulator: Simulator | None = None):
@@ -498,7 +502,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
                          torso_model=None, smoothing: bool = True, workspace: bool = True,
                          hand_dropout=None, hand_apertures=None, hand_detector=None,
-                         hand_knuckles=None) -> TeleopDiagram:
+                         hand_knuckles=None, operator=None) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
@@ -528,6 +532,9 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         hand_detector: the hand detector on the camera's frames (default: MediaPipe Hands,
             :class:`~akc_drake.io.hand_detector.HandDetector`, on a ``frame_source``'s frames, or on the render of
             a ``motion`` with a hand closure when ``cfg.detector`` is ``mediapipe``).
+        operator: a :class:`~akc_drake.operator.closed_loop.ClosedLoopOperator` (with ``motion``, its plan, and no
+            ``replay``): the rendered operator watches the robot's tool and corrects it
+            (:class:`~akc_drake.systems.operator_controller.OperatorController`, on :attr:`TeleopDiagram.operator`).
 
     When ``motion`` has a hand closure (:attr:`~akc_drake.operator.motions.OperatorMotion.hand_closed`, e.g. the
     pick-and-place motion), the grippers are commanded from the hands: a
@@ -551,7 +558,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
 
     with hands_follow(motion):  # a rendered skinned body closes its hands as the motion does
         source = AddMeasurementSource(builder, cfg, replay=replay, frame_source=frame_source, detector=detector,
-                                      motion=motion)
+                                      motion=motion, operator_input=operator is not None)
     ports = AddMocapPipeline(builder, cfg, dims, source, teleop=True)
     loggers = AddStageLoggers(builder, ports, period) if log_stages else {}
 
@@ -590,6 +597,16 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     clip_log.set_name("log_workspace_clipped")
     builder.Connect(mapper.GetOutputPort("workspace_clipped"), clip_log.get_input_port())
     builder.Connect(station.robot_state_output, monitor.GetInputPort("robot_state"))
+    controller = None
+    if operator is not None:  # the closed loop: the operator watches the robot's tool
+        from akc_drake.systems.operator_controller import OperatorController
+
+        if replay is not None or frame_source is not None:
+            raise ValueError("build_teleop_diagram: operator needs a rendered motion (no replay, no frame_source)")
+        controller = builder.AddSystem(OperatorController(operator, station.plant, station.robot))
+        controller.set_name("OperatorController")
+        builder.Connect(station.robot_state_output, controller.GetInputPort("robot_state"))
+        builder.Connect(controller.GetOutputPort("q_operator"), source["systems"]["source"].GetInputPort("q_operator"))
 
     gripper = None
     src = source["systems"]["source"]
@@ -652,5 +669,5 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     return TeleopDiagram(
         diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"),
         mapper=mapper, station=station, ik=ik, monitor=monitor, meshcat=meshcat, ik_time_step=ik_time_step,
-        clip_log=clip_log, gripper=gripper,
+        clip_log=clip_log, gripper=gripper, operator=controller,
     )

@@ -20,12 +20,12 @@ ground truth.
 from __future__ import annotations
 
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import TrajectorySource
+from pydrake.systems.primitives import PassThrough, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.core.depth_noise import StereoDepthNoise
-from akc_drake.operator.model import OperatorParams
+from akc_drake.operator.model import NUM_ARM_DOF, OperatorParams
 from akc_drake.operator.motions import OperatorMotion
 from akc_drake.systems import timing
 from akc_drake.systems.camera_scene import (
@@ -81,12 +81,15 @@ class DepthCameraSource(Diagram):
         body: "primitive" (the operator built from primitives, fast) or "skinned" (MakeHuman's body on the
             CMU-MB rig, :mod:`akc_drake.operator.skinned`, deformable geometry a real detector sees; its
             true landmarks are the rig's joint centres).
+        q_input: take the operator's posture ``[q_left, q_right]`` from an input port ``q_operator`` (e.g. the
+            closed-loop :class:`~akc_drake.systems.operator_controller.OperatorController`) instead of playing
+            ``motion`` (which still sets the hands' closure and the body's checks).
     """
 
     def __init__(self, motion: OperatorMotion, *, intrinsics: CameraIntrinsics | None = None, camera_pose=None,
                  noise: StereoDepthNoise | None = None, seed: int = 0, params: OperatorParams | None = None,
                  render_label: bool = True, background_wall_m: float | None = 1.5, render_color: bool = True,
-                 body: str = "primitive"):
+                 body: str = "primitive", q_input: bool = False):
         super().__init__()
         if not isinstance(motion, OperatorMotion):
             raise ValueError(f"motion must be an OperatorMotion, got {type(motion).__name__}")
@@ -105,9 +108,14 @@ class DepthCameraSource(Diagram):
         scene_graph, self.plant, self.instance, self.skinned = make_operator_scene(
             builder, self.params, self.body, motion, background_wall_m
         )  # MultibodyPositionToGeometryPose keeps a reference only: self.plant keeps the plant alive.
-        traj = PiecewisePolynomial.FirstOrderHold(motion.times - motion.start, motion.q().T)
-        q_source = builder.AddSystem(TrajectorySource(traj))
-        q_source.set_name("operator_trajectory")
+        if q_input:  # the posture comes from outside (e.g. the closed-loop operator), the motion is the plan
+            q_source = builder.AddSystem(PassThrough(2 * NUM_ARM_DOF))
+            q_source.set_name("operator_posture")
+            builder.ExportInput(q_source.get_input_port(), "q_operator")
+        else:
+            traj = PiecewisePolynomial.FirstOrderHold(motion.times - motion.start, motion.q().T)
+            q_source = builder.AddSystem(TrajectorySource(traj))
+            q_source.set_name("operator_trajectory")
         self.skinned_system = connect_operator_pose(
             builder, scene_graph, self.plant, self.instance, self.skinned, q_source.get_output_port()
         )

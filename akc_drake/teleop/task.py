@@ -195,6 +195,39 @@ def hand_truth(motion, times, params=None) -> np.ndarray:
     return np.array([body.pinch_aperture(c) for c in motion.closure(motion.start + np.asarray(times))])
 
 
+def _hand_report(motion, times, apertures, cfg, seed: int, log) -> dict:
+    """The hand channel's report for one seed's rendered frames (MediaPipe Hands against the truth), logged."""
+    from akc_drake.core.gripper import hand_channel_report
+
+    truth = hand_truth(motion, times) if getattr(cfg, "body", "") == "skinned" else np.full(apertures.shape, np.nan)
+    intended = motion.closure(motion.start + times) > 0.5
+    report = {"seed": seed, **hand_channel_report(apertures, truth, intended, times)}
+    r = report["right"]
+    log(f"  pick-place seed {seed} hands (MediaPipe): right found {100 * r['found']:.0f} %, gripper "
+        f"state as intended {100 * r['state_agreement']:.0f} %, switch delays {r['switch_delay_s']} s")
+    return report
+
+
+def _closed_loop_run(cfg, calib, corrector, motion, mapping, landmarks, seed, progress, hand_detector):
+    """One closed-loop run: the operator (:class:`~akc_drake.operator.closed_loop.ClosedLoopOperator`, planning
+    ``motion``) rendered in the loop, watching the robot's tool; the pose detector is ``cfg.detector``'s (seeded
+    by ``seed``), the hands MediaPipe Hands' on the same frames (``hand_detector``) or the simulated channel."""
+    import dataclasses
+
+    from akc_drake.operator.closed_loop import ClosedLoopOperator
+    from akc_drake.systems.session_render import make_detector
+
+    core = ClosedLoopOperator(motion, mapping, landmarks=landmarks)
+    detector = make_detector(getattr(cfg, "detector", None), seed)
+    try:
+        return run_teleop(dataclasses.replace(cfg, seed=seed), calib.dims, corrector=corrector, motion=motion,
+                          torso_model=calib.torso, settle_s=SETTLE_S, progress=progress, operator=core,
+                          detector=detector, hand_detector=hand_detector)
+    finally:
+        if hasattr(detector, "close"):
+            detector.close()
+
+
 def _world_from_T(p_T) -> np.ndarray:
     """A point of the robot torso frame T in the world (the base is welded at the origin, T at 1.10 m)."""
     return np.asarray(p_T, dtype=float) + np.array([0.0, 0.0, 1.10])
@@ -212,6 +245,7 @@ def run_pick_place(
     start_time: float = 0.0,
     hand_model=None,
     hands: str | None = None,
+    operator: str = "closed",
 ) -> dict:
     """Run the task ``seeds`` times per corrector.
 
@@ -223,13 +257,15 @@ def run_pick_place(
         hand_model: MediaPipe Hands' ``.task`` file (None: the packaged one).
         hands: the hand channel, "sim" (the motion's closure + noise) or "mediapipe" (MediaPipe Hands on the
             rendered frames); None: "mediapipe" when ``cfg.detector`` is, else "sim".
+        operator: "closed" (default): the operator watches the robot's tool and corrects it
+            (:mod:`akc_drake.operator.closed_loop`), so each corrector's run renders the operator in the loop;
+            "open": the motion is rendered once per seed and its measurements replayed to every corrector.
 
     Returns:
         ``{"runs": [outcome dicts], "success_rate": {corrector: share}, "wall_s": ...}``; with MediaPipe's
         hand channel also ``"hands"``: per seed, the hand channel's report.
     """
     from akc_drake.core.frames import calibrated_mapping
-    from akc_drake.core.gripper import hand_channel_report
     from akc_drake.diagrams import Measurements
     from akc_drake.operator.motions import PICK_BOX_T, PLACE_TARGET_T, pick_place
 
@@ -252,45 +288,45 @@ def run_pick_place(
         from akc_drake.operator.skinned import skinned_operator
 
         landmarks = skinned_operator().landmarks_O
+    if operator not in ("open", "closed"):
+        raise ValueError(f"operator must be open or closed, got {operator!r}")
+    offsets = []
     with quiet_drake_warnings():
         for seed in range(int(seeds)):
             # The operator works with the mapping the pipeline uses (calibrated from the T-pose).
-            motion = pick_place(seed, mapping=calibrated_mapping(calib.dims), landmarks=landmarks)
-            session, recorder = render_with_hands(motion, cfg, seed, progress, hand_detector)
-            meas = Measurements.from_session(session)
-            apertures = knuckles = None
-            if recorder is not None:
-                # the same frames' hands set the wrist frames, as in the demo's motions
-                apertures, knuckles = recorder.apertures, recorder.knuckles
-                truth = hand_truth(motion, session.t) if getattr(cfg, "body", "") == "skinned" else np.full(
-                    apertures.shape, np.nan)
-                intended = motion.closure(motion.start + session.t) > 0.5
-                reports.append({"seed": seed, **hand_channel_report(apertures, truth, intended, session.t)})
-                r = reports[-1]["right"]
-                log(f"  pick-place seed {seed} hands (MediaPipe): right found {100 * r['found']:.0f} %, gripper "
-                    f"state as intended {100 * r['state_agreement']:.0f} %, switch delays {r['switch_delay_s']} s")
+            mapping = calibrated_mapping(calib.dims)
+            motion = pick_place(seed, mapping=mapping, landmarks=landmarks)
+            apertures = knuckles = meas = None
+            if operator == "open":
+                session, recorder = render_with_hands(motion, cfg, seed, progress, hand_detector)
+                meas = Measurements.from_session(session)
+                if recorder is not None:
+                    apertures, knuckles = recorder.apertures, recorder.knuckles
+                    reports.append(_hand_report(motion, session.t, apertures, cfg, seed, log))
             for corrector in correctors:
-                record = meshcat is not None and seed == 0 and corrector == MAIN_CORRECTOR
-                run, _ = run_teleop(
-                    cfg,
-                    calib.dims,
-                    corrector=corrector,
-                    replay=meas,
-                    motion=motion,
-                    torso_model=calib.torso,
-                    settle_s=SETTLE_S,
-                    progress=progress,
-                    meshcat=meshcat if record else None,
-                    start_time=start_time if record else 0.0,
-                    hand_apertures=apertures,
-                    hand_knuckles=knuckles,
-                )
+                record = meshcat is not None and seed == 0 and corrector == MAIN_CORRECTOR and operator == "open"
+                if operator == "open":
+                    run, _ = run_teleop(cfg, calib.dims, corrector=corrector, replay=meas, motion=motion,
+                                        torso_model=calib.torso, settle_s=SETTLE_S, progress=progress,
+                                        meshcat=meshcat if record else None,
+                                        start_time=start_time if record else 0.0, hand_apertures=apertures,
+                                        hand_knuckles=knuckles)
+                else:
+                    run, td = _closed_loop_run(cfg, calib, corrector, motion, mapping, landmarks, seed, progress,
+                                               hand_detector)
+                    t_c, c = td.operator.offsets()
+                    offsets.append({"seed": seed, "corrector": corrector,
+                                    "final_offset_cm": (100 * c[-1]).tolist() if len(c) else None,
+                                    "max_offset_cm": float(100 * np.max(np.linalg.norm(c, axis=1))) if len(c)
+                                    else 0.0, "wall_s": float(run.wall_s)})
                 out = score_box(run.box_pose, target_W, start_W, run.box_contacts, seed=seed, corrector=corrector)
                 outcomes.append(out)
                 log(
                     f"  pick-place seed {seed} {corrector:9s}: {'success' if out.success else 'failure'} "
                     f"(box {out.box_error_cm:.1f} cm from the target, {out.box_height_cm:+.1f} cm high, "
-                    f"tilt {out.tilt_deg:.0f} deg, {'released' if out.released else 'held'})"
+                    f"tilt {out.tilt_deg:.0f} deg, {'released' if out.released else 'held'}"
+                    + (f"; operator's correction up to {offsets[-1]['max_offset_cm']:.1f} cm, run {run.wall_s:.0f} s"
+                       if operator == "closed" else "") + ")"
                 )
     if hand_detector is not None:
         hand_detector.close()
@@ -298,6 +334,8 @@ def run_pick_place(
     return {
         **({"hands": reports} if reports else {}),
         "task": "pick-place",
+        "operator": operator,
+        **({"operator_corrections": offsets} if offsets else {}),
         "seeds": int(seeds),
         "target_W": target_W.tolist(),
         "success_radius_cm": 100 * SUCCESS_RADIUS_M,
