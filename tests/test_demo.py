@@ -114,6 +114,31 @@ def test_run_metrics_on_known_numbers():
     assert m["tracking_lost_share"] == pytest.approx(0.1)
 
 
+def test_run_metrics_splits_the_target_error_into_its_constant_part_and_the_smoothings_share():
+    run = _synthetic_run()
+    # Synthetic: the target is 5 cm behind the operator in x on every frame (a pure offset); the unsmoothed
+    # targets are 3 cm off in x and alternately +/- 4 cm in y (noise around a 3 cm offset).
+    for s in teleop.SIDES:
+        U = run.operator[s].copy()
+        U[:, 0, 3] -= 0.03
+        U[:, 1, 3] += np.where(np.arange(run.frames) % 2 == 0, 0.04, -0.04)
+        run.unsmoothed[s] = U
+    m = teleop.run_metrics([run])
+    for s in teleop.SIDES:
+        assert m["target_operator_error_cm"][s] == pytest.approx(5.0)
+        assert m["target_operator_offset_cm"][s] == pytest.approx(5.0)  # all of it constant
+        assert m["target_operator_error_unsmoothed_cm"][s] == pytest.approx(5.0)  # hypot(3, 4)
+    run.target["left"][:, 1, 3] += np.where(np.arange(run.frames) % 2 == 0, 0.12, -0.12)
+    m = teleop.run_metrics([run])
+    # 20 frames after settling, 10 at +12 and 10 at -12 cm: the mean cancels, the offset stays 5 cm.
+    assert m["target_operator_error_cm"]["left"] == pytest.approx(13.0)
+    assert m["target_operator_offset_cm"]["left"] == pytest.approx(5.0)
+    assert m["target_operator_error_unsmoothed_cm"]["right"] == pytest.approx(5.0)
+    # Without unsmoothed targets the share is unknown, not zero.
+    run.unsmoothed = {}
+    assert teleop.run_metrics([run])["target_operator_error_unsmoothed_cm"]["left"] is None
+
+
 def test_run_metrics_with_the_settling_second_included_when_it_dominates():
     run = _synthetic_run(n=15)  # 10 of 15 samples in the settling second
     m = teleop.run_metrics([run])

@@ -49,7 +49,9 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         ``settling_s``), ``ee_tracking_error_cm_with_settling``, ``ee_tracking_error_p95_cm``,
         ``ee_reachable_error_cm`` (to the target after the IK's reach guard), ``ee_operator_error_cm`` (to the
         operator's true mapped wrist), ``target_operator_rotation_error_deg`` (median angle between the target's
-        rotation and the operator's true mapped wrist's), ``target_unreachable_share``, ``jitter`` and
+        rotation and the operator's true mapped wrist's), ``target_operator_error_unsmoothed_cm`` (the same median
+        for the unsmoothed targets), ``target_operator_offset_cm`` (the length of the mean target-minus-operator
+        vector: the error's constant part), ``target_unreachable_share``, ``jitter`` and
         ``operator_jitter`` (the true mapped wrist's, for reference; each ``angular_rad_s``, ``linear_m_s``); totals:
         ``position_limit_hits``, ``velocity_limit_hits``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
         ``tracking_lost_share``, ``dropout_frames``, ``sim_s``, ``wall_s``, ``realtime_factor``.
@@ -63,7 +65,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         return np.concatenate([fn(r, side)[a] for r, a in zip(runs, after, strict=True)])
 
     keys = ("err", "err_all", "p95", "reach", "op", "unreach", "jang", "jlin", "oang", "olin", "top", "top95")
-    keys += ("lag", "rlag", "cross", "clip", "rot")
+    keys += ("lag", "rlag", "cross", "clip", "rot", "top_raw", "offset")
     v: dict[str, dict] = {k: {} for k in keys}
     for side in SIDES:
         e_after = np.concatenate([r.errors[side][r.error_t[side] >= settling_s] for r in runs])
@@ -79,6 +81,15 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         top = per_frame(lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.target[s][:, :3, 3], axis=1), side)
         v["top"][side] = _median_cm(top)
         v["top95"][side] = _p95_cm(top)
+        # The error's parts: the unsmoothed targets' (same torso and clip: the smoothing's share is the difference)
+        # and its constant part, the length of the mean error vector (a calibration or depth offset, which no
+        # smoothing removes).
+        v["top_raw"][side] = _median_cm(per_frame(
+            lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.unsmoothed[s][:, :3, 3], axis=1)
+            if r.unsmoothed and s in r.unsmoothed else np.full(r.frames, np.nan), side))
+        d = per_frame(lambda r, s: r.target[s][:, :3, 3] - r.operator[s][:, :3, 3], side)
+        d = d[np.all(np.isfinite(d), axis=1)]
+        v["offset"][side] = float(np.linalg.norm(d.mean(axis=0)) * 100.0) if len(d) else None
         rot = per_frame(_rotation_error_rad, side)
         rot = rot[np.isfinite(rot)]
         v["rot"][side] = float(np.degrees(np.median(rot))) if rot.size else None
@@ -110,6 +121,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "target_operator_error_cm": v["top"],
         "target_operator_error_p95_cm": v["top95"],
         "target_operator_rotation_error_deg": v["rot"],
+        "target_operator_error_unsmoothed_cm": v["top_raw"],
+        "target_operator_offset_cm": v["offset"],
         "smoothing_latency_ms": v["lag"],
         "smoothing_rotation_latency_ms": v["rlag"],
         "midline_crossings": v["cross"],

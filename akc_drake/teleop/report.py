@@ -203,7 +203,8 @@ def control_frame_lines(summary: dict) -> list[str]:
     wrist, jitter relative to the operator's, the smoothing's added latency, workspace clips, IK failures and
     position-only IK steps, midline crossings."""
     out = [
-        "Control frames, both motions: target vs the operator's true mapped wrist (median/p95 cm), jitter "
+        "Control frames, both motions: target vs the operator's true mapped wrist (median/p95 cm; unsmoothed "
+        "median, constant offset), jitter "
         "relative to the operator's (angular, linear), smoothing latency of positions (and rotations) in ms, "
         "clipped to the workspace (%), "
         "IK steps failed (%) / position-only, midline crossings"
@@ -223,10 +224,12 @@ def control_frame_lines(summary: dict) -> list[str]:
         clip = m.get("workspace_clipped_share") or {}
         cross = m.get("midline_crossings") or {}
         share = m.get("ik_failure_share")
+        raw, offset = m.get("target_operator_error_unsmoothed_cm") or {}, m.get("target_operator_offset_cm") or {}
         pct = {k: None if clip.get(k) is None else 100 * clip[k] for k in ("left", "right")}
         out.append(
             f"  {c:10s} L {_fmt(med.get('left'))}/{_fmt(p95.get('left'))}  R {_fmt(med.get('right'))}/"
-            f"{_fmt(p95.get('right'))}   jitter x{ratio('angular_rad_s', 'left')}/"
+            f"{_fmt(p95.get('right'))} (unsmoothed {_lr(raw, '.1f')}, offset {_lr(offset, '.1f')})   jitter "
+            f"x{ratio('angular_rad_s', 'left')}/"
             f"x{ratio('angular_rad_s', 'right')}"
             f" ang, x{ratio('linear_m_s', 'left')}/x{ratio('linear_m_s', 'right')} lin   latency "
             f"{_lr(lat, '.0f')} ms (rotation {_lr(rlat, '.0f')})   clipped {_lr(pct, '.0f')} %   IK failed "
