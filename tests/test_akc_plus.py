@@ -399,19 +399,22 @@ def test_a_wrist_lost_altogether_is_no_anchor():
     np.testing.assert_allclose(out[LW, :2], f[LW, :2], atol=1e-9)
 
 
-def test_a_filter_counts_as_following_a_rejected_depth_only_within_one_residual_sigma():
-    # The upper arm points at the camera (shoulder within 8 cm of its elbow in the image: the shoulder's depth
-    # is rejected by our proximity rule). A filter 2 cm from that depth followed it: no prior. One 13 cm from
-    # it (within the 3-sigma test, R = 25 cm^2, P = 1 cm^2) did not: it stays the shoulder's prior.
+def test_a_filter_counts_as_following_a_rejected_depth_only_if_it_moved_towards_it():
+    # The upper arm points at the camera (shoulder within 8 cm of its elbow in the image: the shoulder's depth,
+    # read 13 cm short, is rejected by our proximity rule; it passes the 3-sigma test, R = 25 cm^2, P = 1 cm^2).
+    # A filter that moved 4 cm towards that depth since the shoulder was last seen followed it: no prior. One
+    # that stayed (e.g. an EKF whose bone constraint holds it) did not: it stays the shoulder's prior.
     p, dims = arm_pose(elbow_dir_l=(0.05, 0.1, -1.0))
     ks = 3  # the right shoulder's key (the right arm is corrected last: its set is the one left)
-    for dz, no_prior in ((0.02, True), (0.13, False)):
+    for moved, no_prior in ((0.04, True), (0.0, False)):
         akc = ArmKinematicCorrectorPlus(dims)
         var = kf_var(z=1e-4)
         akc.correct(p, measured=p, variance=var)
         m = p.copy()
-        m[RS] *= (p[RS, 2] - dz) / p[RS, 2]
-        akc.correct(p, measured=m, variance=var)
+        m[RS] *= (p[RS, 2] - 0.13) / p[RS, 2]
+        f = p.copy()
+        f[RS, 2] -= moved
+        akc.correct(f, measured=m, variance=var)
         assert (ks in akc._no_prior) is no_prior
 
 

@@ -12,8 +12,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   Kalman update with measurement variance ``R`` (``depth_sigma_m``) the residual ``z - fz`` has variance
   ``R - P``, so ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared; within ``gate_sigma``.
   A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's
-  occlusion filter lacks); the filter that followed such a rejected depth (within one standard deviation of
-  an update's residual, ``R - P``) is then no prior for it.
+  occlusion filter lacks); the filter that followed such a rejected depth (passes the test and moved towards
+  it since the joint was last seen) is then no prior for it.
 * *Ray test*: a measured depth the innovation test rejects is an occluder's or the filter's error. The image
   measures the joint's ray (x / z, y / z), and an occluder's depth moves the measured point along it, not off
   it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
@@ -397,21 +397,21 @@ class ArmKinematicCorrectorPlus:
         no_prior = self._no_prior = set()
         tol = self._tol
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
-        # ``*_nis``: the filter also followed the depth: within one standard deviation of an update's residual
-        # (R - P; the 3-sigma test says only that the depth is plausible).
+        # ``*_nis``: the filter also followed the depth: it passes the test and the filter has moved towards it
+        # since the joint was last seen (a filter whose constraints moved it away, or kept it, did not).
         if m is None or var is None:
             me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
             me_nis = ms_nis = False
         else:  # (``_measured``'s innovation test, inlined: this runs every frame)
-            g2, rz = self._gate2, self._r_z
-            d, q = m[o_e + 2] - ez, rz - var[o_e + 2]
-            d, q = d * d, (q if q > 0.0 else 0.0)
-            me = _isfinite(m[o_e] + m[o_e + 1] + d) and d <= g2 * q + 1e-12
-            me_nis = me and d <= q + 1e-12
-            d, q = m[o_s + 2] - sz, rz - var[o_s + 2]
-            d, q = d * d, (q if q > 0.0 else 0.0)
-            ms = _isfinite(m[o_s] + m[o_s + 1] + d) and d <= g2 * q + 1e-12
-            ms_nis = ms and d <= q + 1e-12
+            g2, rz, f0 = self._gate2, self._r_z, self._f0
+            z, q = m[o_e + 2], rz - var[o_e + 2]
+            d = (z - ez) ** 2
+            me = _isfinite(m[o_e] + m[o_e + 1] + d) and d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
+            me_nis = me and (f0[ke] is None or d < (z - f0[ke][2]) ** 2)
+            z, q = m[o_s + 2], rz - var[o_s + 2]
+            d = (z - sz) ** 2
+            ms = _isfinite(m[o_s] + m[o_s + 1] + d) and d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
+            ms_nis = ms and (f0[ks] is None or d < (z - f0[ks][2]) ** 2)
         if prev is not None and var is None:
             geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
             geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
