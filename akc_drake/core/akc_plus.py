@@ -92,6 +92,14 @@ _NAN = float("nan")
 #: continuous configuration can outweigh them, a mirror candidate tens of cm away cannot.
 _BACKWARDS = 25.0
 
+_F64 = np.dtype(np.float64)
+
+
+def _as_f64(x):
+    """``x`` as a float64 array (``np.asarray`` with a dtype costs about 1 µs even when it has nothing to do)."""
+    return x if type(x) is np.ndarray and x.dtype == _F64 else np.asarray(x, dtype=np.float64)
+
+
 _LHIP_Z = 3 * INDEX["left_hip"] + 2
 _RHIP_Z = 3 * INDEX["right_hip"] + 2
 
@@ -237,10 +245,6 @@ class ArmKinematicCorrectorPlus:
             return False
         return abs(mz - fz) <= self.config.consistency_m
 
-    @staticmethod
-    def _depth_measured(m, o):
-        return m is not None and m[o + 2] == m[o + 2]
-
     def _arm_var(self, side, m, f):
         """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
 
@@ -305,8 +309,9 @@ class ArmKinematicCorrectorPlus:
         ve, vsz = vs[5], vs[2]
         # Each test without its rebuilt variance; that variance is computed only where the test turns on it
         # (a filter variance above the measurement's, ``not v <= r_z`` so that NaN counts as above).
-        kn_e = me or (ke not in no and not self._depth_measured(m, o_e) and (ve <= r_z or lost[ke] <= recent))
-        kn_s = ms or (ks not in no and not self._depth_measured(m, o_s) and (vsz <= r_z or lost[ks] <= recent))
+        mze, mzs = (_NAN, _NAN) if m is None else (m[o_e + 2], m[o_s + 2])  # (NaN: not measured this frame)
+        kn_e = me or (ke not in no and mze != mze and (ve <= r_z or lost[ke] <= recent))
+        kn_s = ms or (ks not in no and mzs != mzs and (vsz <= r_z or lost[ks] <= recent))
         need_e = not me and kn_e and not ve <= r_z
         need_s = not ms and kn_s and not vsz <= r_z
         if need_e or (need_s and not me):
@@ -448,10 +453,8 @@ class ArmKinematicCorrectorPlus:
         if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < self._occ_r2:
             ms = False
         if vs is not None:
-            # A depth measured this frame that the filter followed (within one residual standard deviation)
-            # but that another rule rejects (proximity): its estimate and (small) variance are no independent
-            # evidence; its prior is left out. (A filter farther from a rejected depth did not follow it and
-            # stays a prior.)
+            # A depth that another rule (proximity) rejects but the filter followed (``*_nis``): the filter's
+            # estimate and (small) variance are no independent evidence; its prior is left out.
             if not me and me_nis:
                 no_prior.add(ke)
             if not ms and ms_nis:
@@ -465,9 +468,8 @@ class ArmKinematicCorrectorPlus:
                 self._fits.add(ke)
             if not ms and ks not in self._no_prior and abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons:
                 self._fits.add(ks)
-        # How far the filter's depth has travelled since the depth was lost, from the filter's depth in the
-        # last frame it was seen (a filter that jumps to, or drifts towards, another depth while blind is no
-        # evidence for it; one that stays where it was is).
+        # How far the filter's depth has travelled since last seen (a filter that jumps or drifts to another
+        # depth while blind is no evidence for it; one that stays where it was is).
         f0, travel, lost = self._f0, self._travel, self._lost
         if me or f0[ke] is None:
             f0[ke] = (ex, ey, ez)
@@ -481,10 +483,8 @@ class ArmKinematicCorrectorPlus:
             travel[ks] = abs(sz - f0[ks][2])
         lost[ke] = 0.0 if me else lost[ke] + 1.0
         lost[ks] = 0.0 if ms else lost[ks] + 1.0
-        # With the filter's covariance: a depth not measured this frame that the filter still knows as well as
-        # a measurement would, or better than eq. 7-8 would rebuild it from its neighbours (its error variance
-        # within the larger of the two), counts as known here (a measured depth that a test rejected, or one
-        # held at our last output, does not).
+        # With the covariance: a depth not measured this frame that the filter knows as well as a measurement or
+        # better than eq. 7-8 would rebuild it counts as known (a rejected or held one does not; ``_known``).
         kn_e, kn_s = me, ms
         if vs is not None and not (me and ms):
             kn_e, kn_s = self._known(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf,
@@ -645,19 +645,19 @@ class ArmKinematicCorrectorPlus:
         Raises:
             ValueError: if ``pose`` or ``measured`` does not have shape (12, 3).
         """
-        a = np.asarray(pose, dtype=np.float64)
+        a = _as_f64(pose)
         if a.shape != (NUM_LANDMARKS, 3):
             raise ValueError(f"pose must have shape ({NUM_LANDMARKS}, 3), got {a.shape}")
         v = a.ravel().tolist()
         m = None
         if measured is not None:
-            b = np.asarray(measured, dtype=np.float64)
+            b = _as_f64(measured)
             if b.shape != (NUM_LANDMARKS, 3):
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.ravel().tolist()
         self._var = None
         if variance is not None:
-            c = np.asarray(variance, dtype=np.float64)
+            c = _as_f64(variance)
             if c.shape != (NUM_LANDMARKS, 3):
                 raise ValueError(f"variance must have shape ({NUM_LANDMARKS}, 3), got {c.shape}")
             self._var = c.ravel().tolist()
