@@ -130,10 +130,14 @@ def test_run_metrics_splits_the_target_error_into_its_constant_part_and_the_smoo
         assert m["target_operator_error_unsmoothed_cm"][s] == pytest.approx(5.0)  # hypot(3, 4)
     run.target["left"][:, 1, 3] += np.where(np.arange(run.frames) % 2 == 0, 0.12, -0.12)
     m = teleop.run_metrics([run])
-    # 20 frames after settling, 10 at +12 and 10 at -12 cm: the mean cancels, the offset stays 5 cm.
+    # 20 frames after settling, 10 at +12 and 10 at -12 cm: the median cancels, the offset stays 5 cm.
+    assert m["target_operator_offset_cm"]["right"] == pytest.approx(5.0)
     assert m["target_operator_error_cm"]["left"] == pytest.approx(13.0)
     assert m["target_operator_offset_cm"]["left"] == pytest.approx(5.0)
     assert m["target_operator_error_unsmoothed_cm"]["right"] == pytest.approx(5.0)
+    # A few outliers (3 of 20 frames 1 m off) do not make an offset: the median, not the mean.
+    run.target["right"][-3:, 2, 3] += 1.0
+    assert teleop.run_metrics([run])["target_operator_offset_cm"]["right"] == pytest.approx(5.0)
     # Without unsmoothed targets the share is unknown, not zero.
     run.unsmoothed = {}
     assert teleop.run_metrics([run])["target_operator_error_unsmoothed_cm"]["left"] is None

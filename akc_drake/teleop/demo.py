@@ -410,7 +410,8 @@ def _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, ren
             "distance of the positions (smoothing_rotation_latency_ms: of the rotation matrices' entries)",
             "target_operator_error_cm": "per corrector and side: median (and _p95_cm) distance between the target "
             "X_TE_desired and the operator's true wrist through the same mapping and workspace, after settling",
-            "target_operator_offset_cm": "per corrector and side: length of the mean target-minus-operator vector "
+            "target_operator_offset_cm": "per corrector and side: length of the component-wise median target-minus-"
+            "operator vector "
             "(the error's constant part: a calibration or depth offset); target_operator_error_unsmoothed_cm: the "
             "median error of the unsmoothed targets (same torso and clip)",
         },

@@ -50,8 +50,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         ``ee_reachable_error_cm`` (to the target after the IK's reach guard), ``ee_operator_error_cm`` (to the
         operator's true mapped wrist), ``target_operator_rotation_error_deg`` (median angle between the target's
         rotation and the operator's true mapped wrist's), ``target_operator_error_unsmoothed_cm`` (the same median
-        for the unsmoothed targets), ``target_operator_offset_cm`` (the length of the mean target-minus-operator
-        vector: the error's constant part), ``target_unreachable_share``, ``jitter`` and
+        for the unsmoothed targets), ``target_operator_offset_cm`` (the length of the component-wise median
+        target-minus-operator vector: the error's constant part), ``target_unreachable_share``, ``jitter`` and
         ``operator_jitter`` (the true mapped wrist's, for reference; each ``angular_rad_s``, ``linear_m_s``); totals:
         ``position_limit_hits``, ``velocity_limit_hits``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
         ``tracking_lost_share``, ``dropout_frames``, ``sim_s``, ``wall_s``, ``realtime_factor``.
@@ -82,14 +82,14 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         v["top"][side] = _median_cm(top)
         v["top95"][side] = _p95_cm(top)
         # The error's parts: the unsmoothed targets' (same torso and clip: the smoothing's share is the difference)
-        # and its constant part, the length of the mean error vector (a calibration or depth offset, which no
-        # smoothing removes).
+        # and its constant part, the length of the component-wise median error vector (a calibration or depth
+        # offset, which no smoothing removes; the median, so a few outliers, e.g. Raw's, do not make one).
         v["top_raw"][side] = _median_cm(per_frame(
             lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.unsmoothed[s][:, :3, 3], axis=1)
             if r.unsmoothed and s in r.unsmoothed else np.full(r.frames, np.nan), side))
         d = per_frame(lambda r, s: r.target[s][:, :3, 3] - r.operator[s][:, :3, 3], side)
         d = d[np.all(np.isfinite(d), axis=1)]
-        v["offset"][side] = float(np.linalg.norm(d.mean(axis=0)) * 100.0) if len(d) else None
+        v["offset"][side] = float(np.linalg.norm(np.median(d, axis=0)) * 100.0) if len(d) else None
         rot = per_frame(_rotation_error_rad, side)
         rot = rot[np.isfinite(rot)]
         v["rot"][side] = float(np.degrees(np.median(rot))) if rot.size else None
