@@ -138,6 +138,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_seed(p, "the renders, the detector, the depth noise and --dropout")
     p.add_argument("--task", choices=("pick-place",), help="also run a task and score it per corrector")
     p.add_argument("--seeds", type=int, default=5, metavar="N", help="seeded runs of --task per corrector (default: 5)")
+    p.add_argument("--operator", choices=("closed", "open"), default="closed",
+                   help="--task's operator: closed (watches the robot's tool and corrects it, rendered in the loop per "
+                        "corrector; default) or open (its motion rendered once per seed and replayed)")
     p.add_argument("--hand-model", metavar="PATH",
                    help="MediaPipe hand_landmarker .task file (the gripper's hand channel with --detector mediapipe)")
     # The main job shows the real pipeline: MediaPipe on the rendered skinned body (--body primitive --detector sim:

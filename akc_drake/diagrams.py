@@ -603,9 +603,10 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
 
         if replay is not None or frame_source is not None:
             raise ValueError("build_teleop_diagram: operator needs a rendered motion (no replay, no frame_source)")
-        controller = builder.AddSystem(OperatorController(operator, station.plant, station.robot))
+        watched = None if station.scene is None else ("object", station.scene)  # the box, while carried
+        controller = builder.AddSystem(OperatorController(operator, station.plant, station.robot, watched=watched))
         controller.set_name("OperatorController")
-        builder.Connect(station.robot_state_output, controller.GetInputPort("robot_state"))
+        builder.Connect(station.plant.get_state_output_port(), controller.GetInputPort("plant_state"))
         builder.Connect(controller.GetOutputPort("q_operator"), source["systems"]["source"].GetInputPort("q_operator"))
 
     gripper = None

@@ -51,6 +51,7 @@ def options_from_args(args):
         ros2_bag=Path(args.ros2_bag) if getattr(args, "ros2_bag", None) else None,
         task=getattr(args, "task", None),
         seeds=getattr(args, "seeds", 5),
+        operator=getattr(args, "operator", "closed"),
         body=getattr(args, "body", "primitive"),
         detector=getattr(args, "detector", "sim"),
         hand_model=getattr(args, "hand_model", None),

@@ -7,8 +7,10 @@ nobody corrects it. A person teleoperating a robot watches the robot and correct
 person, deliberately simply (no model of the pipeline, no access to any corrector's internals: only the robot's
 tool, as a person sees it):
 
-* **The plan.** The open-loop motion is the operator's plan: at time ``t`` the robot's tool should be at the
-  plan's mapped tool pose ``X_plan(t)`` (the box, above it, the target, ... ; :meth:`ClosedLoopOperator.plan_tool`).
+* **The plan.** The open-loop motion is the operator's plan, and its waypoints (a
+  :class:`~akc_drake.operator.motions.ToolPlan`: the box, above it, the target, ...) are where the operator
+  aims the robot's tool: at time ``t`` the tool should be at ``p_plan(t)`` (:meth:`ClosedLoopOperator.plan_tool`;
+  without a ToolPlan, the motion's own mapped tool pose).
 * **What the operator sees.** The tool's position error ``e(t) = p_plan(t) - p_tool(t)``, seen
   :data:`VISUAL_DELAY_S` late (a person's visuomotor reaction delay).
 * **How the operator corrects.** An offset ``c`` added to the wrist target, integrated from the seen error with a
@@ -24,6 +26,9 @@ tool, as a person sees it):
   posture at ``t``); the rotation is not corrected (a person aligns the gripper's position with the box; the
   tool's rotation error is a few degrees). With the tool on target the offset stays zero and the posture is the
   plan's.
+* **What the operator watches.** The robot's tool while the plan's hand is open; the carried object (the box)
+  while it is closed: a person placing an object with a robot looks at the object against the target, so an
+  object held off-centre in the gripper is placed where it should be.
 * **What is "on target".** Errors within :data:`DEADBAND_M` are not corrected (what a person can tell from a
   couple of metres), and the operator corrects a tool that has settled (the weight is also the tool's own
   stillness): a robot still on its way, or jumping from its home pose at the start, is watched, not corrected;
@@ -60,9 +65,10 @@ MAX_CORRECTION_M = 0.20
 #: Errors within this distance (m) are not corrected: the tool is "at" the target as far as a person watching a
 #: robot arm from a couple of metres can tell (~0.4 deg of visual angle at 2 m).
 DEADBAND_M = 0.015
-#: The operator holds its correction this long (seconds) before and after a change of its hand's closure: a
-#: person grasping or releasing attends to the hand and keeps the arm still.
-GRIP_HOLD_S = 0.5
+#: The operator holds its correction from this long (seconds) before a change of its hand's closure until
+#: :data:`GRIP_SETTLE_S` after it: a person grasping or releasing attends to the hand and keeps the arm still.
+GRIP_HOLD_S = 0.2
+GRIP_SETTLE_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -151,10 +157,12 @@ class ClosedLoopOperator:
             :func:`~akc_drake.operator.motions.pick_place`'s).
         correction: the :class:`CorrectionParams`.
         plan_dt: the plan's tool pose is tabulated at this step (seconds).
+        tool_plan: the :class:`~akc_drake.operator.motions.ToolPlan` the operator aims at (None: the motion's
+            mapped tool pose).
     """
 
     def __init__(self, plan, mapping, *, side: str = "right", params=None, landmarks=None,
-                 correction: CorrectionParams | None = None, plan_dt: float = 0.02):
+                 correction: CorrectionParams | None = None, plan_dt: float = 0.02, tool_plan=None):
         from akc_drake.operator.model import OperatorParams
         from akc_drake.operator.motions import _mapped_tool_pose
 
@@ -164,17 +172,21 @@ class ClosedLoopOperator:
         self.params = params or OperatorParams()
         self.landmarks = landmarks
         self.correction = VisualCorrection(correction)
-        self._t = np.arange(plan.start, plan.end + 1e-9, float(plan_dt))
-        ql, qr = plan.sample(self._t)
-        X = np.array([_mapped_tool_pose(a, b, side, self.params, mapping, landmarks) for a, b in zip(ql, qr)])
-        self._p, self._R = X[:, :3, 3], X[:, :3, :3]
-        self._speed = np.linalg.norm(np.gradient(self._p, self._t, axis=0), axis=1)
+        self.tool_plan = tool_plan
+        if tool_plan is None:
+            self._t = np.arange(plan.start, plan.end + 1e-9, float(plan_dt))
+            ql, qr = plan.sample(self._t)
+            X = np.array([_mapped_tool_pose(a, b, side, self.params, mapping, landmarks) for a, b in zip(ql, qr)])
+            self._p, self._R = X[:, :3, 3], X[:, :3, :3]
+            self._speed = np.linalg.norm(np.gradient(self._p, self._t, axis=0), axis=1)
 
     def initial_state(self) -> CorrectionState:
         return CorrectionState()
 
     def plan_tool(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
         """``(p (3,), R (3, 3), speed m/s)``: where the plan puts the robot's tool at ``t`` (in T)."""
+        if self.tool_plan is not None:
+            return self.tool_plan.at(t)
         t = float(np.clip(t, self._t[0], self._t[-1]))
         p = np.array([np.interp(t, self._t, self._p[:, k]) for k in range(3)])
         j = int(np.argmin(np.abs(self._t - t)))
@@ -184,16 +196,19 @@ class ClosedLoopOperator:
         """How much the operator corrects at plan speed ``speed`` (1 still, 0 at or above the still speed)."""
         return float(np.clip(1.0 - speed / self.correction.params.still_speed_m_s, 0.0, 1.0))
 
-    def step(self, state: CorrectionState, t: float, p_tool_T) -> CorrectionState:
+    def step(self, state: CorrectionState, t: float, p_tool_T, p_object_T=None) -> CorrectionState:
         """See the robot's tool at ``p_tool_T`` (3,) (in T; NaN: not seen) at time ``t``; the new state.
 
-        The weight is the plan's stillness times the tool's (its speed since the last step): the operator
-        corrects a tool that has settled near a target the plan holds, not one still on its way."""
+        While the plan's hand is closed (carrying) the operator watches the carried object, ``p_object_T`` (its
+        centre in T; None: the tool), against the aim (the plan's tool aim is the object's centre). The weight is
+        the plan's stillness times the watched point's (its speed since the last step): the operator corrects a
+        tool that has settled near a target the plan holds, not one still on its way."""
         p, _, speed = self.plan_tool(t)
-        tool = np.asarray(p_tool_T, dtype=float).reshape(3)
-        w = self.weight(speed)
         k = 1 if self.side == "right" else 0
-        grip = self.plan.closure([t - GRIP_HOLD_S, t, t + GRIP_HOLD_S])[:, k]
+        carrying = p_object_T is not None and float(self.plan.closure([t])[0, k]) > 0.5
+        tool = np.asarray(p_object_T if carrying else p_tool_T, dtype=float).reshape(3)
+        w = self.weight(speed)
+        grip = self.plan.closure([t - GRIP_SETTLE_S, t, t + GRIP_HOLD_S])[:, k]
         if np.ptp(grip) > 1e-6:  # grasping or releasing: the arm is held
             w = 0.0
         if state.tool_last is not None and state.t_last is not None and t > state.t_last:

@@ -394,7 +394,44 @@ def solve_arm_for_tool_pose(
     return least_squares(residual, q0, bounds=ARM_RANGE, method="trf").x
 
 
-def pick_place(
+@dataclass
+class ToolPlan:
+    """Where a motion means to put the robot's tool (in T), knot by knot: the pick-and-place operator's aims.
+
+    Between two knots the aim moves along the straight line with the same smootherstep timing as the motion's
+    joints (so it is still at every knot).
+
+    Attributes:
+        times: ``(k,)`` knot times (non-decreasing, seconds); positions: ``(k, 3)``; rotations: ``(k, 3, 3)``.
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    rotations: np.ndarray
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(p (3,), R (3, 3), speed m/s)`` of the aim at time ``t`` (clamped to the knots' span)."""
+        kt = self.times
+        t = float(np.clip(t, kt[0], kt[-1]))
+        j = min(int(np.searchsorted(kt, t, side="right")), len(kt) - 1)
+        j0 = max(j - 1, 0)
+        span = kt[j] - kt[j0]
+        if span <= 0:
+            return self.positions[j].copy(), self.rotations[j], 0.0
+        x = (t - kt[j0]) / span
+        u = float(_smootherstep(np.array(x)))
+        du = 30.0 * x * x * (x - 1.0) ** 2 / span  # d/dt of 6x^5 - 15x^4 + 10x^3
+        d = self.positions[j] - self.positions[j0]
+        R = self.rotations[j0] if u < 0.5 else self.rotations[j]
+        return self.positions[j0] + u * d, R, float(abs(du) * np.linalg.norm(d))
+
+
+def pick_place(seed: int = 0, **kwargs) -> OperatorMotion:
+    """The pick-and-place motion (:func:`pick_place_plan`'s, without its :class:`ToolPlan`)."""
+    return pick_place_plan(seed, **kwargs)[0]
+
+
+def pick_place_plan(
     seed: int = 0,
     *,
     params: OperatorParams | None = None,
@@ -403,9 +440,11 @@ def pick_place(
     target_T=PLACE_TARGET_T,
     variation: float = 1.0,
     landmarks=None,
-) -> OperatorMotion:
-    """Pick and place with the right arm (about 16 s): rest, reach for the box with the arm toward the camera
+) -> tuple[OperatorMotion, ToolPlan]:
+    """Pick and place with the right arm (about 17 s): rest, reach for the box with the arm toward the camera
     (the hand hides the elbow and shoulder), close the hand, lift, carry, lower onto the target, open, retreat.
+    The arm holds still for a second at the box and on the target before the hand closes or opens (time to
+    line the tool up, :mod:`akc_drake.operator.closed_loop`).
 
     The waypoints are where the operator must hold the wrist so that the robot's tool, through ``mapping``,
     is at the box, above it, above the target and on the target, with the tool pointing forward and
@@ -423,6 +462,11 @@ def pick_place(
         landmarks: the rendered body's landmarks for ``(T, 10)`` angles (e.g. the skinned operator's
             :meth:`~akc_drake.operator.skinned.SkinnedOperator.landmarks_O`, whose knuckles are the rig's): the
             operator holds *that* hand so the robot's tool is right (default: the operator model's).
+
+    Returns:
+        ``(motion, plan)``: the :class:`OperatorMotion` and the right arm's :class:`ToolPlan` (the waypoints the
+        postures were solved for; the solve's pull toward the previous posture leaves the motion's mapped tool
+        up to ~2 cm from them).
     """
     from akc_drake.core.frames import calibrated_mapping
 
@@ -455,27 +499,30 @@ def pick_place(
         (1.5, None, 0.0),
         (4.0, box + lift + jitter(), 0.0),
         (5.5, box + jitter(), 0.0),
-        (6.0, "hold", 0.0),
-        (6.6, "hold", 1.0),
-        (8.0, box + lift + jitter(), 1.0),
-        (10.5, target + lift + jitter(), 1.0),
-        (12.0, target + np.array([0.0, 0.0, 0.004]) + jitter(), 1.0),
-        (12.4, "hold", 1.0),
-        (13.0, "hold", 0.0),
-        (14.5, target + lift + jitter(), 0.0),
-        (16.0, None, 0.0),
+        (6.5, "hold", 0.0),
+        (7.1, "hold", 1.0),
+        (8.5, box + lift + jitter(), 1.0),
+        (11.0, target + lift + jitter(), 1.0),
+        (12.5, target + np.array([0.0, 0.0, 0.004]) + jitter(), 1.0),
+        (13.4, "hold", 1.0),
+        (14.0, "hold", 0.0),
+        (15.5, target + lift + jitter(), 0.0),
+        (17.0, None, 0.0),
     ]
     q_prev = rest_right
-    knots_t, knots_q, knots_h = [], [], []
+    knots_t, knots_q, knots_h, aims = [], [], [], []
     for k, (t, where, closed) in enumerate(waypoints):
         t = t + (0.0 if k == 0 else rng.uniform(-0.1, 0.1) * v)
         if where is None:
             q = rest_right
+            aims.append((np.array([0.45, -0.22, -0.21]), R_rest_r))
         elif isinstance(where, str):
             q = knots_q[-1]
+            aims.append(aims[-1])
         else:
             q = solve_arm_for_tool_pose(where, R_grasp, "right", rest, q_prev, params, mapping, landmarks)
             q_prev = q
+            aims.append((np.asarray(where, dtype=float), R_grasp))
         knots_t.append(t)
         knots_q.append(np.asarray(q, dtype=float))
         knots_h.append(closed)
@@ -493,7 +540,8 @@ def pick_place(
         closure[i] = knots_h[j0] + u * (knots_h[j] - knots_h[j0])
     q_left = np.tile(rest, (T, 1))
     hand = np.column_stack([np.zeros(T), np.clip(closure, 0.0, 1.0)])
-    return OperatorMotion(times, q_left, q_right, "pick-place", hand_closed=hand)
+    plan = ToolPlan(knots_t, np.array([a[0] for a in aims]), np.array([a[1] for a in aims]))
+    return OperatorMotion(times, q_left, q_right, "pick-place", hand_closed=hand), plan
 
 
 def make_motion(name: str, cycles: int = 1, seed: int = 0, **kwargs) -> OperatorMotion:

@@ -24,22 +24,25 @@ class OperatorController(LeafSystem):
 
         name: OperatorController
         input_ports:
-        - robot_state
+        - plant_state
         output_ports:
         - q_operator
 
-    ``robot_state`` is the robot's measured ``[q, v]`` (the station's ``robot_state_output``): from it the
-    system computes the tool's pose in the torso frame T, which is all the operator sees (no corrector's
-    internals). ``q_operator`` is ``[q_left, q_right]`` (``2 * NUM_ARM_DOF``), the operator's posture for the
+    ``plant_state`` is the station plant's full state ``[q, v]`` (``plant.get_state_output_port()``): from it
+    the system computes the robot tool's position in the torso frame T and the watched object's (the box), which
+    is all the operator sees (no corrector's internals). ``q_operator`` is ``[q_left, q_right]`` (``2 * NUM_ARM_DOF``), the operator's posture for the
     renderer, held between updates (a pure function of the state).
 
     Args:
         operator: the :class:`~akc_drake.operator.closed_loop.ClosedLoopOperator`.
         plant, robot: the robot station's plant and the robot's model instance.
+        watched: the object the operator watches while carrying it, a ``(body name, model instance)`` of
+            ``plant`` (None: the tool only).
         period_s: update period; offset_s: its offset (between two camera frames by default).
     """
 
-    def __init__(self, operator, plant, robot, *, period_s: float = OPERATOR_PERIOD_S, offset_s: float | None = None):
+    def __init__(self, operator, plant, robot, *, watched=None, period_s: float = OPERATOR_PERIOD_S,
+                 offset_s: float | None = None):
         super().__init__()
         self._op = operator
         self._plant = plant
@@ -47,8 +50,8 @@ class OperatorController(LeafSystem):
         self._plant_context = plant.CreateDefaultContext()
         self._ee = ee_frame(plant, operator.side, robot)
         self._torso = torso_frame(plant, robot)
-        nx = plant.num_positions(robot) + plant.num_velocities(robot)
-        self.DeclareVectorInputPort("robot_state", nx)
+        self._object = None if watched is None else plant.GetBodyByName(*watched).body_frame()
+        self.DeclareVectorInputPort("plant_state", plant.num_positions() + plant.num_velocities())
         start = operator.plan.start
         q0 = operator.posture(operator.initial_state(), start)
         self._state = self.DeclareAbstractState(AbstractValue.Make((operator.initial_state(), q0)))
@@ -60,15 +63,20 @@ class OperatorController(LeafSystem):
         self.trace: list[tuple[float, np.ndarray]] = []
 
     def tool_position(self, context) -> np.ndarray:
-        """The robot's tool position in T (3,) from the ``robot_state`` input."""
-        x = self.get_input_port(0).Eval(context)
-        self._plant.SetPositionsAndVelocities(self._plant_context, self._robot, x)
-        return self._ee.CalcPose(self._plant_context, self._torso).translation()
+        """The robot's tool position in T (3,) from the ``plant_state`` input."""
+        return self.seen(context)[0]
+
+    def seen(self, context) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(tool (3,), object (3,) or None)``: the tool's and the watched object's positions in T."""
+        self._plant.SetPositionsAndVelocities(self._plant_context, self.get_input_port(0).Eval(context))
+        tool = self._ee.CalcPose(self._plant_context, self._torso).translation()
+        obj = None if self._object is None else self._object.CalcPose(self._plant_context, self._torso).translation()
+        return tool, obj
 
     def _update(self, context, state):
         t = self._op.plan.start + context.get_time()
         core, _ = context.get_abstract_state(self._state).get_value()
-        core = self._op.step(core, t, self.tool_position(context))
+        core = self._op.step(core, t, *self.seen(context))
         q = self._op.posture(core, t)
         state.get_mutable_abstract_state(self._state).set_value((core, q))
         self.trace.append((context.get_time(), core.offset.copy()))

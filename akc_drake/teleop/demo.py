@@ -60,6 +60,9 @@ class DemoOptions:
             (:func:`akc_drake.pipeline.export.write_teleop_bag`).
         body, detector: the rendered operator and the 2D detector; by default the real pipeline, MediaPipe on
             the skinned body (``"primitive"``, ``"sim"``: the fast simulated path).
+        task, seeds, operator: ``"pick-place"`` runs the task ``seeds`` times per corrector
+            (:func:`~akc_drake.teleop.task.run_pick_place`); ``operator`` "closed" (the operator watches the robot
+            and corrects it, rendered in the loop) or "open" (rendered once per seed, replayed).
     """
 
     quick: bool = False
@@ -80,6 +83,7 @@ class DemoOptions:
     ros2_bag: str | Path | None = None
     task: str | None = None
     seeds: int = 5
+    operator: str = "closed"
     body: str = "skinned"
     detector: str = "mediapipe"
     #: MediaPipe Hands' model file (None: the packaged one), for the hand channel with ``detector`` mediapipe.
@@ -107,6 +111,8 @@ class DemoOptions:
             raise UserError(f"--task must be pick-place, got {self.task!r}")
         if isinstance(self.seeds, bool) or not isinstance(self.seeds, int) or self.seeds < 1:
             raise UserError(f"--seeds must be a positive integer, got {self.seeds!r}")
+        if self.operator not in ("closed", "open"):
+            raise UserError(f"--operator must be closed or open, got {self.operator!r}")
         if self.hand_model is not None:  # a wrong path fails now, not after the demo's runs
             from akc_drake.io.hand_detector import find_hand_model
 
@@ -305,6 +311,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
             meshcat=meshcat,
             start_time=rec_time,
             hand_model=opts.hand_model,
+            operator=opts.operator,
         )
     outputs: dict[str, object] = {}
     if meshcat is not None:

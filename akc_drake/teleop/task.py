@@ -208,16 +208,17 @@ def _hand_report(motion, times, apertures, cfg, seed: int, log) -> dict:
     return report
 
 
-def _closed_loop_run(cfg, calib, corrector, motion, mapping, landmarks, seed, progress, hand_detector):
-    """One closed-loop run: the operator (:class:`~akc_drake.operator.closed_loop.ClosedLoopOperator`, planning
-    ``motion``) rendered in the loop, watching the robot's tool; the pose detector is ``cfg.detector``'s (seeded
+def _closed_loop_run(cfg, calib, corrector, planned, mapping, landmarks, seed, progress, hand_detector):
+    """One closed-loop run: the operator (:class:`~akc_drake.operator.closed_loop.ClosedLoopOperator`, ``planned``
+    the motion and its :class:`~akc_drake.operator.motions.ToolPlan`) rendered in the loop, watching the robot's tool; the pose detector is ``cfg.detector``'s (seeded
     by ``seed``), the hands MediaPipe Hands' on the same frames (``hand_detector``) or the simulated channel."""
     import dataclasses
 
     from akc_drake.operator.closed_loop import ClosedLoopOperator
     from akc_drake.systems.session_render import make_detector
 
-    core = ClosedLoopOperator(motion, mapping, landmarks=landmarks)
+    motion, plan = planned
+    core = ClosedLoopOperator(motion, mapping, landmarks=landmarks, tool_plan=plan)
     detector = make_detector(getattr(cfg, "detector", None), seed)
     try:
         return run_teleop(dataclasses.replace(cfg, seed=seed), calib.dims, corrector=corrector, motion=motion,
@@ -267,7 +268,7 @@ def run_pick_place(
     """
     from akc_drake.core.frames import calibrated_mapping
     from akc_drake.diagrams import Measurements
-    from akc_drake.operator.motions import PICK_BOX_T, PLACE_TARGET_T, pick_place
+    from akc_drake.operator.motions import PICK_BOX_T, PLACE_TARGET_T, pick_place_plan
 
     t0 = time.perf_counter()
     target_W, start_W = _world_from_T(PLACE_TARGET_T), _world_from_T(PICK_BOX_T)
@@ -295,7 +296,7 @@ def run_pick_place(
         for seed in range(int(seeds)):
             # The operator works with the mapping the pipeline uses (calibrated from the T-pose).
             mapping = calibrated_mapping(calib.dims)
-            motion = pick_place(seed, mapping=mapping, landmarks=landmarks)
+            motion, plan = pick_place_plan(seed, mapping=mapping, landmarks=landmarks)
             apertures = knuckles = meas = None
             if operator == "open":
                 session, recorder = render_with_hands(motion, cfg, seed, progress, hand_detector)
@@ -312,8 +313,8 @@ def run_pick_place(
                                         start_time=start_time if record else 0.0, hand_apertures=apertures,
                                         hand_knuckles=knuckles)
                 else:
-                    run, td = _closed_loop_run(cfg, calib, corrector, motion, mapping, landmarks, seed, progress,
-                                               hand_detector)
+                    run, td = _closed_loop_run(cfg, calib, corrector, (motion, plan), mapping, landmarks, seed,
+                                               progress, hand_detector)
                     t_c, c = td.operator.offsets()
                     offsets.append({"seed": seed, "corrector": corrector,
                                     "final_offset_cm": (100 * c[-1]).tolist() if len(c) else None,

@@ -1,0 +1,54 @@
+"""OperatorController (akc_drake/systems/operator_controller.py): the closed-loop operator in a diagram, seeing
+only the robot's state: it outputs the plan's posture until its delayed view of the tool's error acts, then moves
+its wrist target toward where the tool should be."""
+
+import numpy as np
+import pytest
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+
+from akc_drake.operator.closed_loop import ClosedLoopOperator
+from akc_drake.robot.model import add_dual_arm_robot, ee_frame, torso_frame
+from akc_drake.systems.operator_controller import OperatorController
+
+
+@pytest.fixture(scope="module")
+def parts():
+    from akc_drake.core.frames import calibrated_mapping
+    from akc_drake.operator.model import OperatorParams
+    from akc_drake.operator.motions import pick_place_plan
+
+    mapping = calibrated_mapping(OperatorParams().dims)
+    motion, plan = pick_place_plan(0, mapping=mapping)
+    plant = MultibodyPlant(0.0)
+    robot = add_dual_arm_robot(plant, weld_base=True)
+    plant.Finalize()
+    return ClosedLoopOperator(motion, mapping, tool_plan=plan), plant, robot
+
+
+def test_the_operator_corrects_toward_the_aim_after_its_delay(parts):
+    op, plant, robot = parts
+    ctx = plant.CreateDefaultContext()
+    x = plant.GetPositionsAndVelocities(ctx)
+    tool = ee_frame(plant, "right", robot).CalcPose(ctx, torso_frame(plant, robot)).translation()
+    builder = DiagramBuilder()
+    src = builder.AddSystem(ConstantVectorSource(x))  # a robot frozen in its default posture
+    ctrl = builder.AddSystem(OperatorController(op, plant, robot))
+    builder.Connect(src.get_output_port(), ctrl.GetInputPort("plant_state"))
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    q0 = ctrl.GetOutputPort("q_operator").Eval(ctrl.GetMyContextFromRoot(sim.get_context()))
+    np.testing.assert_array_equal(q0, op.plan.q()[0])  # at the start: the plan's posture
+    np.testing.assert_allclose(ctrl.tool_position(ctrl.GetMyContextFromRoot(sim.get_context())), tool)
+    sim.AdvanceTo(1.2)  # the plan rests still for 1.5 s; the tool stays where it is, off the aim
+    t, c = ctrl.offsets()
+    assert np.all(c[t < op.correction.params.delay_s] == 0.0)
+    aim = op.plan_tool(1.2)[0]
+    direction = (aim - tool) / np.linalg.norm(aim - tool)
+    assert np.linalg.norm(c[-1]) > 0.02
+    assert float(c[-1] @ direction) / np.linalg.norm(c[-1]) > 0.999  # toward the aim
+    q = ctrl.GetOutputPort("q_operator").Eval(ctrl.GetMyContextFromRoot(sim.get_context()))
+    assert np.max(np.abs(q[5:] - op.plan.q()[0][5:])) > 0.01  # the right arm moved
+    np.testing.assert_array_equal(q[:5], op.plan.q()[0][:5])
