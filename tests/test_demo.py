@@ -138,6 +138,14 @@ def test_run_metrics_splits_the_target_error_into_its_constant_part_and_the_smoo
     # A few outliers (3 of 20 frames 1 m off) do not make an offset: the median, not the mean.
     run.target["right"][-3:, 2, 3] += 1.0
     assert teleop.run_metrics([run])["target_operator_offset_cm"]["right"] == pytest.approx(5.0)
+    # Clipping reported apart: the error over the frames whose target was not clipped.
+    assert m["target_operator_error_unclipped_cm"]["right"] == pytest.approx(5.0)
+    run.clipped = {s: np.arange(run.frames) >= run.frames - 3 for s in teleop.SIDES}  # the outliers' frames
+    m = teleop.run_metrics([run])
+    assert m["target_operator_error_p95_cm"]["right"] > 50.0
+    assert m["target_operator_error_unclipped_p95_cm"]["right"] == pytest.approx(5.0)
+    assert m["target_operator_error_unclipped_cm"]["left"] == pytest.approx(13.0)
+    assert m["workspace_clipped_share"]["right"] == pytest.approx(3 / 20)
     # Without unsmoothed targets the share is unknown, not zero.
     run.unsmoothed = {}
     assert teleop.run_metrics([run])["target_operator_error_unsmoothed_cm"]["left"] is None

@@ -420,7 +420,8 @@ def _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, ren
             "target_operator_offset_cm": "per corrector and side: length of the component-wise median target-minus-"
             "operator vector "
             "(the error's constant part: a calibration or depth offset); target_operator_error_unsmoothed_cm: the "
-            "median error of the unsmoothed targets (same torso and clip)",
+            "median error of the unsmoothed targets (same torso and clip); target_operator_error_unclipped_cm (and "
+            "_p95_cm): over the frames whose target was not clipped to the workspace",
         },
         "calibration": {
             "pose": "tpose",

@@ -51,8 +51,10 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         operator's true mapped wrist), ``target_operator_rotation_error_deg`` (median angle between the target's
         rotation and the operator's true mapped wrist's), ``target_operator_error_unsmoothed_cm`` (the same median
         for the unsmoothed targets), ``target_operator_offset_cm`` (the length of the component-wise median
-        target-minus-operator vector: the error's constant part), ``target_unreachable_share``, ``jitter`` and
-        ``operator_jitter`` (the true mapped wrist's, for reference; each ``angular_rad_s``, ``linear_m_s``); totals:
+        target-minus-operator vector: the error's constant part), ``target_operator_error_unclipped_cm`` (and
+        ``_p95_cm``: the error over the frames whose target the workspace did not clip),
+        ``target_unreachable_share``, ``jitter`` and ``operator_jitter`` (the true mapped wrist's, for reference;
+        each ``angular_rad_s``, ``linear_m_s``); totals:
         ``position_limit_hits``, ``velocity_limit_hits``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
         ``tracking_lost_share``, ``dropout_frames``, ``sim_s``, ``wall_s``, ``realtime_factor``.
     """
@@ -65,7 +67,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         return np.concatenate([fn(r, side)[a] for r, a in zip(runs, after, strict=True)])
 
     keys = ("err", "err_all", "p95", "reach", "op", "unreach", "jang", "jlin", "oang", "olin", "top", "top95")
-    keys += ("lag", "rlag", "cross", "clip", "rot", "top_raw", "offset")
+    keys += ("lag", "rlag", "cross", "clip", "rot", "top_raw", "offset", "top_in", "top_in95")
     v: dict[str, dict] = {k: {} for k in keys}
     for side in SIDES:
         e_after = np.concatenate([r.errors[side][r.error_t[side] >= settling_s] for r in runs])
@@ -81,6 +83,9 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         top = per_frame(lambda r, s: np.linalg.norm(r.operator[s][:, :3, 3] - r.target[s][:, :3, 3], axis=1), side)
         v["top"][side] = _median_cm(top)
         v["top95"][side] = _p95_cm(top)
+        # The same on the frames whose target the workspace did not clip (clipping reported apart from error).
+        inside = ~per_frame(lambda r, s: np.asarray(r.clipped.get(s, np.zeros(r.frames, bool)), bool), side)
+        v["top_in"][side], v["top_in95"][side] = _median_cm(top[inside]), _p95_cm(top[inside])
         # The error's parts: the unsmoothed targets' (same torso and clip: the smoothing's share is the difference)
         # and its constant part, the length of the component-wise median error vector (a calibration or depth
         # offset, which no smoothing removes; the median, so a few outliers, e.g. Raw's, do not make one).
@@ -122,6 +127,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "target_operator_error_p95_cm": v["top95"],
         "target_operator_rotation_error_deg": v["rot"],
         "target_operator_error_unsmoothed_cm": v["top_raw"],
+        "target_operator_error_unclipped_cm": v["top_in"],
+        "target_operator_error_unclipped_p95_cm": v["top_in95"],
         "target_operator_offset_cm": v["offset"],
         "smoothing_latency_ms": v["lag"],
         "smoothing_rotation_latency_ms": v["rlag"],
