@@ -28,7 +28,8 @@ tool, as a person sees it):
   plan's.
 * **What the operator watches.** The robot's tool while the plan's hand is open; the carried object (the box)
   while it is closed: a person placing an object with a robot looks at the object against the target, so an
-  object held off-centre in the gripper is placed where it should be.
+  object held off-centre in the gripper is placed where it should be (only an object within
+  :data:`CARRY_RADIUS_M` of the tool is carried: a missed grasp leaves the operator watching the tool).
 * **What is "on target".** Errors within :data:`DEADBAND_M` are not corrected (what a person can tell from a
   couple of metres), and the operator corrects a tool that has settled (the weight is also the tool's own
   stillness): a robot still on its way, or jumping from its home pose at the start, is watched, not corrected;
@@ -65,6 +66,9 @@ MAX_CORRECTION_M = 0.20
 #: Errors within this distance (m) are not corrected: the tool is "at" the target as far as a person watching a
 #: robot arm from a couple of metres can tell (~0.4 deg of visual angle at 2 m).
 DEADBAND_M = 0.015
+#: The object counts as carried (watched instead of the tool) while the hand is closed and it is this close to
+#: the tool (m); a missed grasp leaves it on the table and the operator watches the tool.
+CARRY_RADIUS_M = 0.06
 #: The operator holds its correction from this long (seconds) before a change of its hand's closure until
 #: :data:`GRIP_SETTLE_S` after it: a person grasping or releasing attends to the hand and keeps the arm still.
 GRIP_HOLD_S = 0.2
@@ -205,7 +209,8 @@ class ClosedLoopOperator:
         tool that has settled near a target the plan holds, not one still on its way."""
         p, _, speed = self.plan_tool(t)
         k = 1 if self.side == "right" else 0
-        carrying = p_object_T is not None and float(self.plan.closure([t])[0, k]) > 0.5
+        carrying = p_object_T is not None and float(self.plan.closure([t])[0, k]) > 0.5 and float(
+            np.linalg.norm(np.asarray(p_object_T, float) - np.asarray(p_tool_T, float))) < CARRY_RADIUS_M
         tool = np.asarray(p_object_T if carrying else p_tool_T, dtype=float).reshape(3)
         w = self.weight(speed)
         grip = self.plan.closure([t - GRIP_SETTLE_S, t, t + GRIP_HOLD_S])[:, k]
