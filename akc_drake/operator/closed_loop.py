@@ -23,9 +23,12 @@ tool, as a person sees it):
   therefore not "corrected" into an overshoot.
 * **The posture.** The operator then solves the arm's posture that puts the mapped tool at ``p_plan(t) + c``
   with the plan's rotation (:func:`~akc_drake.operator.motions.solve_arm_for_tool_pose`, started from the plan's
-  posture at ``t``); the rotation is not corrected (a person aligns the gripper's position with the box; the
-  tool's rotation error is a few degrees). With the tool on target the offset stays zero and the posture is the
+  posture at ``t``) and the aim's rotation (corrected as below). With the tool on target the offset stays zero and the posture is the
   plan's.
+* **The rotation.** Given the tool's pose, the operator corrects its rotation the same way (a rotation vector
+  offset applied to the aim's rotation, the same delay, gain and weight; deadband :data:`ROTATION_DEADBAND_RAD`,
+  speed :data:`ROTATION_MAX_SPEED_RAD_S`, bound :data:`ROTATION_MAX_RAD`): a gripper turned against the box's
+  edges lands its fingers on the box instead of around it.
 * **What the operator watches.** The robot's tool while the plan's hand is open; the carried object (the box)
   while it is closed: a person placing an object with a robot looks at the object against the target, so an
   object held off-centre in the gripper is placed where it should be (only an object within
@@ -69,6 +72,11 @@ DEADBAND_M = 0.015
 #: The object counts as carried (watched instead of the tool) while the hand is closed and it is this close to
 #: the tool (m); a missed grasp leaves it on the table and the operator watches the tool.
 CARRY_RADIUS_M = 0.06
+#: The rotation's correction (a rotation vector, radians) has the position's delay and gain, this deadband
+#: (a person sees a gripper turned by more than ~5 deg against the box's edges), speed limit and bound.
+ROTATION_DEADBAND_RAD = 0.09
+ROTATION_MAX_SPEED_RAD_S = 1.0
+ROTATION_MAX_RAD = 0.6
 #: The operator holds its correction from this long (seconds) before a change of its hand's closure until
 #: :data:`GRIP_SETTLE_S` after it: a person grasping or releasing attends to the hand and keeps the arm still.
 GRIP_HOLD_S = 0.2
@@ -102,6 +110,7 @@ class CorrectionState:
     seen: tuple = ()
     t_last: float | None = None
     tool_last: np.ndarray | None = None
+    rotation: CorrectionState | None = None
 
 
 class VisualCorrection:
@@ -176,6 +185,10 @@ class ClosedLoopOperator:
         self.params = params or OperatorParams()
         self.landmarks = landmarks
         self.correction = VisualCorrection(correction)
+        cp = self.correction.params
+        self.rotation = VisualCorrection(CorrectionParams(
+            delay_s=cp.delay_s, gain_per_s=cp.gain_per_s, still_speed_m_s=cp.still_speed_m_s,
+            max_speed_m_s=ROTATION_MAX_SPEED_RAD_S, max_offset_m=ROTATION_MAX_RAD, deadband_m=ROTATION_DEADBAND_RAD))
         self.tool_plan = tool_plan
         if tool_plan is None:
             self._t = np.arange(plan.start, plan.end + 1e-9, float(plan_dt))
@@ -185,7 +198,7 @@ class ClosedLoopOperator:
             self._speed = np.linalg.norm(np.gradient(self._p, self._t, axis=0), axis=1)
 
     def initial_state(self) -> CorrectionState:
-        return CorrectionState()
+        return CorrectionState(rotation=CorrectionState())
 
     def plan_tool(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
         """``(p (3,), R (3, 3), speed m/s)``: where the plan puts the robot's tool at ``t`` (in T)."""
@@ -202,12 +215,18 @@ class ClosedLoopOperator:
 
     def step(self, state: CorrectionState, t: float, p_tool_T, p_object_T=None) -> CorrectionState:
         """See the robot's tool at ``p_tool_T`` (3,) (in T; NaN: not seen) at time ``t``; the new state.
+        ``p_tool_T`` may be the tool's pose ``X_TE`` (4, 4): the operator then also corrects its rotation (the
+        rotation vector taking the tool's rotation to the aim's, the same delay, gain and weight).
 
         While the plan's hand is closed (carrying) the operator watches the carried object, ``p_object_T`` (its
         centre in T; None: the tool), against the aim (the plan's tool aim is the object's centre). The weight is
         the plan's stillness times the watched point's (its speed since the last step): the operator corrects a
         tool that has settled near a target the plan holds, not one still on its way."""
-        p, _, speed = self.plan_tool(t)
+        p, R_aim, speed = self.plan_tool(t)
+        R_tool = None
+        if np.shape(p_tool_T) == (4, 4):
+            X = np.asarray(p_tool_T, dtype=float)
+            p_tool_T, R_tool = X[:3, 3], X[:3, :3]
         k = 1 if self.side == "right" else 0
         carrying = p_object_T is not None and float(self.plan.closure([t])[0, k]) > 0.5 and float(
             np.linalg.norm(np.asarray(p_object_T, float) - np.asarray(p_tool_T, float))) < CARRY_RADIUS_M
@@ -219,7 +238,15 @@ class ClosedLoopOperator:
         if state.tool_last is not None and state.t_last is not None and t > state.t_last:
             w *= self.weight(float(np.linalg.norm(tool - state.tool_last)) / (t - state.t_last))
         new = self.correction.step(state, t, p - tool, w)
-        return CorrectionState(new.offset, new.seen, new.t_last, tool.copy() if np.all(np.isfinite(tool)) else None)
+        rot = state.rotation
+        if R_tool is not None:
+            from scipy.spatial.transform import Rotation
+
+            e_rot = Rotation.from_matrix(R_aim @ R_tool.T).as_rotvec() if np.all(np.isfinite(R_tool)) else np.full(
+                3, np.nan)
+            rot = self.rotation.step(rot or CorrectionState(), t, e_rot, w)
+        return CorrectionState(new.offset, new.seen, new.t_last, tool.copy() if np.all(np.isfinite(tool)) else None,
+                               rot)
 
     def posture(self, state: CorrectionState, t: float) -> np.ndarray:
         """``(2 * NUM_ARM_DOF,)`` the operator's ``[q_left, q_right]`` at ``t``: the plan's, the corrected arm
@@ -227,9 +254,14 @@ class ClosedLoopOperator:
         from akc_drake.operator.motions import solve_arm_for_tool_pose
 
         ql, qr = (q[0] for q in self.plan.sample([t]))
-        if float(np.linalg.norm(state.offset)) < 1e-6:
+        w = np.zeros(3) if state.rotation is None else state.rotation.offset
+        if float(np.linalg.norm(state.offset)) < 1e-6 and float(np.linalg.norm(w)) < 1e-6:
             return np.concatenate([ql, qr])
         p, R, _ = self.plan_tool(t)
+        if float(np.linalg.norm(w)) > 0:
+            from scipy.spatial.transform import Rotation
+
+            R = Rotation.from_rotvec(w).as_matrix() @ R
         mine, other = (ql, qr) if self.side == "left" else (qr, ql)
         q = solve_arm_for_tool_pose(p + state.offset, R, self.side, other, mine, self.params, self.mapping,
                                     self.landmarks)

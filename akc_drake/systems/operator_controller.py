@@ -64,12 +64,12 @@ class OperatorController(LeafSystem):
 
     def tool_position(self, context) -> np.ndarray:
         """The robot's tool position in T (3,) from the ``plant_state`` input."""
-        return self.seen(context)[0]
+        return self.seen(context)[0][:3, 3]
 
     def seen(self, context) -> tuple[np.ndarray, np.ndarray | None]:
-        """``(tool (3,), object (3,) or None)``: the tool's and the watched object's positions in T."""
+        """``(X_TE (4, 4), object (3,) or None)``: the tool's pose and the watched object's position in T."""
         self._plant.SetPositionsAndVelocities(self._plant_context, self.get_input_port(0).Eval(context))
-        tool = self._ee.CalcPose(self._plant_context, self._torso).translation()
+        tool = self._ee.CalcPose(self._plant_context, self._torso).GetAsMatrix4()
         obj = None if self._object is None else self._object.CalcPose(self._plant_context, self._torso).translation()
         return tool, obj
 
