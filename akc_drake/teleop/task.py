@@ -1,7 +1,13 @@
 """The pick-and-place task of ``akc-drake demo --task pick-place``: scored per corrector over seeded runs.
 
-Per seed, the operator's pick-and-place motion (:func:`~akc_drake.operator.motions.pick_place`, varied by the
-seed) is rendered once and replayed through the teleop diagram with each corrector; the grippers follow the
+Per seed, the operator's pick-and-place motion (:func:`~akc_drake.operator.motions.pick_place_plan`, varied by the
+seed) is its plan. With the closed-loop operator (``operator="closed"``, the default) each corrector gets its own
+run with the operator rendered in the loop: an
+:class:`~akc_drake.systems.operator_controller.OperatorController` watches the robot's tool (and the carried box)
+and corrects its wrist target (:mod:`akc_drake.operator.closed_loop`), MediaPipe (or the simulated detector) sees
+each rendered frame, and the hands measured on the same frames command the gripper; this run is not recorded in
+Meshcat. With ``operator="open"`` the motion is rendered once per seed and replayed through the teleop diagram with
+each corrector (the first seed's AKC(KF) run recorded in Meshcat); the grippers follow the
 operator's pinch (:mod:`akc_drake.core.gripper`), the box is a free body with contact. After the motion the robot
 holds its last targets for :data:`SETTLE_S` so the box comes to rest, and the run is scored
 (:func:`score_box`): **success** when the box's centre ends within :data:`SUCCESS_RADIUS_M` (horizontally) of the
