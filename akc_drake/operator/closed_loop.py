@@ -23,8 +23,8 @@ tool, as a person sees it):
   therefore not "corrected" into an overshoot.
 * **The posture.** The operator then solves the arm's posture that puts the mapped tool at ``p_plan(t) + c``
   with the plan's rotation (:func:`~akc_drake.operator.motions.solve_arm_for_tool_pose`, started from the plan's
-  posture at ``t``) and the aim's rotation (corrected as below). With the tool on target the offset stays zero and the posture is the
-  plan's.
+  posture at ``t``) and the aim's rotation (corrected as below). With the tool on target the offset stays zero
+  and the posture is the plan's.
 * **The rotation.** Given the tool's pose, the operator corrects its rotation the same way (a rotation vector
   offset applied to the aim's rotation, the same delay, gain and weight; deadband :data:`ROTATION_DEADBAND_RAD`,
   speed :data:`ROTATION_MAX_SPEED_RAD_S`, bound :data:`ROTATION_MAX_RAD`): a gripper turned against the box's
@@ -193,7 +193,8 @@ class ClosedLoopOperator:
         if tool_plan is None:
             self._t = np.arange(plan.start, plan.end + 1e-9, float(plan_dt))
             ql, qr = plan.sample(self._t)
-            X = np.array([_mapped_tool_pose(a, b, side, self.params, mapping, landmarks) for a, b in zip(ql, qr)])
+            X = np.array([_mapped_tool_pose(a, b, side, self.params, mapping, landmarks)
+                          for a, b in zip(ql, qr, strict=True)])
             self._p, self._R = X[:, :3, 3], X[:, :3, :3]
             self._speed = np.linalg.norm(np.gradient(self._p, self._t, axis=0), axis=1)
 

@@ -30,8 +30,9 @@ class OperatorController(LeafSystem):
 
     ``plant_state`` is the station plant's full state ``[q, v]`` (``plant.get_state_output_port()``): from it
     the system computes the robot tool's position in the torso frame T and the watched object's (the box), which
-    is all the operator sees (no corrector's internals). ``q_operator`` is ``[q_left, q_right]`` (``2 * NUM_ARM_DOF``), the operator's posture for the
-    renderer, held between updates (a pure function of the state).
+    is all the operator sees (no corrector's internals). ``q_operator`` is ``[q_left, q_right]``
+    (``2 * NUM_ARM_DOF``), the operator's posture for the renderer, held between updates (a pure function of the
+    state).
 
     Args:
         operator: the :class:`~akc_drake.operator.closed_loop.ClosedLoopOperator`.
@@ -89,5 +90,5 @@ class OperatorController(LeafSystem):
         """``(times (n,), offsets (n, 3))`` the operator's correction after each update."""
         if not self.trace:
             return np.zeros(0), np.zeros((0, 3))
-        t, c = zip(*self.trace)
+        t, c = zip(*self.trace, strict=True)
         return np.array(t), np.array(c)

@@ -216,8 +216,9 @@ def _hand_report(motion, times, apertures, cfg, seed: int, log) -> dict:
 
 def _closed_loop_run(cfg, calib, corrector, planned, mapping, landmarks, seed, progress, hand_detector):
     """One closed-loop run: the operator (:class:`~akc_drake.operator.closed_loop.ClosedLoopOperator`, ``planned``
-    the motion and its :class:`~akc_drake.operator.motions.ToolPlan`) rendered in the loop, watching the robot's tool; the pose detector is ``cfg.detector``'s (seeded
-    by ``seed``), the hands MediaPipe Hands' on the same frames (``hand_detector``) or the simulated channel."""
+    the motion and its :class:`~akc_drake.operator.motions.ToolPlan`) rendered in the loop, watching the robot's
+    tool; the pose detector is ``cfg.detector``'s (seeded by ``seed``), the hands MediaPipe Hands' on the same
+    frames (``hand_detector``) or the simulated channel."""
     import dataclasses
 
     from akc_drake.operator.closed_loop import ClosedLoopOperator
