@@ -52,3 +52,23 @@ def test_the_operator_corrects_toward_the_aim_after_its_delay(parts):
     q = ctrl.GetOutputPort("q_operator").Eval(ctrl.GetMyContextFromRoot(sim.get_context()))
     assert np.max(np.abs(q[5:] - op.plan.q()[0][5:])) > 0.01  # the right arm moved
     np.testing.assert_array_equal(q[:5], op.plan.q()[0][:5])
+
+
+def test_in_the_teleop_diagram_the_camera_renders_the_operator_s_posture(parts):
+    from akc_drake.config import CameraConfig, PipelineConfig
+    from akc_drake.core.skeleton import BodyDimensions
+    from akc_drake.diagrams import build_teleop_diagram
+
+    op, _, _ = parts
+    cfg = PipelineConfig(camera=CameraConfig(width=160, height=120))
+    td = build_teleop_diagram(cfg, motion=op.plan, dims=BodyDimensions.paper_participant(), operator=op,
+                              log_stages=False, keep_history=False)
+    assert td.operator is not None and td.operator.get_name() == "OperatorController"
+    sim = Simulator(td.diagram)
+    sim.AdvanceTo(0.25)
+    root = sim.get_context()
+    src = next(s for s in td.diagram.GetSystems() if s.get_name() == "DepthCameraSource")
+    q_in = src.GetInputPort("q_operator").Eval(src.GetMyContextFromRoot(root))
+    q_out = td.operator.GetOutputPort("q_operator").Eval(td.operator.GetMyContextFromRoot(root))
+    np.testing.assert_array_equal(q_in, q_out)  # the camera's operator is the controller's
+    assert len(td.operator.trace) == 12  # updates at 0.01, 0.03, ..., 0.23 s
