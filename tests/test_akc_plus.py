@@ -351,23 +351,27 @@ def test_dropped_shoulder_the_filter_knows_better_than_a_rebuild_is_kept():
     assert abs(out2[LS, 2] - p[LS, 2]) > 0.03
 
 
+def settled_corrector(p, dims):
+    """A corrector that has seen the pose ``p`` measured exactly for five frames (its state settled on it)."""
+    akc = ArmKinematicCorrectorPlus(dims)
+    for _ in range(5):
+        akc.correct(p, measured=p, variance=kf_var())
+    return akc
+
+
 def test_a_filter_whose_ray_the_detector_contradicts_yields_to_the_measurement():
     # An EKF's bone constraint moved a seen shoulder 10 cm in y (and its depth 25 cm) while the detector sees it
     # where it is: the filter's point, scaled to the measured depth, is off the measured ray by far more than
     # the image noise, so the measured shoulder replaces the filter's (and is kept: it is seen).
     p, dims = arm_pose()
-    akc = ArmKinematicCorrectorPlus(dims)
-    for _ in range(5):
-        akc.correct(p, measured=p, variance=kf_var())
+    akc = settled_corrector(p, dims)
     f = p.copy()
     f[LS, 1] += 0.10
     f[LS, 2] += 0.25
     out = akc.correct(f, measured=p, variance=kf_var()).pose
     np.testing.assert_allclose(out[LS], p[LS], atol=1e-9)
     # A depth read 25 cm short on the same ray (an occluder's surface) is not the joint's: the filter's stays.
-    akc = ArmKinematicCorrectorPlus(dims)
-    for _ in range(5):
-        akc.correct(p, measured=p, variance=kf_var())
+    akc = settled_corrector(p, dims)
     m = p.copy()
     m[LS] *= (p[LS, 2] - 0.25) / p[LS, 2]
     out = akc.correct(p, measured=m, variance=kf_var()).pose
@@ -380,9 +384,7 @@ def test_a_wrist_lost_altogether_is_no_anchor():
     # test rejects them). The arm is built from the shoulder out: shoulder and elbow stay where the filter
     # has them (exact lengths already), only the wrist moves, onto the forearm length.
     p, dims = arm_pose()
-    akc = ArmKinematicCorrectorPlus(dims)
-    for _ in range(5):
-        akc.correct(p, measured=p, variance=kf_var())
+    akc = settled_corrector(p, dims)
     f = p.copy()
     f[LW] += [0.10, 0.10, 0.15]
     var = kf_var()
