@@ -562,6 +562,12 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     ports = AddMocapPipeline(builder, cfg, dims, source, teleop=True)
     loggers = AddStageLoggers(builder, ports, period) if log_stages else {}
 
+    src = source["systems"]["source"]
+    closes = motion is not None and getattr(motion, "hand_closed", None) is not None
+    # Hands measured on the camera's frames: a real camera's, or a render of a motion whose hands close; their
+    # knuckle lines also go to the FrameMapper's wrist frames (as the replays' recorded ones do).
+    camera_hands = replay is None and hand_apertures is None and src.HasOutputPort("color_image") and (
+        hand_detector is not None or frame_source is not None or (closes and cfg.detector == "mediapipe"))
     mapper = builder.AddSystem(
         FrameMapper(mapping if mapping is not None else calibrated_mapping(dims),
                     X_TE_home_left=nominal_ee_pose("left"), X_TE_home_right=nominal_ee_pose("right"),
@@ -570,7 +576,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                     torso_smoothing=sm.TORSO_SMOOTHING if smoothing else None,
                     workspace={s: Workspace.for_side(s) for s in ("left", "right")} if workspace else None,
                     robust_wrist=smoothing, torso_hold=sm.TORSO_HOLD if smoothing else None,
-                    hand_knuckles_replay=hand_knuckles)
+                    hand_knuckles_replay=hand_knuckles, hand_knuckles_input=bool(camera_hands))
     )
     mapper.set_name("FrameMapper")
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))
@@ -610,11 +616,6 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         builder.Connect(controller.GetOutputPort("q_operator"), source["systems"]["source"].GetInputPort("q_operator"))
 
     gripper = None
-    src = source["systems"]["source"]
-    closes = motion is not None and getattr(motion, "hand_closed", None) is not None
-    # Hands measured on the camera's frames: a real camera's, or a render of a motion whose hands close.
-    camera_hands = replay is None and hand_apertures is None and src.HasOutputPort("color_image") and (
-        hand_detector is not None or frame_source is not None or (closes and cfg.detector == "mediapipe"))
     if camera_hands or closes:
         from akc_drake.systems.gripper_command import GripperCommand, HandApertureSource
 
@@ -632,6 +633,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
             for name in ("color_image", "depth_image"):
                 builder.Connect(src.GetOutputPort(name), hands.GetInputPort(name))
             builder.Connect(source["pixels"], hands.GetInputPort("pixels"))
+            builder.Connect(hands.GetOutputPort("hand_knuckles"), mapper.GetInputPort("hand_knuckles"))
         else:
             hands = builder.AddSystem(HandApertureSource(motion, period, seed=cfg.seed, dropout=hand_dropout,
                                                          apertures=hand_apertures))

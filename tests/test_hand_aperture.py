@@ -120,3 +120,50 @@ def test_the_rendered_teleop_run_gives_the_hand_detector_the_frame_and_its_pose_
     ext = td.ports.pixels
     px = ext.Eval(ext.get_system().GetMyContextFromRoot(sim.get_context())).reshape(NUM_LANDMARKS, 2)
     np.testing.assert_array_equal(det.calls[1][3], px[[LANDMARKS.index("left_wrist"), LANDMARKS.index("right_wrist")]])
+
+
+class _KnuckleHands(_FakeHands):
+    """The right hand found with its index knuckle 40 px right of and 10 px above its pinky knuckle."""
+
+    def detect(self, frame, wrists=None):
+        m = super().detect(frame, wrists)
+        h = np.zeros((21, 3))
+        h[5], h[17] = (100.0, 50.0, -4.0), (60.0, 60.0, 0.0)
+        m.landmarks_px[1] = h
+        return m
+
+
+def test_the_knuckle_lines_go_out_and_to_the_frame_mapper():
+    """Hands' knuckle line of each found hand is an output (NaN for a hand not found), and in the rendered teleop
+    diagram it feeds the FrameMapper's wrist frames (before, the closed loop's wrist frames had only the pose's
+    two hand points)."""
+    from akc_drake.config import CameraConfig, PipelineConfig
+    from akc_drake.core.control_frames import hands_knuckle_vector
+    from akc_drake.core.skeleton import BodyDimensions
+    from akc_drake.diagrams import build_teleop_diagram
+    from akc_drake.operator.motions import pick_place
+
+    K = CameraIntrinsics(width=64, height=48)
+    builder = DiagramBuilder()
+    hands = builder.AddSystem(HandApertureDetector(_KnuckleHands(), K, 0.1, 0.001))
+    for name, img in (("color_image", ImageRgba8U(64, 48)), ("depth_image", ImageDepth32F(64, 48))):
+        src = builder.AddSystem(ConstantValueSource(AbstractValue.Make(img)))
+        builder.Connect(src.get_output_port(), hands.GetInputPort(name))
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    sim.AdvanceTo(0.05)
+    out = hands.GetOutputPort("hand_knuckles").Eval(hands.GetMyContextFromRoot(sim.get_context()))
+    assert np.all(np.isnan(out[:3]))
+    h = np.zeros((21, 3))
+    h[5], h[17] = (100.0, 50.0, -4.0), (60.0, 60.0, 0.0)
+    np.testing.assert_allclose(out[3:], hands_knuckle_vector(h, K))
+    np.testing.assert_allclose(out[3:], [40.0 / K.fx, -10.0 / K.fy, -4.0 / K.fx])
+
+    cfg = PipelineConfig(camera=CameraConfig(width=160, height=120))
+    td = build_teleop_diagram(cfg, motion=pick_place(0), dims=BodyDimensions.paper_participant(),
+                              hand_detector=_KnuckleHands(), log_stages=False, keep_history=False)
+    sim = Simulator(td.diagram)
+    sim.AdvanceTo(0.15)
+    mapper = td.mapper
+    seen = mapper.GetInputPort("hand_knuckles").Eval(mapper.GetMyContextFromRoot(sim.get_context()))
+    np.testing.assert_allclose(seen[3:], hands_knuckle_vector(h, td.intrinsics))
