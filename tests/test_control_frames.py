@@ -274,3 +274,39 @@ def test_hands_index_pinky_swap_is_held_off_until_it_persists():
     assert np.all(errors[:held] < 3.0)
     # ... until the reversal has lasted HANDS_HOLD_S: then it is a real turn, followed.
     assert np.all(errors[held + 1 :] > 150.0)
+
+
+def test_calibrate_torso_takes_the_vertical_from_the_trunk_not_the_shoulder_line():
+    from akc_drake.core.control_frames import calibrate_torso
+
+    pose = camera_pose()
+    R_ref, o_ref = F.torso_of(pose)
+    level = calibrate_torso(np.stack([pose] * 3))  # level shoulders: the same frame as eq. (17)'s
+    np.testing.assert_allclose(level.torso(pose)[0], R_ref, atol=1e-9)
+    np.testing.assert_allclose(level.torso(pose)[1], o_ref, atol=1e-9)
+    # A detector puts the left shoulder 1 cm low (image y down) in the T-pose: eq. (17)'s frame rolls by
+    # atan(0.01 / shoulder width), calibrate_torso's by the trunk's tilt only (its top moved 0.5 cm along it: none).
+    low = pose.copy()
+    low[INDEX["left_shoulder"], 1] += 0.01
+    width = float(np.linalg.norm(pose[INDEX["left_shoulder"]] - pose[INDEX["right_shoulder"]]))
+
+    def roll_deg(model):
+        R = model.torso(pose)[0]
+        return float(np.degrees(np.arccos(np.clip(R[:, 2] @ R_ref[:, 2], -1.0, 1.0))))
+
+    assert roll_deg(F.TorsoModel.calibrate(low[None])) == pytest.approx(np.degrees(np.arctan(0.01 / width)), rel=0.05)
+    assert roll_deg(calibrate_torso(low[None])) < 0.01
+    # The shoulder 1 cm outward instead (along the line): eq. (17) does not roll, the trunk's top moves 0.5 cm
+    # sideways, a tilt of atan(0.005 / trunk length), a third of a vertical error's roll in eq. (17).
+    out = pose.copy()
+    out[INDEX["left_shoulder"], 0] += 0.01
+    trunk = float(np.linalg.norm(F.torso_of(pose)[1] - 0.5 * (pose[INDEX["left_hip"]] + pose[INDEX["right_hip"]])))
+    assert roll_deg(calibrate_torso(out[None])) == pytest.approx(np.degrees(np.arctan(0.005 / trunk)), rel=0.05)
+    assert roll_deg(calibrate_torso(out[None])) < 0.4 * roll_deg(F.TorsoModel.calibrate(low[None]))
+    # The origin is still the measured shoulder midpoint; frames missing a torso landmark are skipped.
+    np.testing.assert_allclose(calibrate_torso(low[None]).torso(pose)[1], o_ref + [0.0, 0.005, 0.0], atol=1e-9)
+    gap = np.stack([pose, pose])
+    gap[0, INDEX["right_hip"]] = np.nan
+    np.testing.assert_allclose(calibrate_torso(gap).torso(pose)[0], R_ref, atol=1e-9)
+    with pytest.raises(ValueError, match="shoulders and both hips"):
+        calibrate_torso(np.full((2, 12, 3), np.nan))

@@ -4,7 +4,8 @@
 frame:
 
 1. **Torso**: from the hips through a calibrated :class:`~akc_drake.core.frames.TorsoModel` when one is given
-   (the shoulders are the most occluded landmarks in teleoperation), else eq. (17) from the shoulders and
+   (the shoulders are the most occluded landmarks in teleoperation; :func:`calibrate_torso` takes its vertical
+   from the T-pose's trunk, not from the shoulder line), else eq. (17) from the shoulders and
    hips; held still while it stays within 10 cm / 10 deg of its settled pose (``torso_hold``,
    :data:`~akc_drake.core.smoothing.TORSO_HOLD`, the mean of its first second: the detector's hips move with the
    arms, a standing operator's do not; a step or a turn is followed); then smoothed on SE(3)
@@ -94,6 +95,44 @@ def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
         return p_w
     deficit = min(deficit, hand_length_m)  # the hand hides the wrist from at most its own length in front
     return p_w * ((p_w[2] + weight * deficit) / p_w[2])  # on the wrist's pixel ray, toward behind its hand
+
+
+def calibrate_torso(poses) -> TorsoModel:
+    """The hip-carried :class:`~akc_drake.core.frames.TorsoModel` from a held T-pose, its vertical from the trunk.
+
+    :meth:`TorsoModel.calibrate <akc_drake.core.frames.TorsoModel.calibrate>` takes eq. (17)'s frame of the mean
+    pose, whose vertical is perpendicular to the shoulder line: a detector's pixel error on one shoulder rolls the
+    whole frame, and a roll is a constant error of every target, across the torso's width at both wrists (up on
+    one side, down on the other). The two shoulders are 30-40 cm apart and each is detected a centimetre off
+    (MediaPipe on the rendered T-pose: one shoulder 0.9 cm lower than the other, a 1.5 deg roll, 1-1.5 cm at the
+    wrist targets); the trunk (hip midpoint to shoulder midpoint) is 45-55 cm long and its ends are means of two
+    landmarks, so its direction is a few times less noisy. An operator standing in a T-pose holds the shoulders
+    level across the upright trunk, so the trunk is the vertical: the shoulder line is kept for the frame's
+    heading only (orthogonalised against the trunk), the origin stays the shoulder midpoint.
+
+    Args:
+        poses: ``(T, 12, 3)`` camera-frame poses of the held T-pose (frames missing a torso landmark are skipped).
+
+    Raises:
+        ValueError: no frame with all four torso landmarks, or a degenerate mean torso.
+    """
+    P = np.asarray(poses, dtype=float).reshape(-1, len(INDEX), 3)
+    ls, rs, lh, rh = (INDEX[n] for n in ("left_shoulder", "right_shoulder", "left_hip", "right_hip"))
+    ok = np.all(np.isfinite(P[:, [ls, rs, lh, rh]]), axis=(1, 2))
+    if not ok.any():
+        raise ValueError("calibrate_torso: no frame shows both shoulders and both hips")
+    mean = np.mean(P[ok], axis=0)
+    s_m, h_m = 0.5 * (mean[ls] + mean[rs]), 0.5 * (mean[lh] + mean[rh])
+    up, across = s_m - h_m, mean[ls] - mean[rs]
+    n_up = float(np.linalg.norm(up))
+    if n_up > 1e-6:
+        up /= n_up
+        across = across - float(across @ up) * up  # the shoulder line levelled across the trunk
+        half = 0.5 * float(np.linalg.norm(mean[ls] - mean[rs]))
+        n_across = float(np.linalg.norm(across))
+        if n_across > 1e-6:
+            mean[ls], mean[rs] = s_m + half * across / n_across, s_m - half * across / n_across
+    return TorsoModel.calibrate(mean[None])
 
 
 #: MediaPipe Hands' index and pinky knuckles (MCP joints): landmarks 5 and 17.

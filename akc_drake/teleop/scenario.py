@@ -155,9 +155,9 @@ def calibrate_from_tpose(
     n = min(frames, built.num_frames)
     log, _ = built.simulate(n)
     dims, report = calibrate_report(log.estimated[:n], "tpose")
-    from akc_drake.core.frames import TorsoModel
+    from akc_drake.core.control_frames import calibrate_torso
 
-    torso = TorsoModel.calibrate(log.estimated[:n])
+    torso = calibrate_torso(log.estimated[:n])  # the hip-carried torso, its vertical from the trunk
     return Calibration(dims, report, n, time.perf_counter() - t0, torso)
 
 
