@@ -82,18 +82,41 @@ def test_hand_sides_from_labels_and_from_the_pose_wrists():
     # The Tasks API's labels are the person's own hands on an unmirrored image; mirrored swaps them.
     assert hand_sides(["Right", "Left"], [a, b]) == {"right": 0, "left": 1}
     assert hand_sides(["Right", "Left"], [a, b], mirrored=True) == {"left": 0, "right": 1}
-    # Two hands with one label: the first keeps it, the other side stays unknown.
-    assert hand_sides(["Left", "Left"], [a, b]) == {"left": 0}
+    # Two hands with one label (MediaPipe does this): the image order, the person's right further left.
+    assert hand_sides(["Left", "Left"], [a, b]) == {"right": 0, "left": 1}
+    assert hand_sides(["Left", "Left"], [b, a]) == {"left": 0, "right": 1}
+    assert hand_sides(["Right", "Right"], [a, b], mirrored=True) == {"left": 0, "right": 1}
+    # One hand, no pose: its label.
+    assert hand_sides(["Left"], [a]) == {"left": 0}
     # The pose's wrists outrank the labels (here both "Left"): each wrist takes the nearest hand.
     wrists = np.array([b[0, :2] + 5.0, a[0, :2] - 5.0])  # left wrist at hand b, right wrist at hand a
     assert hand_sides(["Left", "Left"], [a, b], wrists) == {"left": 1, "right": 0}
-    # A pose wrist far from every hand (beyond 1.5 hand lengths) does not take one: the labels decide.
+    # A pose wrist far from every hand (beyond 1.5 hand sizes) takes none, and the labels are not asked.
     far = np.array([[10.0, 10.0], [630.0, 10.0]])
-    assert hand_sides(["Right", "Left"], [a, b], far) == {"right": 0, "left": 1}
-    # One pose wrist unknown (NaN): the other still takes its hand.
+    assert hand_sides(["Right", "Left"], [a, b], far) == {}
+    # One pose wrist unknown (NaN): the other still takes its hand; the other hand is nobody's.
     half = np.array([[np.nan, np.nan], a[0, :2]])
     assert hand_sides(["Left", "Left"], [a, b], half) == {"right": 0}
+    # No pose wrist known at all (NaN): the labels and the image order, as without a pose.
+    assert hand_sides(["Left", "Left"], [a, b], np.full((2, 2), np.nan)) == {"right": 0, "left": 1}
     assert hand_sides([], [], wrists) == {}
+
+
+def test_a_foreshortened_right_hand_labelled_left_does_not_command_the_left_gripper():
+    """The bug seen in the closed-loop task: the right hand reaching toward the camera, alone in the frame and
+    labelled "Left" by MediaPipe, its wrist-to-knuckle length foreshortened to 7 px, 10 px from the pose's right
+    wrist: the gate (1.5 x 7 px) failed, the labels took over and its pinch closed the left gripper."""
+    from akc_drake.core.gripper import hand_sides, hand_size_px
+
+    h = _hand(centre=(260.0, 300.0))
+    h[9, :2] = h[0, :2] + (0.0, -7.0)  # the middle knuckle 7 px from the wrist (end-on)
+    h[12, :2] = h[0, :2] + (25.0, -52.0)  # the fingers fanned out across the image
+    pose = np.array([[390.0, 297.0], h[0, :2] + (9.0, 9.0)])  # the left wrist far right in the image, right at h
+    dist = float(np.linalg.norm(pose[1] - h[0, :2]))
+    assert 1.5 * 7.0 < dist < 1.5 * hand_size_px(h)[0]  # outside the wrist-to-knuckle gate, inside the size's
+    assert hand_sides(["Left"], [h], pose) == {"right": 0}
+    # Even where no pose wrist is near it, a known pose keeps the label from assigning it to the left.
+    assert hand_sides(["Left"], [h], np.array([[390.0, 297.0], [600.0, 50.0]])) == {}
 
 
 def test_gripper_states_and_the_hand_channel_report():

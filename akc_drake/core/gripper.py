@@ -68,15 +68,33 @@ def pinch_distance_m(hand_px, depth_m, intrinsics: CameraIntrinsics, window: int
     return float(Z * math.sqrt((d[0] / K.fx) ** 2 + (d[1] / K.fy) ** 2 + (d[2] / K.fx) ** 2))
 
 
+def hand_size_px(hand_px) -> np.ndarray:
+    """Per detected hand (``(n, 21, 3)`` or ``(21, 3)``), its size in the image (pixels): the larger of the wrist to
+    middle-knuckle length and half its landmarks' bounding-box diagonal. A hand pointing at the camera
+    foreshortens the first to a few pixels while its fingers still fan out across the image, so the second keeps the
+    gate of :func:`hand_sides` from shrinking to nothing."""
+    H = np.asarray(hand_px, dtype=float).reshape(-1, NUM_HAND_LANDMARKS, 3)[:, :, :2]
+    length = np.linalg.norm(H[:, MIDDLE_MCP] - H[:, HAND_WRIST], axis=1)
+    with np.errstate(invalid="ignore"):
+        span = 0.5 * np.linalg.norm(np.nanmax(H, axis=1) - np.nanmin(H, axis=1), axis=1)
+    return np.fmax(length, span)
+
+
 def hand_sides(labels, hand_px, pose_wrists_px=None, *, mirrored: bool = False) -> dict[str, int]:
     """Which detected hand is the operator's left and which the right: ``{"left": index, "right": index}``.
 
     With the pose detector's wrists (``pose_wrists_px``, ``(2, 2)`` left, right; NaN where unknown), each pose
     wrist takes the detected hand whose wrist is nearest (the pairing with the smallest total distance), if within
-    :data:`WRIST_GATE_HAND_LENGTHS` hand lengths: the body's detector sees the arms, which says more about which
-    hand is which than a hand's own look. Otherwise the landmarker's handedness labels: MediaPipe's Tasks API
-    (0.10.15 and later) labels the person's own hands in an unmirrored image (a camera looking at the person);
-    ``mirrored`` swaps them (a selfie view). Two hands with one label: the first (highest score) keeps it.
+    :data:`WRIST_GATE_HAND_LENGTHS` hand sizes (:func:`hand_size_px`): the body's detector sees the arms, which says
+    more about which hand is which than a hand's own look. A hand no known pose wrist takes is left unassigned (NaN
+    downstream: the gripper keeps its state): MediaPipe's handedness labels are unreliable exactly where the gate
+    fails (on our renders it called both hands "Left" while the right hand reached toward the camera, and a
+    fallback to the labels closed the left gripper with the right hand's pinch).
+
+    Without any pose wrist, the landmarker's handedness labels: MediaPipe's Tasks API (0.10.15 and later) labels the
+    person's own hands in an unmirrored image (a camera looking at the person); ``mirrored`` swaps them (a selfie
+    view). Two hands with the same label (or none) are told apart by their order in the image instead: facing the
+    camera, the person's right hand is the one further left in an unmirrored image.
 
     Args:
         labels: per detected hand, ``"Left"`` or ``"Right"`` (best first among equals).
@@ -88,12 +106,13 @@ def hand_sides(labels, hand_px, pose_wrists_px=None, *, mirrored: bool = False) 
         The sides found, each with the index of its hand in ``labels``.
     """
     n = len(labels)
-    sides: dict[str, int] = {}
-    if pose_wrists_px is not None and n:
-        P = np.asarray(pose_wrists_px, dtype=float).reshape(2, 2)
-        H = np.asarray(hand_px, dtype=float).reshape(n, NUM_HAND_LANDMARKS, 3)
+    if n == 0:
+        return {}
+    H = np.asarray(hand_px, dtype=float).reshape(n, NUM_HAND_LANDMARKS, 3)
+    P = None if pose_wrists_px is None else np.asarray(pose_wrists_px, dtype=float).reshape(2, 2)
+    if P is not None and np.any(np.all(np.isfinite(P), axis=1)):
         wrists = H[:, HAND_WRIST, :2]
-        gate = WRIST_GATE_HAND_LENGTHS * np.linalg.norm(H[:, MIDDLE_MCP, :2] - wrists, axis=1)
+        gate = WRIST_GATE_HAND_LENGTHS * hand_size_px(H)
         dist = np.linalg.norm(P[:, None, :] - wrists[None, :, :], axis=2)  # (side, hand)
         ok = np.isfinite(dist) & (dist <= gate[None, :])
         pairs = [((0, i), (1, j)) for i in range(n) for j in range(n) if i != j]
@@ -106,15 +125,23 @@ def hand_sides(labels, hand_px, pose_wrists_px=None, *, mirrored: bool = False) 
             cost = -1e9 * len(cand) + sum(dist[s, h] for s, h in cand)
             if cost < best_cost:
                 best, best_cost = cand, cost
-        if best:
-            return {("left", "right")[s]: h for s, h in best}
-    for k, label in enumerate(labels):
+        return {("left", "right")[s]: h for s, h in best}
+    labs = []
+    for label in labels:
         lab = str(label).lower()
-        if lab not in ("left", "right"):
-            continue
-        if mirrored:
+        if mirrored and lab in ("left", "right"):
             lab = "right" if lab == "left" else "left"
-        sides.setdefault(lab, k)
+        labs.append(lab)
+    if n >= 2 and not {"left", "right"} <= set(labs[:2]):
+        # one label for both (or none): the image order, the right hand further left unless mirrored
+        u = H[:2, HAND_WRIST, 0]
+        if np.all(np.isfinite(u)) and u[0] != u[1]:
+            first_is_right = (u[0] < u[1]) != bool(mirrored)
+            return {"right": 0, "left": 1} if first_is_right else {"left": 0, "right": 1}
+    sides: dict[str, int] = {}
+    for k, lab in enumerate(labs):
+        if lab in ("left", "right"):
+            sides.setdefault(lab, k)
     return sides
 
 
