@@ -60,7 +60,8 @@ since last seen; seen joints move only as the exact lengths require (circle / wr
 
 No shrink factor (seen depths make the near-in-plane instability moot). Every output arm has exactly the
 calibrated lengths (to rounding). Plain Python floats on the hot path (numpy calls cost more than the
-arithmetic).
+arithmetic). The evidence tests (covariance matching, the blind hold, the known-depth test) are in
+:mod:`akc_drake.core.akc_plus_evidence`, the candidate costs and choices in :mod:`akc_drake.core.akc_plus_search`.
 """
 
 from __future__ import annotations
@@ -71,27 +72,21 @@ import numpy as np
 
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
-from akc_drake.core.arm_geometry import arm_inputs, bends_backwards, project_lengths, ray_check, torso_axes
+from akc_drake.core.akc_plus_evidence import arm_variances, hold_blind, known_depths
+from akc_drake.core.akc_plus_search import CandidateSearch
+from akc_drake.core.arm_geometry import arm_inputs, project_lengths, ray_check
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import follow as _follow
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
-from akc_drake.core.arm_geometry import rebuild_variance as _rebuild_variance
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
 _hypot = math.hypot
 _isfinite = math.isfinite
 _NAN = float("nan")
-#: The anatomical tests' penalty (a squared standard deviation) for a folded (below elbow_min_deg) or a
-#: hyperextended (m5) elbow: both are tests on noisy positions near their limits (a tight but real fold
-#: whose filtered elbow depth is a few cm off reads below the limit; a nearly straight arm's direction of
-#: bend is noise), so they are strong evidence, no veto: a filter estimate that fits the lengths and a
-#: continuous configuration can outweigh them, a mirror candidate tens of cm away cannot.
-_BACKWARDS = 25.0
-
 _F64 = np.dtype(np.float64)
 
 
@@ -110,7 +105,7 @@ STATE_SIZE = 54
 _NIS = 36
 
 
-class ArmKinematicCorrectorPlus:
+class ArmKinematicCorrectorPlus(CandidateSearch):
     """AKC+ for both arms (see the module docstring); the same interface as the paper's corrector.
 
     Args:
@@ -245,137 +240,7 @@ class ArmKinematicCorrectorPlus:
             return False
         return abs(mz - fz) <= self.config.consistency_m
 
-    def _arm_var(self, side, m, f):
-        """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
-
-        The running NIS measures the filter's error against its model while it is measured; an axis not
-        measured this frame is extrapolated, and its variance may be inflated by it but never shrunk.
-
-        A measured coordinate that passes the innovation test, of a filter whose covariance-matched error
-        variance exceeds the measurement's (a lagging filter on a fast joint), is the better estimate of the
-        two: it replaces the filter's in ``f`` (the arm's nine coordinates, changed in place) with the
-        measurement's variance. The test's residual variance is the model's (R - P) plus the filter's excess
-        error the running NIS shows (its covariance-matched variance above P).
-        """
-        var, fl, g2, nis, v, a = self._var, self._nis_floor, self._gate2, self._nis, self._v, self._nis_a
-        b = 1.0 - a
-        out = [0.0] * 9
-        if m is None:
-            m = self._no_measurement
-        for i, j, r, n in self._sub_index[side]:
-            p = var[j]
-            k = nis[n]
-            z = m[j]
-            if z != z:  # not measured
-                out[i] = p * (k if k > 1.0 else 1.0)
-                continue
-            d = r - p
-            if d > 0.0:
-                # This frame's NIS joins the running mean, winsorised at the gate (a robust mean: one outlier
-                # cannot make the filter look inconsistent and so vouch for itself).
-                q = z - v[j]
-                q = q * q / d
-                k = nis[n] = b * k + a * (q if q < g2 else g2)
-            vi = p * (k if k > fl else fl)
-            if vi > r:
-                d = z - f[i]
-                if d * d <= g2 * ((r - p if r > p else 0.0) + (vi - p if vi > p else 0.0)) + 1e-12:
-                    f[i] = z
-                    vi = r
-            out[i] = vi
-        return out
-
-    def _hold_blind(self, p, vs, base, f0, prev, k):
-        """A joint the detector lost altogether: a depth the filter extrapolates (see ``_arm``) is held at our
-        last output, and the filter prior of joint ``k`` is then left out of the candidate choice; x and y
-        are kept as the filter gives them."""
-        rz = self._r_z
-        f0z = prev[base + 2] if f0 is None else f0[2]
-        if vs[base + 2] > rz and (p[2] - f0z) ** 2 > rz:
-            self._no_prior.add(k)
-            return p[0], p[1], prev[base + 2]
-        return p
-
-    def _known(self, m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy):
-        """Whether the elbow's and the shoulder's depths are known (see ``_arm``): measured and seen, or not
-        measured this frame (nor held at our last output) with a filter variance within the measurement's or,
-        when last seen at most ``recent_frames`` ago, within the variance eq. 7-8 would give the depth from
-        its neighbours (:func:`~akc_drake.core.arm_geometry.rebuild_variance`: the elbow from the wrist, fused
-        with the one from a seen shoulder; the shoulder from the elbow, whose own variance is then the smaller
-        of the filter's and its rebuilt one)."""
-        sx, sy, ex, ey, wx, wy = xy
-        r_z, lv, no, lost = self._r_z, self._len_var, self._no_prior, self._lost
-        recent = self.config.recent_frames
-        ve, vsz = vs[5], vs[2]
-        # Each test without its rebuilt variance; that variance is computed only where the test turns on it
-        # (a filter variance above the measurement's, ``not v <= r_z`` so that NaN counts as above).
-        mze, mzs = (_NAN, _NAN) if m is None else (m[o_e + 2], m[o_s + 2])  # (NaN: not measured this frame)
-        kn_e = me or (ke not in no and mze != mze and (ve <= r_z or lost[ke] <= recent))
-        kn_s = ms or (ks not in no and mzs != mzs and (vsz <= r_z or lost[ks] <= recent))
-        need_e = not me and kn_e and not ve <= r_z
-        need_s = not ms and kn_s and not vsz <= r_z
-        if need_e or (need_s and not me):
-            rb = _rebuild_variance(wx, wy, vs[6], vs[7], vs[8], ex, ey, vs[3], vs[4], lf, lv, ve)
-            if ms:
-                rs = _rebuild_variance(sx, sy, vs[0], vs[1], vs[2], ex, ey, vs[3], vs[4], lu, lv, ve)
-                rb = rb * rs / (rb + rs)
-            if need_e:
-                kn_e = ve <= rb
-            if rb < ve:
-                ve = rb
-        if need_s:
-            kn_s = vsz <= _rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, lv, vsz)
-        return kn_e, kn_s
-
-    def _inv_f2(self, k):
-        """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
-        if k in self._no_prior:
-            return 0.0
-        vs = self._cur_var
-        if vs is not None:
-            # The filter's own (covariance-matched) depth variance of the joint.
-            v = vs[5 if k % 2 == 0 else 2]
-            # A variance the filter does not know (NaN: not yet initialised) is no prior at all.
-            return 1.0 / max(v, 1e-12) if v == v else 0.0
-        cfg = self.config
-        # Drift: the frames without a depth (unless the estimate still fits the calibrated length) and twice
-        # the distance the filter's depth has travelled since it was lost.
-        sf = cfg.sigma_filter_m + 2.0 * self._travel[k]
-        if k not in self._fits:
-            sf += cfg.drift_m_per_frame * self._lost[k]
-        return 1.0 / (sf * sf)
-
-    def _choose(self, cands, fx, fy, fz, prev_p, k_lost, extra=None):
-        """The candidate with the smallest Gaussian cost (filter prior, temporal prior, extra terms)."""
-        inv_f2 = self._inv_f2(k_lost)
-        best = None
-        best_j = math.inf
-        for i, p in enumerate(cands):
-            j = _d2(p, fx, fy, fz) * inv_f2
-            if prev_p is not None:
-                j += min(_d2(p, prev_p[0], prev_p[1], prev_p[2]) * self._inv_t2, self._t_cap)
-            if extra is not None:
-                j += extra[i]
-            if j < best_j:
-                best_j, best = j, p
-        return best, best_j
-
-    def _penalty(self, s, e, w, lu, lf, axes):
-        """_BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign)."""
-        ux, uy, uz = s[0] - e[0], s[1] - e[1], s[2] - e[2]
-        fx, fy, fz = w[0] - e[0], w[1] - e[1], w[2] - e[2]
-        cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
-        if cos_t > self._cos_min:
-            return _BACKWARDS
-        if axes is None:  # the torso's axes, computed once per frame and only when needed
-            axes = self._axes
-            if axes is None:
-                axes = self._axes = torso_axes(self._v0)
-        if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
-            return _BACKWARDS
-        return 0.0
-
-    def _arm(self, v, m, side, axes, other_shoulder):
+    def _arm(self, v, m, side, other_shoulder):
         """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
         prev = self._prev[side]
         o_s, o_e, _ = offsets = self._offsets[side]
@@ -385,7 +250,8 @@ class ArmKinematicCorrectorPlus:
         var = self._var
         if var is not None:
             f = list(joints)
-            vs = self._cur_var = self._arm_var(side, m, f)
+            vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
+                                               self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2)
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
                 g2, rz, o_w = self._gate2, self._r_z, offsets[2]
@@ -434,7 +300,7 @@ class ArmKinematicCorrectorPlus:
         if prev is not None and m is not None:
             # A joint the detector lost altogether: a filter without a hold extrapolates it at its last velocity,
             # and our last output (no evidence: the filter prior is then left out) is the better estimate: without
-            # the covariance when the filter moved it more than jump_m from it; with it, see ``_hold_blind``.
+            # the covariance when the filter moved it more than jump_m from it; with it, see ``hold_blind``.
             if vs is None:
                 jump = self.config.jump_m
                 if not exy and _hypot(ex - prev[3], ey - prev[4], ez - prev[5]) > jump:
@@ -445,9 +311,13 @@ class ArmKinematicCorrectorPlus:
                     self._no_prior.add(2 * side + 1)
             else:
                 if not exy:
-                    ex, ey, ez = self._hold_blind((ex, ey, ez), vs, 3, self._f0[ke], prev, 2 * side)
+                    (ex, ey, ez), held = hold_blind((ex, ey, ez), vs, 3, self._f0[ke], prev, self._r_z)
+                    if held:
+                        no_prior.add(ke)
                 if not sxy:
-                    sx, sy, sz = self._hold_blind((sx, sy, sz), vs, 0, self._f0[ks], prev, 2 * side + 1)
+                    (sx, sy, sz), held = hold_blind((sx, sy, sz), vs, 0, self._f0[ks], prev, self._r_z)
+                    if held:
+                        no_prior.add(ks)
         # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
         # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface.
         if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < self._occ_r2:
@@ -484,11 +354,11 @@ class ArmKinematicCorrectorPlus:
         lost[ke] = 0.0 if me else lost[ke] + 1.0
         lost[ks] = 0.0 if ms else lost[ks] + 1.0
         # With the covariance: a depth not measured this frame that the filter knows as well as a measurement or
-        # better than eq. 7-8 would rebuild it counts as known (a rejected or held one does not; ``_known``).
+        # better than eq. 7-8 would rebuild it counts as known (a rejected or held one does not; ``known_depths``).
         kn_e, kn_s = me, ms
         if vs is not None and not (me and ms):
-            kn_e, kn_s = self._known(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf,
-                                     (sx, sy, ex, ey, wx, wy))
+            kn_e, kn_s = known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, (sx, sy, ex, ey, wx, wy), self._r_z,
+                                      self._len_var, no_prior, self._lost, self.config.recent_frames)
         if vs is not None and kn_e and kn_s:
             # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its
             # covariance), the arm nearest it in that metric with the exact lengths (the joints move least
@@ -528,9 +398,11 @@ class ArmKinematicCorrectorPlus:
                     # (The circle exists for both candidates or for neither: it depends on s and w alone.)
                     q = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *pair[0])
                     if q is not None:
-                        cands = (q, _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *pair[1]))
-                        extra = [self._penalty(s, c, w, lu, lf, axes) for c in cands]
-                        e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
+                        q2 = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *pair[1])
+                        # (Both off the elbow's image position: whichever is chosen is discarded below.)
+                        xy_tol = self._xy_tol
+                        if not (_hypot(q[0] - ex, q[1] - ey) > xy_tol and _hypot(q2[0] - ex, q2[1] - ey) > xy_tol):
+                            e = self._choose_elbow((q, q2), ex, ey, ez, pe, ke, s, w, lu, lf)
             if e is None or _hypot(e[0] - ex, e[1] - ey) > self._xy_tol:
                 # ... unless that moves the elbow off its image position (the filtered wrist lags, is off, or
                 # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen,
@@ -542,12 +414,8 @@ class ArmKinematicCorrectorPlus:
                     # The Pythagorean pair (x, y kept) and the point at l_u nearest the filter's estimate
                     # (the filter's own elbow when only the lengths contradict it).
                     cands = _candidates(sx, sy, sz, ex, ey, ez, lu, exy, tol) + (_radial(sx, sy, sz, ex, ey, ez, lu),)
-                    extra = []
                     inv_w2 = 1.0 / max(vs[8], 1.0 / self._inv_wrist2) if w_lost else self._inv_wrist2
-                    for c in cands:
-                        dw = _hypot(c[0] - wx, c[1] - wy, c[2] - wz) - lf
-                        extra.append(dw * dw * inv_w2 + self._penalty(s, c, w, lu, lf, axes))
-                    e, _ = self._choose(cands, ex, ey, ez, pe, ke, extra)
+                    e = self._choose_elbow(cands, ex, ey, ez, pe, ke, s, w, lu, lf, inv_w2)
                 if vs is not None and not w_lost:
                     # With the covariance, the wrist does not take the whole correction: the elbow (at its image
                     # x, y and this depth) and the wrist move as little as their variances allow (the kept
@@ -558,75 +426,13 @@ class ArmKinematicCorrectorPlus:
                         return arm
                 w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
-        if not ts:
-            if te:
-                e = _radial(wx, wy, wz, ex, ey, ez, lf)
-                s_c = _candidates(e[0], e[1], e[2], sx, sy, sz, lu, sxy, tol)
-                if len(s_c) == 1:
-                    s = s_c[0]
-                else:
-                    s = self._choose_shoulder(s_c, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other_shoulder)
-            else:
-                e_cands = _candidates(wx, wy, wz, ex, ey, ez, lf, exy, tol)
-                best = None
-                best_j = math.inf
-                inv_fe2, inv_fs2 = self._inv_f2(ke), self._inv_f2(ks)
-                for ec in e_cands:
-                    je = _d2(ec, ex, ey, ez) * inv_fe2
-                    if pe is not None:
-                        je += min(_d2(ec, pe[0], pe[1], pe[2]) * self._inv_t2, self._t_cap)
-                    if je >= best_j:
-                        continue  # cannot win: the shoulder's cost is >= 0
-                    s_pair = _candidates(ec[0], ec[1], ec[2], sx, sy, sz, lu, sxy, tol)
-                    if len(s_pair) == 1:
-                        sc = s_pair[0]
-                        js = self._shoulder_cost(sc, ec, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other_shoulder)
-                    else:
-                        sc, js = None, math.inf
-                        for c in s_pair:
-                            jc = self._shoulder_cost(c, ec, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes,
-                                                     other_shoulder, js)
-                            if jc < js:
-                                sc, js = c, jc
-                    if je + js < best_j:
-                        best_j, best = je + js, (sc, ec)
-                s, e = best
+        # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
+        if te:
+            s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy, other_shoulder)
+        else:
+            s, e = self._rebuild_from_wrist((sx, sy, sz, ex, ey, ez), w, pe, ps, ke, ks, lu, lf, exy, sxy,
+                                            other_shoulder)
         return (*s, *e, *w)
-
-    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other, bound=math.inf):
-        """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``).
-
-        A candidate whose cost already reaches ``bound`` (the best so far) before the anatomical penalty cannot
-        win (the penalty is >= 0): that partial cost is returned without computing the penalty.
-        """
-        cx, cy, cz = c
-        dx, dy, dz = cx - sx, cy - sy, cz - sz
-        j = (dx * dx + dy * dy + dz * dz) * inv_fs2
-        if ps is not None:
-            dx, dy, dz = cx - ps[0], cy - ps[1], cz - ps[2]
-            t = (dx * dx + dy * dy + dz * dz) * self._inv_t2
-            j += t if t < self._t_cap else self._t_cap
-        if other is not None and self._inv_w2:
-            dw = _hypot(c[0] - other[0], c[1] - other[1], c[2] - other[2]) - self._ls
-            j += dw * dw * self._inv_w2
-        hz = self._hip_z
-        if hz is not None:
-            # The shoulders sit on the torso: near the hips' depth (both arms' mirror candidates together
-            # would otherwise keep the shoulder width).
-            dz = c[2] - hz
-            j += dz * dz * self._inv_torso2
-        if j >= bound:
-            return j
-        return j + self._penalty(c, e, w, lu, lf, axes)
-
-    def _choose_shoulder(self, pair, e, w, sx, sy, sz, ps, ks, lu, lf, axes, other):
-        best, best_j = pair[0], math.inf
-        inv_fs2 = self._inv_f2(ks)
-        for c in pair:
-            j = self._shoulder_cost(c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, axes, other, best_j)
-            if j < best_j:
-                best, best_j = c, j
-        return best
 
     def correct(self, pose, measured=None, variance=None) -> AKCResult:
         """Correct one filtered pose.
@@ -662,7 +468,7 @@ class ArmKinematicCorrectorPlus:
                 raise ValueError(f"variance must have shape ({NUM_LANDMARKS}, 3), got {c.shape}")
             self._var = c.ravel().tolist()
         self._v = v
-        axes = self._axes = None  # (see ``_penalty``)
+        self._axes = None  # (see ``_penalty``)
         self._v0 = v[:]
         hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z])
         self._hip_z = hz if _isfinite(hz) else None
@@ -685,7 +491,7 @@ class ArmKinematicCorrectorPlus:
                     other = None
             ke = 2 * side
             lost_e, lost_s = lost[ke], lost[ke + 1]
-            out = self._arm(v, m, side, axes, other)
+            out = self._arm(v, m, side, other)
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out
                 held[side] = False

@@ -1,0 +1,130 @@
+"""AKC+'s evidence tests: which of the filter's coordinates and depths are trustworthy (plain Python floats).
+
+The statistical side of :mod:`akc_drake.core.akc_plus` with the filter's covariance: covariance matching of
+the filter's variances by the running normalised innovation squared (:func:`arm_variances`), the hold of a
+joint the detector lost altogether (:func:`hold_blind`) and the known-depth test of a depth not measured
+this frame (:func:`known_depths`). Pure functions on plain floats and lists (a numpy call costs more than
+the arithmetic of one arm); the state they update (the running NIS, the arm's coordinates) is passed in.
+"""
+
+from __future__ import annotations
+
+from akc_drake.core.arm_geometry import rebuild_variance
+
+_NAN = float("nan")
+
+
+def arm_variances(sub_index, var, m, v, f, nis, alpha, floor, g2):
+    """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
+
+    The running NIS measures the filter's error against its model while it is measured; an axis not measured
+    this frame is extrapolated, and its variance may be inflated by it but never shrunk.
+
+    A measured coordinate that passes the innovation test, of a filter whose covariance-matched error variance
+    exceeds the measurement's (a lagging filter on a fast joint), is the better estimate of the two: it
+    replaces the filter's in ``f`` with the measurement's variance. The test's residual variance is the
+    model's (R - P) plus the filter's excess error the running NIS shows (its covariance-matched variance
+    above P).
+
+    Args:
+        sub_index: per coordinate ``(position in the arm, flat index, R, NIS index)``.
+        var: the filter's flat (36) posterior variances P.
+        m: the flat (36) measurement, NaN where not measured.
+        v: the flat (36) filtered pose.
+        f: the arm's nine filtered coordinates (changed in place).
+        nis: the running NIS means (18; this arm's entries updated in place).
+        alpha: the newest frame's weight in the running mean; floor: the smallest factor it may apply.
+        g2: the innovation gate squared (each frame's NIS is winsorised at it).
+
+    Returns:
+        The nine variances (a list).
+    """
+    b = 1.0 - alpha
+    out = [0.0] * 9
+    for i, j, r, n in sub_index:
+        p = var[j]
+        k = nis[n]
+        z = m[j]
+        if z != z:  # not measured
+            out[i] = p * (k if k > 1.0 else 1.0)
+            continue
+        d = r - p
+        if d > 0.0:
+            # This frame's NIS joins the running mean, winsorised at the gate (a robust mean: one outlier cannot
+            # make the filter look inconsistent and so vouch for itself).
+            q = z - v[j]
+            q = q * q / d
+            k = nis[n] = b * k + alpha * (q if q < g2 else g2)
+        vi = p * (k if k > floor else floor)
+        if vi > r:
+            d = z - f[i]
+            if d * d <= g2 * ((r - p if r > p else 0.0) + (vi - p if vi > p else 0.0)) + 1e-12:
+                f[i] = z
+                vi = r
+        out[i] = vi
+    return out
+
+
+def hold_blind(p, vs, base, f0, prev, r_z):
+    """A joint the detector lost altogether (no x, y): a depth the filter extrapolates is held at our last output.
+
+    Extrapolated: a filter variance above the measurement's ``r_z`` and a depth more than one measurement
+    sigma from the filter's estimate when the joint was last seen (``f0``; our last output's if none). x and y
+    are kept as the filter gives them.
+
+    Args:
+        p: the joint's filtered (x, y, z); vs: the arm's nine variances; base: the joint's offset in the arm.
+        f0: the filter's estimate when last seen, or None; prev: the arm's last output (nine floats).
+        r_z: the measurement's depth variance.
+
+    Returns:
+        ``(point, held)``: ``held`` means the filter's prior is to be left out of the candidate choice.
+    """
+    f0z = prev[base + 2] if f0 is None else f0[2]
+    if vs[base + 2] > r_z and (p[2] - f0z) ** 2 > r_z:
+        return (p[0], p[1], prev[base + 2]), True
+    return p, False
+
+
+def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, no_prior, lost, recent):
+    """Whether the elbow's and the shoulder's depths are known (see :mod:`akc_drake.core.akc_plus`).
+
+    Known: measured and seen, or not measured this frame (nor held at our last output, ``no_prior``) with a
+    filter variance within the measurement's or, when last seen at most ``recent`` frames ago, within the
+    variance eq. 7-8 would give the depth from its neighbours (:func:`~akc_drake.core.arm_geometry.
+    rebuild_variance`: the elbow from the wrist, fused with the one from a seen shoulder; the shoulder from the
+    elbow, whose own variance is then the smaller of the filter's and its rebuilt one).
+
+    Args:
+        m: the flat (36) measurement or None; vs: the arm's nine variances.
+        me, ms: the elbow's, the shoulder's depth seen this frame.
+        o_e, o_s: their flat offsets; ke, ks: their joint keys (``no_prior``, ``lost``).
+        lu, lf: the arm's calibrated lengths; xy: ``(sx, sy, ex, ey, wx, wy)``.
+        r_z: the measurement's depth variance; length_var: the calibrated lengths' variance.
+        no_prior: the joint keys whose filter estimate is no evidence; lost: frames since each was seen.
+        recent: the largest number of frames since a measurement for the rebuild comparison.
+
+    Returns:
+        ``(elbow known, shoulder known)``.
+    """
+    sx, sy, ex, ey, wx, wy = xy
+    ve, vsz = vs[5], vs[2]
+    # Each test without its rebuilt variance; that variance is computed only where the test turns on it (a
+    # filter variance above the measurement's, ``not v <= r_z`` so that NaN counts as above).
+    mze, mzs = (_NAN, _NAN) if m is None else (m[o_e + 2], m[o_s + 2])  # (NaN: not measured this frame)
+    kn_e = me or (ke not in no_prior and mze != mze and (ve <= r_z or lost[ke] <= recent))
+    kn_s = ms or (ks not in no_prior and mzs != mzs and (vsz <= r_z or lost[ks] <= recent))
+    need_e = not me and kn_e and not ve <= r_z
+    need_s = not ms and kn_s and not vsz <= r_z
+    if need_e or (need_s and not me):
+        rb = rebuild_variance(wx, wy, vs[6], vs[7], vs[8], ex, ey, vs[3], vs[4], lf, length_var, ve)
+        if ms:
+            rs = rebuild_variance(sx, sy, vs[0], vs[1], vs[2], ex, ey, vs[3], vs[4], lu, length_var, ve)
+            rb = rb * rs / (rb + rs)
+        if need_e:
+            kn_e = ve <= rb
+        if rb < ve:
+            ve = rb
+    if need_s:
+        kn_s = vsz <= rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, length_var, vsz)
+    return kn_e, kn_s

@@ -1,0 +1,189 @@
+"""AKC+'s candidate search: the Gaussian cost of a rebuilt joint's candidates and the choice among them.
+
+A rebuilt joint's candidates (eq. 7-8, the circle between a kept shoulder and the wrist, or the nearest point
+at the calibrated length) are scored as Gaussian log-likelihoods (:mod:`akc_drake.core.akc_plus`)::
+
+    J = |p - p̂|^2 / sigma_f^2 + min(|p - p_prev|^2 / sigma_t^2, cap^2) [+ width, torso and anatomy terms]
+
+The anatomy term (a folded or hyperextended elbow) is a penalty >= 0 computed last and only for a candidate
+that can still win: floating-point addition is monotone, so a partial cost already at or above the best one
+stays there whatever is added (the choice is the same as computing every term of every candidate).
+
+:class:`CandidateSearch` is a mixin of :class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`: it reads
+the corrector's per-frame state (the filter priors left out, the covariance-matched variances, the previous
+output, the torso's depth) and its settings.
+"""
+
+from __future__ import annotations
+
+import math
+
+from akc_drake.core.arm_geometry import bends_backwards, torso_axes
+from akc_drake.core.arm_geometry import candidates as _candidates
+from akc_drake.core.arm_geometry import d2 as _d2
+from akc_drake.core.arm_geometry import radial as _radial
+
+_hypot = math.hypot
+_inf = math.inf
+#: The anatomical tests' penalty (a squared standard deviation) for a folded (below elbow_min_deg) or a
+#: hyperextended (m5) elbow: both are tests on noisy positions near their limits (a tight but real fold
+#: whose filtered elbow depth is a few cm off reads below the limit; a nearly straight arm's direction of
+#: bend is noise), so they are strong evidence, no veto: a filter estimate that fits the lengths and a
+#: continuous configuration can outweigh them, a mirror candidate tens of cm away cannot.
+BACKWARDS = 25.0
+
+
+class CandidateSearch:
+    """The candidate costs and choices of AKC+ (a mixin: the corrector holds the state it reads)."""
+
+    __slots__ = ()
+
+    def _inv_f2(self, k):
+        """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
+        if k in self._no_prior:
+            return 0.0
+        vs = self._cur_var
+        if vs is not None:
+            # The filter's own (covariance-matched) depth variance of the joint.
+            v = vs[5 if k % 2 == 0 else 2]
+            # A variance the filter does not know (NaN: not yet initialised) is no prior at all.
+            return 1.0 / max(v, 1e-12) if v == v else 0.0
+        cfg = self.config
+        # Drift: the frames without a depth (unless the estimate still fits the calibrated length) and twice
+        # the distance the filter's depth has travelled since it was lost.
+        sf = cfg.sigma_filter_m + 2.0 * self._travel[k]
+        if k not in self._fits:
+            sf += cfg.drift_m_per_frame * self._lost[k]
+        return 1.0 / (sf * sf)
+
+    def _choose(self, cands, fx, fy, fz, prev_p, k_lost, extra=None):
+        """The candidate with the smallest Gaussian cost (filter prior, temporal prior, extra terms)."""
+        inv_f2 = self._inv_f2(k_lost)
+        best = None
+        best_j = _inf
+        for i, p in enumerate(cands):
+            j = _d2(p, fx, fy, fz) * inv_f2
+            if prev_p is not None:
+                j += min(_d2(p, prev_p[0], prev_p[1], prev_p[2]) * self._inv_t2, self._t_cap)
+            if extra is not None:
+                j += extra[i]
+            if j < best_j:
+                best_j, best = j, p
+        return best, best_j
+
+    def _choose_elbow(self, cands, fx, fy, fz, prev_p, k_lost, s, w, lu, lf, inv_w2=None):
+        """:meth:`_choose` of elbow candidates with the anatomical penalty (shoulder ``s``, wrist ``w``) and,
+        with ``inv_w2``, the wrist's forearm-length term ``(|c - w| - lf)^2 inv_w2`` as extra terms; the
+        penalty is computed only for a candidate whose other terms leave it a chance to win."""
+        inv_f2 = self._inv_f2(k_lost)
+        inv_t2, t_cap = self._inv_t2, self._t_cap
+        wx, wy, wz = w
+        best = None
+        best_j = _inf
+        for p in cands:
+            j = _d2(p, fx, fy, fz) * inv_f2
+            if prev_p is not None:
+                j += min(_d2(p, prev_p[0], prev_p[1], prev_p[2]) * inv_t2, t_cap)
+            if inv_w2 is None:
+                x = 0.0
+            else:
+                dw = _hypot(p[0] - wx, p[1] - wy, p[2] - wz) - lf
+                x = dw * dw * inv_w2
+            if j + x >= best_j:
+                continue  # (the penalty is >= 0)
+            j += x + self._penalty(s, p, w, lu, lf)
+            if j < best_j:
+                best_j, best = j, p
+        return best
+
+    def _penalty(self, s, e, w, lu, lf, axes=None):
+        """BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign)."""
+        ux, uy, uz = s[0] - e[0], s[1] - e[1], s[2] - e[2]
+        fx, fy, fz = w[0] - e[0], w[1] - e[1], w[2] - e[2]
+        cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
+        if cos_t > self._cos_min:
+            return BACKWARDS
+        if axes is None:  # the torso's axes, computed once per frame and only when needed
+            axes = self._axes
+            if axes is None:
+                axes = self._axes = torso_axes(self._v0)
+        if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
+            return BACKWARDS
+        return 0.0
+
+    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, other, bound=_inf):
+        """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``).
+
+        A candidate whose cost already reaches ``bound`` (the best so far) before the anatomical penalty cannot
+        win (the penalty is >= 0): that partial cost is returned without computing the penalty.
+        """
+        cx, cy, cz = c
+        dx, dy, dz = cx - sx, cy - sy, cz - sz
+        j = (dx * dx + dy * dy + dz * dz) * inv_fs2
+        if ps is not None:
+            dx, dy, dz = cx - ps[0], cy - ps[1], cz - ps[2]
+            t = (dx * dx + dy * dy + dz * dz) * self._inv_t2
+            j += t if t < self._t_cap else self._t_cap
+        if other is not None and self._inv_w2:
+            dw = _hypot(c[0] - other[0], c[1] - other[1], c[2] - other[2]) - self._ls
+            j += dw * dw * self._inv_w2
+        hz = self._hip_z
+        if hz is not None:
+            # The shoulders sit on the torso: near the hips' depth (both arms' mirror candidates together
+            # would otherwise keep the shoulder width).
+            dz = c[2] - hz
+            j += dz * dz * self._inv_torso2
+        if j >= bound:
+            return j
+        return j + self._penalty(c, e, w, lu, lf)
+
+    def _choose_shoulder(self, pair, e, w, sx, sy, sz, ps, ks, lu, lf, other):
+        """The shoulder candidate of ``pair`` with the smallest :meth:`_shoulder_cost`."""
+        best, best_j = pair[0], _inf
+        inv_fs2 = self._inv_f2(ks)
+        for c in pair:
+            j = self._shoulder_cost(c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, other, best_j)
+            if j < best_j:
+                best, best_j = c, j
+        return best
+
+    def _rebuild_from_wrist(self, f, w, pe, ps, ke, ks, lu, lf, exy, sxy, other):
+        """Elbow and shoulder rebuilt from the wrist ``w`` (neither kept): the pair of the elbow's candidates
+        (eq. 7) and each one's shoulder candidates (eq. 8) with the smallest total cost; ``f``: the filter's
+        shoulder and elbow (6 floats). Returns ``(shoulder, elbow)``."""
+        sx, sy, sz, ex, ey, ez = f
+        wx, wy, wz = w
+        tol = self._tol
+        e_cands = _candidates(wx, wy, wz, ex, ey, ez, lf, exy, tol)
+        best = None
+        best_j = _inf
+        inv_fe2, inv_fs2 = self._inv_f2(ke), self._inv_f2(ks)
+        for ec in e_cands:
+            je = _d2(ec, ex, ey, ez) * inv_fe2
+            if pe is not None:
+                je += min(_d2(ec, pe[0], pe[1], pe[2]) * self._inv_t2, self._t_cap)
+            if je >= best_j:
+                continue  # cannot win: the shoulder's cost is >= 0
+            s_pair = _candidates(ec[0], ec[1], ec[2], sx, sy, sz, lu, sxy, tol)
+            if len(s_pair) == 1:
+                sc = s_pair[0]
+                js = self._shoulder_cost(sc, ec, w, sx, sy, sz, ps, inv_fs2, lu, lf, other)
+            else:
+                sc, js = None, _inf
+                for c in s_pair:
+                    jc = self._shoulder_cost(c, ec, w, sx, sy, sz, ps, inv_fs2, lu, lf, other, js)
+                    if jc < js:
+                        sc, js = c, jc
+            if je + js < best_j:
+                best_j, best = je + js, (sc, ec)
+        return best
+
+    def _rebuild_shoulder(self, f, w, ps, ks, lu, lf, sxy, other):
+        """The elbow kept (moved radially to ``lf`` from the wrist ``w``) and the shoulder rebuilt from it (eq. 8);
+        ``f``: the filter's shoulder and elbow (6 floats). Returns ``(shoulder, elbow)``."""
+        sx, sy, sz, ex, ey, ez = f
+        e = _radial(w[0], w[1], w[2], ex, ey, ez, lf)
+        s_c = _candidates(e[0], e[1], e[2], sx, sy, sz, lu, sxy, self._tol)
+        if len(s_c) == 1:
+            return s_c[0], e
+        return self._choose_shoulder(s_c, e, w, sx, sy, sz, ps, ks, lu, lf, other), e

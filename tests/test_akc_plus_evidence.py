@@ -1,0 +1,94 @@
+import pytest
+
+from akc_drake.core.akc_plus_evidence import arm_variances, hold_blind, known_depths
+
+R_XY, R_Z = 0.01**2, 0.05**2
+#: One arm's coordinates at flat indices 0-8 (position in the arm, flat index, R, running-NIS index).
+SUB = tuple((i, i, (R_XY, R_XY, R_Z)[i % 3], i) for i in range(9))
+NAN = float("nan")
+
+
+def test_unmeasured_coordinates_are_inflated_by_the_running_nis_but_never_shrunk():
+    var = [1e-4] * 9
+    nis = [3.0, 0.5] + [1.0] * 7
+    out = arm_variances(SUB, var, [NAN] * 9, [0.0] * 9, [0.0] * 9, nis, 0.2, 0.01, 9.0)
+    assert out[0] == pytest.approx(3e-4, rel=1e-12)  # inflated by the NIS mean of 3
+    assert out[1] == 1e-4  # a mean of 0.5 does not shrink a blind axis
+    assert nis == [3.0, 0.5] + [1.0] * 7  # nothing measured: the means are unchanged
+
+
+def test_measured_coordinate_updates_the_running_nis_winsorised_at_the_gate():
+    var = [0.0] * 9
+    var[2] = 0.0016  # the filter's depth variance: the residual's is R - P = 0.0009
+    m = [NAN] * 9
+    m[2] = 2.03
+    v = [0.0] * 9
+    v[2] = 2.0
+    nis = [1.0] * 9
+    f = [0.0] * 9
+    f[2] = 2.0
+    out = arm_variances(SUB, var, m, v, f, nis, 0.2, 0.01, 9.0)
+    q = 0.03**2 / 0.0009  # this frame's NIS: 1.0
+    assert nis[2] == pytest.approx(0.8 * 1.0 + 0.2 * q, rel=1e-12)
+    assert out[2] == pytest.approx(0.0016 * nis[2], rel=1e-12)
+    assert f[2] == 2.0  # the filter's variance is below R: the filter is kept
+    m[2] = 3.0  # an outlier: the NIS of 1111 counts as the gate's 9
+    arm_variances(SUB, var, m, v, f, nis, 0.2, 0.01, 9.0)
+    assert nis[2] == pytest.approx(0.8 * (0.8 + 0.2 * q) + 0.2 * 9.0, rel=1e-12)
+
+
+def test_a_lagging_filter_yields_to_a_consistent_measurement():
+    # A filter whose running NIS shows an error variance 8 times its P (> R) and a measured depth 10 cm off:
+    # within the gate of the excess-error residual, the measurement replaces the filter's depth.
+    var = [1e-4] * 9
+    nis = [8.0] * 9
+    m = [NAN] * 9
+    m[5] = 2.10
+    v = [0.0] * 9
+    v[5] = 2.0
+    f = list(v)
+    out = arm_variances(SUB, var, m, v, f, nis, 0.0, 0.01, 9.0)  # alpha 0: the mean stays at 8 (8e-4 < R)
+    assert f[5] == 2.0 and out[5] == pytest.approx(8e-4, rel=1e-12)
+    nis[5] = 40.0  # 4e-3 > R: the filter lags more than a measurement errs
+    out = arm_variances(SUB, var, m, v, f, nis, 0.0, 0.01, 9.0)
+    assert f[5] == 2.10 and out[5] == R_Z
+
+
+def test_an_extrapolated_blind_depth_is_held_at_the_last_output():
+    prev = (0.1, 0.0, 2.0, 0.2, 0.2, 2.05, 0.3, 0.4, 2.0)
+    vs = [1e-4] * 9
+    vs[5] = 0.01  # the filter extrapolates the elbow (variance above R)
+    p, held = hold_blind((0.21, 0.22, 1.80), vs, 3, (0.2, 0.2, 2.06), prev, R_Z)
+    assert held and p == (0.21, 0.22, 2.05)
+    # A filter that stayed within one sigma of where it last saw the joint is followed.
+    p, held = hold_blind((0.21, 0.22, 2.02), vs, 3, (0.2, 0.2, 2.06), prev, R_Z)
+    assert not held and p == (0.21, 0.22, 2.02)
+    vs[5] = 1e-4  # a filter as sure as a measurement is followed too
+    assert hold_blind((0.21, 0.22, 1.80), vs, 3, None, prev, R_Z) == ((0.21, 0.22, 1.80), False)
+
+
+def _known(vs, lost, me=False, ms=True, no_prior=frozenset()):
+    m = [NAN] * 9
+    xy = (0.0, 0.0, 0.1, 0.25, 0.35, 0.3)  # shoulder, elbow, wrist x, y: segments near the image plane
+    return known_depths(m, vs, me, ms, 3, 0, 0, 1, 0.29, 0.26, xy, R_Z, 1e-4, no_prior, lost, 3.0)
+
+
+def test_a_dropped_depth_is_known_when_the_filter_knows_it_as_well_as_a_measurement():
+    vs = [1e-4] * 9
+    vs[5] = 0.002  # < R
+    assert _known(vs, [5.0, 0.0]) == (True, True)
+    # ... but not when the filter's estimate is no evidence (held or following an occluder).
+    assert _known(vs, [5.0, 0.0], no_prior={0}) == (False, True)
+
+
+def test_a_dropped_depth_is_known_recently_only_if_the_filter_beats_the_rebuild():
+    # The forearm is near the image plane: eq. 7 rebuilds the elbow's depth from the wrist with a variance of
+    # 5.1e-3 m^2 (the shoulder's depth is not measured either, so there is no second rebuild to fuse).
+    vs = [1e-4] * 9
+    vs[5] = 0.004  # above R, below the rebuild's variance
+    assert _known(vs, [2.0, 0.0], ms=False) == (True, True)
+    assert _known(vs, [4.0, 0.0], ms=False)[0] is False  # dropped more than recent_frames ago
+    # With the shoulder seen, the fused rebuild (2.1e-3 m^2) beats the filter's 4e-3.
+    assert _known(vs, [2.0, 0.0], ms=True)[0] is False
+    vs[5] = float("nan")  # a variance the filter does not know counts as above any
+    assert _known(vs, [1.0, 0.0], ms=False)[0] is False
