@@ -80,7 +80,11 @@ class ExtendedKalmanFilterCV:
         self.dims, self.config = dims, config = _checked(dims, config)
         self.num_landmarks = NUM_LANDMARKS
         self._n3 = n3 = 3 * _NA
-        self._n = n = 2 * n3
+        segs = config.segments
+        nc = len(segs)
+        # Length deviation states b (one per segment) after p and v, when the deviation is correlated in time.
+        self._nb = nb = nc if config.length_tau_s is not None else 0
+        self._n = n = 2 * n3 + nb
         self._limit = config.max_predict_s + _T_EPS
         self._r = np.tile(config.r, _NA)
         self._R = np.diag(self._r)
@@ -97,23 +101,24 @@ class ExtendedKalmanFilterCV:
         self._P = M[:, :n]
         self._x = M[:, n]
         self._p = self._x[:n3]
-        self._v = self._x[n3:]
+        self._v = self._x[n3 : 2 * n3]
+        self._b = self._x[2 * n3 :]
         o = n * (n + 1)
         self._age = b[o : o + n3]
         self._init = b[o + n3 : o + 2 * n3]
         self._rej = b[o + 2 * n3 : o + 3 * n3]
         self._count = b[o + 3 * n3 :]
-        self._M_top, self._M_bottom = M[:n3], M[n3:]
-        self._P_left, self._P_right = M[:, :n3], M[:, n3:n]
+        self._M_top, self._M_bottom = M[:n3], M[n3 : 2 * n3]
+        self._P_left, self._P_right = M[:, :n3], M[:, n3 : 2 * n3]
         self._P_pp = M[:n3, :n3]
+        self._M_b, self._P_colb = M[2 * n3 :], M[:, 2 * n3 : n]
+        self._b_diag = np.arange(2 * n3, n)
 
         # Constraint k: segment between arm landmarks a_k and b_k.
-        segs = config.segments
         self._seg_names = segs
         ca = np.array([INDEX[SEGMENTS[s][0]] for s in segs], dtype=np.intp)
         cb = np.array([INDEX[SEGMENTS[s][1]] for s in segs], dtype=np.intp)
         self._ca, self._cb = ca, cb
-        nc = len(segs)
         self._l = np.array([getattr(dims, s) for s in segs])
         # D: (3 nc, n3) with diff = D p = p_a - p_b per segment and axis.
         self._D = np.zeros((3 * nc, n3))
@@ -132,7 +137,12 @@ class ExtendedKalmanFilterCV:
             )
         )
         self._sign2 = np.array([[1.0], [-1.0]])
+        # H_c's columns of b: -1 on row k at b_k (h(x) = |p_a - p_b| - b_k), zeroed for a skipped segment.
+        self._hc_b = (np.arange(nb), 2 * n3 + np.arange(nb))
         self._Rc = np.eye(nc) * config.sigma_c**2
+        self._phi_b = 1.0
+        # Stationary variances of the length deviations (the shoulder width's is not a bone's).
+        self._var_b = np.array([config.width_sigma_m if s == "SW" else config.length_sigma_m for s in segs[:nb]]) ** 2
         # Scratch.
         self._Q = np.zeros((n, n))
         self._T_rows = np.empty((n3, n + 1))
@@ -155,6 +165,7 @@ class ExtendedKalmanFilterCV:
     def reset(self) -> None:
         """Forget every track."""
         self._buf[...] = 0.0
+        self._P[self._b_diag, self._b_diag] = self._var_b
         self._all_init = False
         self._oldest = 0.0
         self._side.reset()
@@ -210,7 +221,17 @@ class ExtendedKalmanFilterCV:
     def arm_covariance(self) -> np.ndarray:
         """Copy of the 36 x 36 covariance of the arm block: positions then velocities, landmarks in
         the order of ``skeleton.ARM_JOINTS``, x/y/z innermost."""
-        return self._P.copy()
+        m = 2 * self._n3
+        return self._P[:m, :m].copy()
+
+    @property
+    def length_deviation(self) -> dict[str, tuple[float, float]]:
+        """Per constrained segment, ``(b, sd)``: the estimated deviation of the landmark distance from the
+        calibrated length and its standard deviation, metres (``(0, 0)`` without ``EKFConfig.length_tau_s``)."""
+        if not self._nb:
+            return {s: (0.0, 0.0) for s in self._seg_names}
+        sd = np.sqrt(np.diagonal(self._P)[self._b_diag])
+        return {s: (float(b), float(d)) for s, b, d in zip(self._seg_names, self._b, sd, strict=True)}
 
     @property
     def status(self) -> np.ndarray:
@@ -235,6 +256,10 @@ class ExtendedKalmanFilterCV:
         Q[i, i + n3] = Qpv
         Q[i + n3, i] = Qpv
         Q[i + n3, i + n3] = Qvv
+        if self._nb:
+            # Gauss-Markov length deviations: b <- phi b, plus variance var_b (1 - phi^2) (stationary var_b).
+            self._phi_b = phi = math.exp(-dt / self.config.length_tau_s)
+            Q[self._b_diag, self._b_diag] = self._var_b * (1.0 - phi * phi)
         self._dt = dt
 
     def _zero_rows_cols(self, rows: np.ndarray) -> None:
@@ -281,6 +306,9 @@ class ExtendedKalmanFilterCV:
         # A [P | x]: position rows += dt velocity rows; (A P) A^T: position cols += dt velocity cols
         self._M_top += np.multiply(self._M_bottom, dt, out=self._T_rows)
         self._P_left += np.multiply(self._P_right, dt, out=self._T_cols)
+        if self._nb:  # b <- phi b: its rows (x included) and columns of [P | x]
+            self._M_b *= self._phi_b
+            self._P_colb *= self._phi_b
         P += self._Q
         if slow and held.size:
             self._zero_rows_cols(held)
@@ -351,8 +379,9 @@ class ExtendedKalmanFilterCV:
         h = np.sqrt(np.add.reduce(diff * diff, axis=1))
         if self._all_init and min(h.tolist()) > _MIN_CONSTRAINT_DIST:
             u = diff / h[:, None]
-            # -(l - h(x))
+            # -(l + b - h(x))
             neg_resid = h - self._l
+            active = None
         else:
             active = h > _MIN_CONSTRAINT_DIST
             if not self._all_init:
@@ -364,8 +393,16 @@ class ExtendedKalmanFilterCV:
             u = np.where(active[:, None], diff / np.where(active, h, 1.0)[:, None], 0.0)
             neg_resid = np.where(active, h - self._l, 0.0)
         # eq. (5): H_c row k = [u_k^T at p_a, -u_k^T at p_b, 0 elsewhere], u_k = (p_a - p_b) / h_k
+        # (with the length deviation states, also -1 at b_k: h(x) = |p_a - p_b| - b_k)
         Hc = self._Hc
         Hc.reshape(-1)[self._hc_flat] = np.multiply(self._sign2, u.reshape(1, -1), out=self._vals)
+        if self._nb:
+            neg_resid = neg_resid - self._b
+            if active is None:
+                Hc[self._hc_b] = -1.0
+            else:
+                Hc[self._hc_b] = np.where(active, -1.0, 0.0)
+                neg_resid[~active] = 0.0
         PHt = np.dot(self._P, Hc.T)
         # S_c = H_c P H_c^T + sigma_c^2 I
         S = Hc @ PHt

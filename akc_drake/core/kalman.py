@@ -170,17 +170,47 @@ class EKFConfig(KFConfig):
     """:class:`KFConfig` plus the bone-length constraint of the EKF (eq. 4-6).
 
     Attributes:
-        sigma_c: standard deviation of the bone-length pseudo-measurement, metres. 0.01 m: about
-            the accuracy of a T-pose calibration; smaller values hold the lengths harder.
+        sigma_c: standard deviation of the bone-length pseudo-measurement, metres: its part that is new
+            every frame. 0.01 m: about the accuracy of a T-pose calibration; smaller values hold the
+            lengths harder.
         segments: which segments are constrained (names of ``skeleton.SEGMENTS``).
+        length_tau_s: correlation time (s) of the persistent part of each segment's length error in our
+            coupled EKF (:class:`~akc_drake.core.ekf.ExtendedKalmanFilterCV`), or None: no persistent part
+            (the white pseudo-measurement of eq. 4-6 alone). The distance between two detected landmarks
+            differs from the calibrated length by an error that persists from frame to frame: the
+            calibration's own error, and landmarks that move on the body with the pose. Taken as fresh
+            evidence every frame, the same error makes the filter ever more certain of a wrong depth (on
+            the rendered bench the coupled EKF's depth was 2-3 times worse than its variance said). With
+            ``length_tau_s`` each segment carries a first-order Gauss-Markov deviation state ``b`` and the
+            pseudo-measurement is ``|p_i - p_j| = l + b`` (white part ``sigma_c``). 3 s: about as long as an
+            arm holds one posture (the paper's motions are 6 s cycles); 1 s and 10 s give nearly the same
+            results on the bench and the real clips. The paper's per-joint EKF
+            (:class:`~akc_drake.core.ekf.PerJointEKF`) ignores this and the two sigmas below.
+        length_sigma_m: stationary standard deviation of an arm bone's ``b`` (m): a T-pose calibration's
+            accuracy, 0.01.
+        width_sigma_m: stationary standard deviation of the shoulder width's ``b`` (m). The shoulder width is
+            not a bone: the shoulders ride on the shoulder girdle, which protracts, retracts and rises with
+            the arms, and a detected shoulder landmark moves with it (on the bench, the detected shoulders
+            are on average 1.6 cm (Motion I) and 4.2 cm (Motion II) closer in the image than the calibrated
+            width, mostly where their depth is dropped). With the torso facing the camera the width lies in the
+            image plane, where a length says little about depth and a few cm of it become a large depth
+            difference (``sqrt(l^2 - d_xy^2)``). 0.03 (the bench gives the same with 0.05; with 0.01 the
+            Motion I shoulders are 4.0 cm instead of 2.7).
     """
 
     sigma_c: float = 0.01
     segments: tuple[str, ...] = SEGMENT_NAMES
+    length_tau_s: float | None = 3.0
+    length_sigma_m: float = 0.01
+    width_sigma_m: float = 0.03
 
     def __post_init__(self):
         super().__post_init__()
         object.__setattr__(self, "sigma_c", _positive("EKFConfig.sigma_c", self.sigma_c))
+        if self.length_tau_s is not None:
+            object.__setattr__(self, "length_tau_s", _positive("EKFConfig.length_tau_s", self.length_tau_s))
+        for name in ("length_sigma_m", "width_sigma_m"):
+            object.__setattr__(self, name, _positive(f"EKFConfig.{name}", getattr(self, name)))
         segs = (self.segments,) if isinstance(self.segments, str) else tuple(self.segments)
         unknown = [s for s in segs if s not in SEGMENTS]
         if unknown or not segs or len(set(segs)) != len(segs):
