@@ -156,7 +156,13 @@ def test_a_wrist_hidden_by_its_own_hand_is_put_behind_the_hand():
     # Within 2 mm (the image part is read at the nearer point of the ray, 1.4 mm off here).
     np.testing.assert_allclose(fixed, w, atol=2e-3)
     np.testing.assert_allclose(np.cross(fixed, w), 0.0, atol=1e-12)  # on the wrist's pixel ray
-    # A wrist seen behind its knuckles, a forearm across the image, a hand seen side-on: unchanged.
+    # The depth read past the hand's edge, 6 cm behind the wrist: forward to the same point; 15 cm behind: a hand's
+    # length forward at most.
+    far = w * (w[2] + 0.06) / w[2]
+    np.testing.assert_allclose(wrist_behind_hand(e, far, i, p, 0.085), w, atol=2e-3)
+    very_far = w * (w[2] + 0.15) / w[2]
+    assert wrist_behind_hand(e, very_far, i, p, 0.085)[2] == pytest.approx(very_far[2] - 0.085, abs=1e-9)
+    # A wrist seen where it is, a forearm across the image, a hand seen side-on: unchanged.
     np.testing.assert_array_equal(wrist_behind_hand(e, w, i, p, 0.085), w)
     np.testing.assert_array_equal(wrist_behind_hand(w + [0.28, 0.0, 0.0], seen, i, p, 0.085), seen)
     # Knuckles read 20 cm behind the wrist (their depth hit the body behind): their depth failed, no move.

@@ -11,7 +11,8 @@ frame:
    arms, a standing operator's do not; a step or a turn is followed); then smoothed on SE(3)
    (:data:`~akc_drake.core.smoothing.TORSO_SMOOTHING`, One Euro + flip guard). Missing: the last torso is held.
 2. **Wrists** (eq. 17) in the camera frame: a wrist hidden by its own hand (the forearm pointing at the camera,
-   the depth reading the back of the hand) is first moved back behind the hand (:func:`wrist_behind_hand`); the
+   the depth reading the back of the hand, or past its edge) is first put a hand's length behind the knuckles
+   (:func:`wrist_behind_hand`); the
    hand vector ``p_i - p_p`` (MediaPipe Hands' knuckle line when given, :func:`hands_knuckle_vector`, its
    index/pinky swaps held off, :func:`hands_swapped`) is rebuilt from its image-plane part and the hand's learnt width
    (:func:`~akc_drake.core.frames.reconstruct_hand_vector`: the knuckles'
@@ -60,18 +61,19 @@ TOWARD_CAMERA_SHARE = (0.5, 0.8)
 
 
 def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
-    """The wrist moved back along its pixel ray when its own hand hides it from the camera.
+    """The wrist put on its pixel ray a hand's length behind the knuckles when its own hand hides it from the camera.
 
-    When the forearm points toward the camera, the hand is in front of the wrist: the depth camera reads the back
-    of the hand at the wrist's pixel, up to a hand's length (10-15 cm measured) nearer than the wrist. The hand's
-    length is a constant (``hand_length_m``, wrist to the knuckles' midpoint ``c``), and its image part is
-    measured, so the wrist lies ``dz = sqrt(L^2 - |(p_w - c)_xy|^2)`` behind ``c``. A wrist measured nearer than
-    that is moved back toward that depth on its pixel ray, by a weight that grows from 0 to 1 as the forearm turns
-    toward the camera (:data:`TOWARD_CAMERA_SHARE`). Every step is continuous in the landmarks (no switch, so
-    no jump from one frame to the next), and the correction is bounded by the hand's foreshortening: a hand seen
-    side-on (``|(p_w - c)_xy| >= L``), a forearm across the image, or a wrist already behind its knuckles is left
-    as it is; so is a wrist whose knuckles read more than a hand's length behind it (their depth failed), and the
-    move is at most a hand's length.
+    When the forearm points toward the camera, the hand is in front of the wrist and the depth at the wrist's pixel
+    is not the wrist's: it reads the back of the hand or the fingers, up to a hand's length (10-15 cm measured)
+    nearer, or, the end-on arm being a small patch in the image, past the hand's edge, farther (MediaPipe's wrist on
+    the rendered reaches: 3-7 cm too far for a second while the arm is held out; the knuckles' midpoint there within
+    1 cm of its true depth, the back of the hand being a broad surface facing the camera). The hand's length is a
+    constant (``hand_length_m``, wrist to the knuckles' midpoint ``c``), and its image part is measured, so the
+    wrist lies ``dz = sqrt(L^2 - |(p_w - c)_xy|^2)`` behind ``c``. The wrist is moved along its pixel ray toward that
+    depth, from nearer or from farther, by a weight that grows from 0 to 1 as the forearm turns toward the camera
+    (:data:`TOWARD_CAMERA_SHARE`). Every step is continuous in the landmarks (no switch, so no jump from one frame to
+    the next); a forearm across the image is left as it is, and so is a wrist whose knuckles read more than a hand's
+    length behind it (their depth failed); the move is at most a hand's length either way.
 
     Args:
         p_e, p_w, p_i, p_p: ``(3,)`` elbow, wrist, index and pinky knuckles in the camera frame C (z forward).
@@ -90,11 +92,10 @@ def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
     c = 0.5 * (np.asarray(p_i, dtype=float) + np.asarray(p_p, dtype=float))
     d = p_w - c
     dz = math.sqrt(max(hand_length_m**2 - float(d[0] ** 2 + d[1] ** 2), 0.0))
-    deficit = c[2] + dz - p_w[2]
-    if deficit <= 0.0 or c[2] - p_w[2] > hand_length_m:  # knuckles a hand's length behind the wrist: their depth failed
+    if c[2] - p_w[2] > hand_length_m:  # knuckles a hand's length behind the wrist: their depth failed
         return p_w
-    deficit = min(deficit, hand_length_m)  # the hand hides the wrist from at most its own length in front
-    return p_w * ((p_w[2] + weight * deficit) / p_w[2])  # on the wrist's pixel ray, toward behind its hand
+    deficit = min(max(c[2] + dz - p_w[2], -hand_length_m), hand_length_m)  # at most a hand's length either way
+    return p_w * ((p_w[2] + weight * deficit) / p_w[2])  # on the wrist's pixel ray, to a hand's length behind c
 
 
 def calibrate_torso(poses) -> TorsoModel:
@@ -265,7 +266,7 @@ class ControlFrameTracker:
         return out
 
     def _wrist(self, state: np.ndarray, j: int, p_e, p_w, p_i, p_p) -> np.ndarray:
-        """The wrist, moved behind its hand when the hand hides it (:func:`wrist_behind_hand`); the hand's length
+        """The wrist, put behind its hand when the hand hides it (:func:`wrist_behind_hand`); the hand's length
         is learnt from frames whose wrist-to-knuckles vector lies mostly in the image plane (exponential average)."""
         length = state[j] if np.isfinite(state[j]) else DEFAULT_HAND_LENGTH_M
         d = p_w - 0.5 * (p_i + p_p)
