@@ -97,10 +97,31 @@ def test_operator_on_target_plays_the_plan_and_aims_at_the_waypoints(planned):
     p, _, speed = op.plan_tool(t_grasp)
     assert np.linalg.norm(p - PICK_BOX_T) < 0.01 and speed == 0.0
     # a tool 5 cm short of the box is corrected: the operator moves its wrist target toward the box
-    state = op.initial_state()
+    state = op.step(op.initial_state(), t_grasp - 1.0, op.plan_tool(t_grasp)[0] + [0.0, 0.0, 0.2])  # on its way
     for t in np.arange(t_grasp - 0.9, t_grasp - 0.2, DT):
         state = op.step(state, t, op.plan_tool(t)[0] - [0.05, 0.0, 0.0] + state.offset)
     assert state.offset[0] > 0.02 and abs(state.offset[1]) < 1e-9
     q_moved = op.posture(state, t_grasp)
     assert np.max(np.abs(q_moved[5:] - motion.sample([t_grasp])[1][0])) > 0.02  # the right arm
     np.testing.assert_array_equal(q_moved[:5], motion.sample([t_grasp])[0][0])  # the left arm plays the plan
+
+
+def test_a_robot_that_has_not_started_following_is_waited_for(planned):
+    """A tool held in its home pose 12 cm from the aim (tracking not yet acquired) is not chased: no correction
+    until it has moved 3 cm; then the operator corrects as usual."""
+    from akc_drake.operator.closed_loop import ENGAGE_M
+
+    motion, plan, mapping = planned
+    op = ClosedLoopOperator(motion, mapping, tool_plan=plan)
+    p0, _, _ = op.plan_tool(0.5)
+    home = p0 + [0.12, 0.0, 0.0]
+    state = op.initial_state()
+    for t in np.arange(0.0, 1.4, DT):  # the plan rests (still); the robot does not move
+        state = op.step(state, t, home)
+    assert np.all(state.offset == 0.0) and not state.engaged
+    # the robot starts following: it comes to rest 5 cm short of the aim, and the operator corrects that
+    state = op.step(state, 1.4, home - [ENGAGE_M + 0.01, 0.0, 0.0])
+    assert state.engaged
+    for t in np.arange(1.42, 2.4, DT):
+        state = op.step(state, t, p0 + [0.05, 0.0, 0.0] + state.offset)
+    assert state.offset[0] < -0.01

@@ -7,7 +7,8 @@ import pytest
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
 
 from akc_drake.operator.closed_loop import ClosedLoopOperator
 from akc_drake.robot.model import add_dual_arm_robot, ee_frame, torso_frame
@@ -31,21 +32,30 @@ def parts():
 def test_the_operator_corrects_toward_the_aim_after_its_delay(parts):
     op, plant, robot = parts
     ctx = plant.CreateDefaultContext()
-    x = plant.GetPositionsAndVelocities(ctx)
-    tool = ee_frame(plant, "right", robot).CalcPose(ctx, torso_frame(plant, robot)).translation()
+    x0 = plant.GetPositionsAndVelocities(ctx)
+    T = torso_frame(plant, robot)
+    home = ee_frame(plant, "right", robot).CalcPose(ctx, T).translation()
+    # the robot sits in its home posture for 0.3 s, then its right arm moves (and stays there): it follows
+    plant.GetJointByName("arm_right_4_joint").set_angle(ctx, plant.GetJointByName("arm_right_4_joint").get_angle(
+        ctx) + 0.4)
+    x1 = plant.GetPositionsAndVelocities(ctx)
+    tool = ee_frame(plant, "right", robot).CalcPose(ctx, T).translation()
+    assert np.linalg.norm(tool - home) > 0.05
     builder = DiagramBuilder()
-    src = builder.AddSystem(ConstantVectorSource(x))  # a robot frozen in its default posture
+    traj = PiecewisePolynomial.ZeroOrderHold([0.0, 0.3, 10.0], np.column_stack([x0, x1, x1]))
+    src = builder.AddSystem(TrajectorySource(traj))
     ctrl = builder.AddSystem(OperatorController(op, plant, robot))
     builder.Connect(src.get_output_port(), ctrl.GetInputPort("plant_state"))
     diagram = builder.Build()
     sim = Simulator(diagram)
     q0 = ctrl.GetOutputPort("q_operator").Eval(ctrl.GetMyContextFromRoot(sim.get_context()))
     np.testing.assert_array_equal(q0, op.plan.q()[0])  # at the start: the plan's posture
-    np.testing.assert_allclose(ctrl.tool_position(ctrl.GetMyContextFromRoot(sim.get_context())), tool)
-    sim.AdvanceTo(1.2)  # the plan rests still for 1.5 s; the tool stays where it is, off the aim
+    np.testing.assert_allclose(ctrl.tool_position(ctrl.GetMyContextFromRoot(sim.get_context())), home)
+    sim.AdvanceTo(1.4)  # the plan rests still for 1.5 s; the tool, off the aim, stays where it moved
     t, c = ctrl.offsets()
-    assert np.all(c[t < op.correction.params.delay_s] == 0.0)
-    aim = op.plan_tool(1.2)[0]
+    # nothing while the robot sat at home, nor for the delay after it moved
+    assert np.all(c[t < 0.3 + op.correction.params.delay_s] == 0.0)
+    aim = op.plan_tool(1.4)[0]
     direction = (aim - tool) / np.linalg.norm(aim - tool)
     assert np.linalg.norm(c[-1]) > 0.02
     assert float(c[-1] @ direction) / np.linalg.norm(c[-1]) > 0.999  # toward the aim

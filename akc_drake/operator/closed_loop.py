@@ -39,6 +39,10 @@ tool, as a person sees it):
   a tool held off by contact (the fingers on the table) within the deadband does not wind the operator up.
   Within :data:`GRIP_HOLD_S` of a change of the hand's closure (grasping, releasing) the operator holds the
   correction: a person attends to the hand and keeps the arm still.
+* **A robot that follows.** The operator corrects only once the robot's tool has moved :data:`ENGAGE_M` from
+  where it was first seen: a robot held in its home pose (its tracking not yet acquired) does not respond to the
+  operator's hand, and integrating its error would only wind the correction up to its bound (measured: KF, seed 0,
+  the offset at its 20 cm bound before the robot first moved, 2.5 s into the run).
 
 Parameters (assumptions, stated as such): the delay 0.25 s is in the range of the visual feedback loop times
 measured for aimed hand movements (Keele and Posner 1968: ~190-260 ms; Carlton 1981: ~135-290 ms; a simple
@@ -77,6 +81,10 @@ CARRY_RADIUS_M = 0.06
 ROTATION_DEADBAND_RAD = 0.09
 ROTATION_MAX_SPEED_RAD_S = 1.0
 ROTATION_MAX_RAD = 0.6
+#: The operator starts correcting once the robot's tool has moved this far (m) from where it was first seen: a
+#: robot that has not started following the operator (tracking not yet acquired, held in its home pose) is waited
+#: for, not chased (integrating the error of a robot that does not respond winds the correction up to its bound).
+ENGAGE_M = 0.03
 #: The operator holds its correction from this long (seconds) before a change of its hand's closure until
 #: :data:`GRIP_SETTLE_S` after it: a person grasping or releasing attends to the hand and keeps the arm still.
 GRIP_HOLD_S = 0.2
@@ -111,6 +119,8 @@ class CorrectionState:
     t_last: float | None = None
     tool_last: np.ndarray | None = None
     rotation: CorrectionState | None = None
+    tool_first: np.ndarray | None = None
+    engaged: bool = False
 
 
 class VisualCorrection:
@@ -238,6 +248,13 @@ class ClosedLoopOperator:
             w = 0.0
         if state.tool_last is not None and state.t_last is not None and t > state.t_last:
             w *= self.weight(float(np.linalg.norm(tool - state.tool_last)) / (t - state.t_last))
+        seen_tool = np.asarray(p_tool_T, dtype=float).reshape(3)
+        first = state.tool_first if state.tool_first is not None else (
+            seen_tool.copy() if np.all(np.isfinite(seen_tool)) else None)
+        engaged = state.engaged or (first is not None and np.all(np.isfinite(seen_tool))
+                                    and float(np.linalg.norm(seen_tool - first)) > ENGAGE_M)
+        if not engaged:  # the robot has not started following: wait for it
+            w = 0.0
         new = self.correction.step(state, t, p - tool, w)
         rot = state.rotation
         if R_tool is not None:
@@ -247,7 +264,7 @@ class ClosedLoopOperator:
                 3, np.nan)
             rot = self.rotation.step(rot or CorrectionState(), t, e_rot, w)
         return CorrectionState(new.offset, new.seen, new.t_last, tool.copy() if np.all(np.isfinite(tool)) else None,
-                               rot)
+                               rot, first, bool(engaged))
 
     def posture(self, state: CorrectionState, t: float) -> np.ndarray:
         """``(2 * NUM_ARM_DOF,)`` the operator's ``[q_left, q_right]`` at ``t``: the plan's, the corrected arm
