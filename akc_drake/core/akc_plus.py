@@ -73,6 +73,7 @@ import numpy as np
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.akc_plus_evidence import arm_variances, hold_blind, known_depths
+from akc_drake.core.akc_plus_lengths import project_forearm
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.arm_geometry import arm_inputs, project_lengths, ray_check
 from akc_drake.core.arm_geometry import candidates as _candidates
@@ -420,8 +421,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     # With the covariance, the wrist does not take the whole correction: the elbow (at its image
                     # x, y and this depth) and the wrist move as little as their variances allow (the kept
                     # shoulder fixed), mostly in depth.
-                    arm, _ = project_lengths((sx, sy, sz, ex, ey, e[2], wx, wy, wz), (0.0, 0.0, 0.0, *vs[3:]),
-                                             lu, lf)
+                    arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), vs[3:], lu, lf)
                     if arm is not None:
                         return arm
                 w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
@@ -503,4 +503,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             o_s, o_e, o_w = offsets[side]
             # (Nine item stores: about a third of the time of three slice assignments.)
             v[o_s], v[o_s + 1], v[o_s + 2], v[o_e], v[o_e + 1], v[o_e + 2], v[o_w], v[o_w + 1], v[o_w + 2] = out
-        return AKCResult(np.array(v, dtype=np.float64).reshape(NUM_LANDMARKS, 3), chosen, fallback, held, [_NAN, _NAN])
+        # (``np.fromiter`` over the 36 floats: about 0.2 µs less than ``np.array`` of the list.)
+        return AKCResult(np.fromiter(v, _F64, 3 * NUM_LANDMARKS).reshape(NUM_LANDMARKS, 3), chosen, fallback, held,
+                         [_NAN, _NAN])

@@ -81,13 +81,17 @@ class CandidateSearch:
         best = None
         best_j = _inf
         for p in cands:
-            j = _d2(p, fx, fy, fz) * inv_f2
+            px, py, pz = p
+            dx, dy, dz = px - fx, py - fy, pz - fz
+            j = (dx * dx + dy * dy + dz * dz) * inv_f2
             if prev_p is not None:
-                j += min(_d2(p, prev_p[0], prev_p[1], prev_p[2]) * inv_t2, t_cap)
+                dx, dy, dz = px - prev_p[0], py - prev_p[1], pz - prev_p[2]
+                t = (dx * dx + dy * dy + dz * dz) * inv_t2
+                j += t_cap if t_cap < t else t  # (min(t, t_cap), NaN included)
             if inv_w2 is None:
                 x = 0.0
             else:
-                dw = _hypot(p[0] - wx, p[1] - wy, p[2] - wz) - lf
+                dw = _hypot(px - wx, py - wy, pz - wz) - lf
                 x = dw * dw * inv_w2
             if j + x >= best_j:
                 continue  # (the penalty is >= 0)

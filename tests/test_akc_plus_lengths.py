@@ -1,0 +1,37 @@
+import math
+import random
+
+import pytest
+
+from akc_drake.core.akc_plus_lengths import project_forearm
+from akc_drake.core.arm_geometry import project_lengths
+
+
+def test_forearm_projection_is_the_general_projection_with_a_fixed_shoulder():
+    # Bit-identical to project_lengths with zero shoulder variances over random arms near the lengths.
+    rng = random.Random(11)
+    solved = 0
+    for _ in range(2000):
+        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
+        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
+        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        v = tuple(rng.uniform(1e-5, 1e-2) for _ in range(6))
+        want, _ = project_lengths((*s, *e, *w), (0.0, 0.0, 0.0, *v), 0.29, 0.26)
+        got = project_forearm(s, (*e, *w), v, 0.29, 0.26)
+        assert got == want
+        solved += got is not None
+    assert solved > 1000
+
+
+def test_forearm_projection_keeps_the_shoulder_and_moves_the_uncertain_depths():
+    s = (0.18, 0.0, 2.0)
+    e, w = (0.2, 0.27, 2.05), (0.25, 0.5, 1.95)  # upper arm 27.8 cm, forearm 25.3 cm: both short
+    v = (1e-4, 1e-4, 4e-3, 1e-4, 1e-4, 2.5e-3)  # x, y as a measurement knows them, depths far less
+    arm = project_forearm(s, (*e, *w), v, 0.29, 0.26)
+    assert arm[:3] == s
+    assert math.dist(arm[:3], arm[3:6]) == pytest.approx(0.29, abs=1e-12)
+    assert math.dist(arm[3:6], arm[6:]) == pytest.approx(0.26, abs=1e-12)
+    moved = [abs(a - b) for a, b in zip(arm[3:], (*e, *w), strict=True)]
+    assert max(moved[0], moved[1], moved[3], moved[4]) < 0.006  # x, y: at most 6 mm
+    assert moved[2] > 0.03 and moved[5] > 0.01  # the depths take the correction
+    assert project_forearm(s, (*e, 0.9, 0.5, 1.95), v, 0.29, 0.26) is None  # the wrist out of reach
