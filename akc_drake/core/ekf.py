@@ -9,7 +9,9 @@ of :mod:`akc_drake.core.kalman` (which documents the model, missing data, holdin
   the upper-arm length from the (updated) elbow (the chain AKC uses; the paper names "two connected joints"
   and "a predefined arm length l", so the shoulder width is not constrained).
 * :class:`ExtendedKalmanFilterCV` (``--protocol ours``): the six arm joints in one 36-state filter, every
-  segment (shoulder width too) a pseudo-measurement on both of its ends, batched.
+  segment (shoulder width too) a pseudo-measurement on both of its ends, batched; with
+  ``EKFConfig.length_tau_s`` (the default) plus one state per segment for the persistent part of its length
+  error (41 states).
 """
 
 from __future__ import annotations
@@ -57,12 +59,20 @@ def _checked(dims, config) -> tuple[BodyDimensions, EKFConfig]:
 class ExtendedKalmanFilterCV:
     """Constant-velocity EKF with bone-length pseudo-measurements (eq. 4-6).
 
-    The arm landmarks (both shoulders, elbows and wrists) share one 36-state filter, state
-    ``x = [p (18), v (18)]`` (landmark-major, x/y/z innermost) with a full 36 x 36 covariance.
+    The arm landmarks (both shoulders, elbows and wrists) share one filter, state
+    ``x = [p (18), v (18)]`` (landmark-major, x/y/z innermost) with a full covariance.
     After the measurement update each constrained segment adds the pseudo-measurement
     ``|p_i - p_j| = l`` with variance ``sigma_c^2``, all segments in one batch linearised at the
     updated state. A segment is skipped when an axis of either end is uninitialised or the ends
     coincide. The other landmarks run the decoupled :class:`ConstantVelocityKF`.
+
+    With ``config.length_tau_s`` (the default) the state also holds ``b (5)``, one per segment: the persistent
+    part of the difference between the landmarks' distance and the calibrated length, a first-order
+    Gauss-Markov process (``b <- exp(-dt / tau) b``, stationary standard deviation ``length_sigma_m``,
+    ``width_sigma_m`` for the shoulder width, starting at 0 with that variance), and the pseudo-measurement is
+    ``|p_i - p_j| - b = l`` (``sigma_c`` its white part). An error that persists, such as a detected landmark
+    moved on the body, is then one quantity the filter estimates, not fresh evidence every frame
+    (:class:`~akc_drake.core.kalman.EKFConfig` says why).
 
     A held axis (see the module docstring) has its velocity and the velocity's covariance
     zeroed every step, so the motion model no longer moves it, but its position stays in the

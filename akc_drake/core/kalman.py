@@ -25,7 +25,8 @@ pseudo-measurement per connected pair (LUA, LLA, RUA, RLA, SW)::
 
 with its own variance ``sigma_c^2``: a soft constraint toward the calibrated lengths. The six
 arm landmarks (shoulders, elbows, wrists) are coupled through it and carry a full 36 x 36
-covariance; the other six landmarks keep the decoupled KF.
+covariance (plus, with ``EKFConfig.length_tau_s``, one state per segment for the persistent part of
+its length error); the other six landmarks keep the decoupled KF.
 
 **Missing data.** A measurement is a ``(J, 3)`` array with NaN where missing (the occlusion filter
 drops a depth by setting only ``z`` to NaN). Each axis that is present is used: all three ->
