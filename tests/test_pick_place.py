@@ -92,3 +92,24 @@ def test_hand_recorder_keeps_the_apertures_and_the_knuckle_vectors():
     assert kn.shape == (2, 2, 3)
     assert np.all(np.isnan(kn[:, 0]))  # no left hand
     np.testing.assert_allclose(kn[0, 1], [30.0 / K.fx, -10.0 / K.fy, -6.0 / K.fx])
+
+
+def test_the_closed_loop_run_is_recorded_on_its_own_meshcat_page(monkeypatch):
+    """The closed loop renders its operator on the simulation's clock, so its recorded run gets a Meshcat of its
+    own, recorded from time 0 (the run itself is stubbed here: only the recording's plumbing is tested)."""
+    from pydrake.geometry import Box, Meshcat
+
+    from akc_drake.teleop import task
+
+    seen = {}
+
+    def fake_run(*args):
+        meshcat = args[-1]
+        seen["meshcat"] = meshcat
+        meshcat.SetObject("/drake/box_seen", Box(0.05, 0.05, 0.05))
+        return "run", "diagram"
+
+    monkeypatch.setattr(task, "_closed_loop_run", fake_run)
+    run, td, html = task._recorded_closed_loop_run("cfg", "calib")
+    assert (run, td) == ("run", "diagram") and isinstance(seen["meshcat"], Meshcat)
+    assert html is not None and "<html" in html.lower() and len(html) > 1000

@@ -314,6 +314,13 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
             operator=opts.operator,
         )
     outputs: dict[str, object] = {}
+    task_html = task.pop("recording_html", None) if task is not None else None
+    if task_html is not None:  # the closed-loop task run, recorded on its own page
+        try:
+            atomic_write_text(out / "pick_place.html", task_html)
+        except OSError as e:
+            raise UserError(f"{out / 'pick_place.html'}: cannot write: {e.strerror or e}") from None
+        outputs["pick_place_html"] = str(out / "pick_place.html")
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()

@@ -2,16 +2,16 @@
 
 Per seed, the operator's pick-and-place motion (:func:`~akc_drake.operator.motions.pick_place_plan`, varied by the
 seed) is its plan. With the closed-loop operator (``operator="closed"``, the default) each corrector gets its own
-run with the operator rendered in the loop: an
-:class:`~akc_drake.systems.operator_controller.OperatorController` watches the robot's tool (and the carried box)
-and corrects its wrist target (:mod:`akc_drake.operator.closed_loop`), MediaPipe (or the simulated detector) sees
-each rendered frame, and the hands measured on the same frames command the gripper; this run is not recorded in
-Meshcat. With ``operator="open"`` the motion is rendered once per seed and replayed through the teleop diagram with
-each corrector (the first seed's AKC(KF) run recorded in Meshcat); the grippers follow the
-operator's pinch (:mod:`akc_drake.core.gripper`), the box is a free body with contact. After the motion the robot
-holds its last targets for :data:`SETTLE_S` so the box comes to rest, and the run is scored
-(:func:`score_box`): **success** when the box's centre ends within :data:`SUCCESS_RADIUS_M` (horizontally) of the
-target's centre, resting on the table, **upright** (a face down: one of its axes within
+run with the operator rendered in the loop: an :class:`~akc_drake.systems.operator_controller.OperatorController`
+watches the robot's tool (and the carried box) and corrects its wrist target
+(:mod:`akc_drake.operator.closed_loop`), MediaPipe (or the simulated detector) sees each rendered frame, and the
+hands measured on the same frames command the gripper; given a Meshcat, the first seed's AKC(KF) run is recorded on
+a page of its own (``pick_place.html`` in the demo's folder). With ``operator="open"`` the motion is rendered once
+per seed and replayed through the teleop diagram with each corrector (the first seed's AKC(KF) run recorded in
+Meshcat); the grippers follow the operator's pinch (:mod:`akc_drake.core.gripper`), the box is a free body with
+contact. After the motion the robot holds its last targets for :data:`SETTLE_S` so the box comes to rest, and the
+run is scored (:func:`score_box`): **success** when the box's centre ends within :data:`SUCCESS_RADIUS_M`
+(horizontally) of the target's centre, resting on the table, **upright** (a face down: one of its axes within
 :data:`UPRIGHT_TOL_DEG` of vertical) and **released** (no robot body touching it).
 
 The hand channel: with ``--detector sim`` the simulated one (the motion's closure + noise,
@@ -214,11 +214,13 @@ def _hand_report(motion, times, apertures, cfg, seed: int, log) -> dict:
     return report
 
 
-def _closed_loop_run(cfg, calib, corrector, planned, mapping, landmarks, seed, progress, hand_detector):
+def _closed_loop_run(cfg, calib, corrector, planned, mapping, landmarks, seed, progress, hand_detector,
+                     meshcat=None):
     """One closed-loop run: the operator (:class:`~akc_drake.operator.closed_loop.ClosedLoopOperator`, ``planned``
     the motion and its :class:`~akc_drake.operator.motions.ToolPlan`) rendered in the loop, watching the robot's
     tool; the pose detector is ``cfg.detector``'s (seeded by ``seed``), the hands MediaPipe Hands' on the same
-    frames (``hand_detector``) or the simulated channel."""
+    frames (``hand_detector``) or the simulated channel; drawn in ``meshcat`` (its own recording, from time 0: the
+    rendered operator and the controller run on the simulation's clock) when given."""
     import dataclasses
 
     from akc_drake.operator.closed_loop import ClosedLoopOperator
@@ -230,10 +232,29 @@ def _closed_loop_run(cfg, calib, corrector, planned, mapping, landmarks, seed, p
     try:
         return run_teleop(dataclasses.replace(cfg, seed=seed), calib.dims, corrector=corrector, motion=motion,
                           torso_model=calib.torso, settle_s=SETTLE_S, progress=progress, operator=core,
-                          detector=detector, hand_detector=hand_detector)
+                          detector=detector, hand_detector=hand_detector, meshcat=meshcat)
     finally:
         if hasattr(detector, "close"):
             detector.close()
+
+
+def _recorded_closed_loop_run(*args) -> tuple:
+    """:func:`_closed_loop_run` drawn and recorded in a Meshcat of its own: ``(run, diagram, html)`` (html None when
+    Meshcat cannot start). The closed loop renders the operator on the simulation's clock, so it cannot be appended
+    after the demo's recorded replays (which start later); it gets its own page."""
+    try:
+        from pydrake.geometry import Meshcat, MeshcatParams
+
+        params = MeshcatParams()
+        params.host = "localhost"
+        meshcat = Meshcat(params)
+    except Exception:  # a port range in use, no sockets allowed, ...
+        return (*_closed_loop_run(*args), None)
+    meshcat.StartRecording(set_visualizations_while_recording=False)
+    run, td = _closed_loop_run(*args, meshcat)
+    meshcat.StopRecording()
+    meshcat.PublishRecording()
+    return run, td, meshcat.StaticHtml()
 
 
 def _world_from_T(p_T) -> np.ndarray:
@@ -261,7 +282,8 @@ def run_pick_place(
         cfg: the pipeline configuration; calib: the demo's T-pose :class:`~akc_drake.teleop.scenario.Calibration`.
         seeds: number of seeded runs (seeds 0 .. seeds - 1).
         meshcat, start_time: draw (and record) the first seed's AKC(KF) run in this Meshcat, starting at this
-            simulation time (after the demo's recorded runs).
+            simulation time (after the demo's recorded runs); with the closed-loop operator, given a Meshcat, that
+            run is recorded in a Meshcat of its own instead (its page in the result's ``"recording_html"``).
         hand_model: MediaPipe Hands' ``.task`` file (None: the packaged one).
         hands: the hand channel, "sim" (the motion's closure + noise) or "mediapipe" (MediaPipe Hands on the
             rendered frames); None: "mediapipe" when ``cfg.detector`` is, else "sim".
@@ -271,7 +293,8 @@ def run_pick_place(
 
     Returns:
         ``{"runs": [outcome dicts], "success_rate": {corrector: share}, "wall_s": ...}``; with MediaPipe's
-        hand channel also ``"hands"``: per seed, the hand channel's report.
+        hand channel also ``"hands"``: per seed, the hand channel's report; with the closed loop recorded,
+        ``"recording_html"``: its Meshcat page (a string, for the caller to write).
     """
     from akc_drake.core.frames import calibrated_mapping
     from akc_drake.diagrams import Measurements
@@ -299,6 +322,7 @@ def run_pick_place(
     if operator not in ("open", "closed"):
         raise ValueError(f"operator must be open or closed, got {operator!r}")
     offsets = []
+    html = None
     with quiet_drake_warnings():
         for seed in range(int(seeds)):
             # The operator works with the mapping the pipeline uses (calibrated from the T-pose).
@@ -319,6 +343,9 @@ def run_pick_place(
                                         meshcat=meshcat if record else None,
                                         start_time=start_time if record else 0.0, hand_apertures=apertures,
                                         hand_knuckles=knuckles)
+                elif meshcat is not None and seed == 0 and corrector == MAIN_CORRECTOR:
+                    run, td, html = _recorded_closed_loop_run(cfg, calib, corrector, (motion, plan), mapping,
+                                                              landmarks, seed, progress, hand_detector)
                 else:
                     run, td = _closed_loop_run(cfg, calib, corrector, (motion, plan), mapping, landmarks, seed,
                                                progress, hand_detector)
@@ -340,6 +367,7 @@ def run_pick_place(
         hand_detector.close()
     rates = {c: float(np.mean([o.success for o in outcomes if o.corrector == c])) for c in correctors}
     return {
+        **({"recording_html": html} if html is not None else {}),
         **({"hands": reports} if reports else {}),
         "task": "pick-place",
         "operator": operator,
