@@ -423,6 +423,12 @@ def test_bad_input_raises_value_error_naming_the_field():
         EKFConfig(sigma_c=0.0)
     with pytest.raises(ValueError, match="segments"):
         EKFConfig(segments=("LUA", "XYZ"))
+    with pytest.raises(ValueError, match="length_tau_s"):
+        EKFConfig(length_tau_s=0.0)
+    with pytest.raises(ValueError, match="width_sigma_m"):
+        EKFConfig(width_sigma_m=-0.01)
+    with pytest.raises(ValueError, match="length_sigma_m"):
+        EKFConfig(length_sigma_m=float("nan"))
     with pytest.raises(ValueError, match="BodyDimensions"):
         ExtendedKalmanFilterCV(None)
     with pytest.raises(ValueError, match="num_landmarks"):
