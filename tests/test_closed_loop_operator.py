@@ -125,3 +125,29 @@ def test_a_robot_that_has_not_started_following_is_waited_for(planned):
     for t in np.arange(1.42, 2.4, DT):
         state = op.step(state, t, p0 + [0.05, 0.0, 0.0] + state.offset)
     assert state.offset[0] < -0.01
+
+
+def test_until_the_grasp_the_operator_reaches_for_the_box_where_it_is(planned):
+    """A box pushed 7 cm along x before the grasp: the operator's aim at the box moves with it (the tool, on the
+    box's starting place, is corrected toward the box); after the plan's hand closes the aims are the plan's."""
+    from akc_drake.operator.motions import PICK_BOX_T
+
+    motion, plan, mapping = planned
+    op = ClosedLoopOperator(motion, mapping, tool_plan=plan, object_T=PICK_BOX_T)
+    t_grasp = plan.times[4]
+    assert op.first_grasp_t == pytest.approx(t_grasp, abs=0.011)  # the motion is sampled at 10 ms
+    pushed = np.asarray(PICK_BOX_T) + [0.07, 0.0, 0.0]
+    aim = op.plan_tool(t_grasp - 0.5)[0]
+    np.testing.assert_allclose(op.object_shift(t_grasp - 0.5, aim, pushed), [0.07, 0.0, 0.0])
+    assert np.all(op.object_shift(t_grasp + 0.1, aim, pushed) == 0.0)  # grasped: no longer
+    assert np.all(op.object_shift(0.5, op.plan_tool(0.5)[0], pushed) == 0.0)  # the rest pose: far from the box
+    state = op.step(op.initial_state(), t_grasp - 1.0, aim + [0.0, 0.0, 0.2], pushed)  # on its way
+    for t in np.arange(t_grasp - 0.9, t_grasp - 0.2, DT):  # the tool on the box's starting place, following
+        state = op.step(state, t, op.plan_tool(t)[0] + state.offset, pushed)
+    assert state.offset[0] > 0.03 and abs(state.offset[1]) < 1e-9
+    # the same operator without object_T aims at the starting place: nothing to correct
+    op0 = ClosedLoopOperator(motion, mapping, tool_plan=plan)
+    state = op0.step(op0.initial_state(), t_grasp - 1.0, aim + [0.0, 0.0, 0.2], pushed)
+    for t in np.arange(t_grasp - 0.9, t_grasp - 0.2, DT):
+        state = op0.step(state, t, op0.plan_tool(t)[0] + state.offset, pushed)
+    assert np.all(state.offset == 0.0)

@@ -29,6 +29,9 @@ tool, as a person sees it):
   offset applied to the aim's rotation, the same delay, gain and weight; deadband :data:`ROTATION_DEADBAND_RAD`,
   speed :data:`ROTATION_MAX_SPEED_RAD_S`, bound :data:`ROTATION_MAX_RAD`): a gripper turned against the box's
   edges lands its fingers on the box instead of around it.
+* **The box where it is.** Until the plan's hand first closes, the aims over the box (at it and above it) move with
+  the box as the operator sees it (``object_T``, :meth:`ClosedLoopOperator.object_shift`): a box the robot nudged
+  on its way is reached for where it now is.
 * **What the operator watches.** The robot's tool while the plan's hand is open; the carried object (the box)
   while it is closed: a person placing an object with a robot looks at the object against the target, so an
   object held off-centre in the gripper is placed where it should be (only an object within
@@ -85,6 +88,9 @@ ROTATION_MAX_RAD = 0.6
 #: robot that has not started following the operator (tracking not yet acquired, held in its home pose) is waited
 #: for, not chased (integrating the error of a robot that does not respond winds the correction up to its bound).
 ENGAGE_M = 0.03
+#: Aims over the object's planned place (within this horizontal distance, m: at the box and above it) move with
+#: the object until the first grasp (:meth:`ClosedLoopOperator.object_shift`).
+OBJECT_AIM_RADIUS_M = 0.05
 #: The operator holds its correction from this long (seconds) before a change of its hand's closure until
 #: :data:`GRIP_SETTLE_S` after it: a person grasping or releasing attends to the hand and keeps the arm still.
 GRIP_HOLD_S = 0.2
@@ -182,10 +188,15 @@ class ClosedLoopOperator:
         plan_dt: the plan's tool pose is tabulated at this step (seconds).
         tool_plan: the :class:`~akc_drake.operator.motions.ToolPlan` the operator aims at (None: the motion's
             mapped tool pose).
+        object_T: where the plan expects the object to pick (its centre in T; None: the aims are absolute).
+            Until the plan's hand first closes, the aims over it (:data:`OBJECT_AIM_RADIUS_M`) move with the
+            object as the operator sees it (``p_object_T`` of :meth:`step`): a person reaches for the box where it
+            is, not where it was (measured: KF, seed 0, the robot's swing on its way pushed the box 7 cm before
+            the grasp and the operator, aiming at the box's starting place, closed the gripper on air).
     """
 
     def __init__(self, plan, mapping, *, side: str = "right", params=None, landmarks=None,
-                 correction: CorrectionParams | None = None, plan_dt: float = 0.02, tool_plan=None):
+                 correction: CorrectionParams | None = None, plan_dt: float = 0.02, tool_plan=None, object_T=None):
         from akc_drake.operator.model import OperatorParams
         from akc_drake.operator.motions import _mapped_tool_pose
 
@@ -200,6 +211,11 @@ class ClosedLoopOperator:
             delay_s=cp.delay_s, gain_per_s=cp.gain_per_s, still_speed_m_s=cp.still_speed_m_s,
             max_speed_m_s=ROTATION_MAX_SPEED_RAD_S, max_offset_m=ROTATION_MAX_RAD, deadband_m=ROTATION_DEADBAND_RAD))
         self.tool_plan = tool_plan
+        self.object_T = None if object_T is None else np.asarray(object_T, dtype=float).reshape(3)
+        k = 1 if side == "right" else 0
+        closed = np.flatnonzero(plan.closure(plan.times)[:, k] > 1e-6)
+        #: The plan's first closing of the hand (seconds; inf: never): the object's aims follow it until then.
+        self.first_grasp_t = float(plan.times[closed[0]]) if closed.size else float("inf")
         if tool_plan is None:
             self._t = np.arange(plan.start, plan.end + 1e-9, float(plan_dt))
             ql, qr = plan.sample(self._t)
@@ -219,6 +235,18 @@ class ClosedLoopOperator:
         p = np.array([np.interp(t, self._t, self._p[:, k]) for k in range(3)])
         j = int(np.argmin(np.abs(self._t - t)))
         return p, self._R[j], float(np.interp(t, self._t, self._speed))
+
+    def object_shift(self, t: float, aim, p_object_T) -> np.ndarray:
+        """``(3,)`` how far the aim at ``t`` moves with the object: its seen displacement from :attr:`object_T`
+        before the plan's first grasp, for aims over it (horizontally within :data:`OBJECT_AIM_RADIUS_M`; zero
+        otherwise)."""
+        if self.object_T is None or p_object_T is None or t >= self.first_grasp_t:
+            return np.zeros(3)
+        seen = np.asarray(p_object_T, dtype=float).reshape(3)
+        far = float(np.linalg.norm((np.asarray(aim, dtype=float) - self.object_T)[:2])) > OBJECT_AIM_RADIUS_M
+        if far or not np.all(np.isfinite(seen)):
+            return np.zeros(3)
+        return seen - self.object_T
 
     def weight(self, speed: float) -> float:
         """How much the operator corrects at plan speed ``speed`` (1 still, 0 at or above the still speed)."""
@@ -242,6 +270,7 @@ class ClosedLoopOperator:
         carrying = p_object_T is not None and float(self.plan.closure([t])[0, k]) > 0.5 and float(
             np.linalg.norm(np.asarray(p_object_T, float) - np.asarray(p_tool_T, float))) < CARRY_RADIUS_M
         tool = np.asarray(p_object_T if carrying else p_tool_T, dtype=float).reshape(3)
+        p = p + self.object_shift(t, p, p_object_T)
         w = self.weight(speed)
         grip = self.plan.closure([t - GRIP_SETTLE_S, t, t + GRIP_HOLD_S])[:, k]
         if np.ptp(grip) > 1e-6:  # grasping or releasing: the arm is held

@@ -227,7 +227,9 @@ def _closed_loop_run(cfg, calib, corrector, planned, mapping, landmarks, seed, p
     from akc_drake.systems.session_render import make_detector
 
     motion, plan = planned
-    core = ClosedLoopOperator(motion, mapping, landmarks=landmarks, tool_plan=plan)
+    from akc_drake.operator.motions import PICK_BOX_T
+
+    core = ClosedLoopOperator(motion, mapping, landmarks=landmarks, tool_plan=plan, object_T=PICK_BOX_T)
     detector = make_detector(getattr(cfg, "detector", None), seed)
     try:
         return run_teleop(dataclasses.replace(cfg, seed=seed), calib.dims, corrector=corrector, motion=motion,
