@@ -73,13 +73,18 @@ class CandidateSearch:
 
     def _choose_elbow(self, cands, fx, fy, fz, prev_p, k_lost, s, w, lu, lf, inv_w2=None):
         """:meth:`_choose` of elbow candidates with the anatomical penalty (shoulder ``s``, wrist ``w``) and,
-        with ``inv_w2``, the wrist's forearm-length term ``(|c - w| - lf)^2 inv_w2`` as extra terms; the
-        penalty is computed only for a candidate whose other terms leave it a chance to win."""
+        with ``inv_w2``, the wrist's forearm-length term ``(|c - w| - lf)^2 inv_w2`` as extra terms.
+
+        The same choice as computing every term of every candidate (the first candidate with the smallest
+        cost), with the penalty (0 or ``BACKWARDS``) computed only where it can change the choice: not at all
+        when the candidate with the smallest other terms wins even with the penalty and the others without it
+        (mirror candidates tens of cm apart usually differ by more than the penalty), else only for a
+        candidate whose other terms leave it a chance to win.
+        """
         inv_f2 = self._inv_f2(k_lost)
         inv_t2, t_cap = self._inv_t2, self._t_cap
         wx, wy, wz = w
-        best = None
-        best_j = _inf
+        js, xs = [], []
         for p in cands:
             px, py, pz = p
             dx, dy, dz = px - fx, py - fy, pz - fz
@@ -88,16 +93,34 @@ class CandidateSearch:
                 dx, dy, dz = px - prev_p[0], py - prev_p[1], pz - prev_p[2]
                 t = (dx * dx + dy * dy + dz * dz) * inv_t2
                 j += t_cap if t_cap < t else t  # (min(t, t_cap), NaN included)
+            js.append(j)
             if inv_w2 is None:
-                x = 0.0
+                xs.append(0.0)
             else:
                 dw = _hypot(px - wx, py - wy, pz - wz) - lf
-                x = dw * dw * inv_w2
+                xs.append(dw * dw * inv_w2)
+        # Bounds on each cost j + (x + penalty) (rounding is monotone): j + x <= cost <= j + (x + BACKWARDS).
+        n = len(cands)
+        lows = [js[i] + xs[i] for i in range(n)]
+        b = 0
+        for i in range(1, n):
+            if lows[i] < lows[b]:
+                b = i
+        high = js[b] + (xs[b] + BACKWARDS)
+        for i in range(n):
+            if i != b and not high < lows[i]:  # (NaN: no shortcut)
+                break
+        else:
+            return cands[b] if high < _inf else None
+        best = None
+        best_j = _inf
+        for i in range(n):
+            j, x = js[i], xs[i]
             if j + x >= best_j:
                 continue  # (the penalty is >= 0)
-            j += x + self._penalty(s, p, w, lu, lf)
+            j += x + self._penalty(s, cands[i], w, lu, lf)
             if j < best_j:
-                best_j, best = j, p
+                best_j, best = j, cands[i]
         return best
 
     def _penalty(self, s, e, w, lu, lf, axes=None):
