@@ -3,7 +3,7 @@ import random
 
 import pytest
 
-from akc_drake.core.akc_plus_lengths import project_forearm
+from akc_drake.core.akc_plus_lengths import project_arm, project_forearm
 from akc_drake.core.arm_geometry import project_lengths
 
 
@@ -35,3 +35,35 @@ def test_forearm_projection_keeps_the_shoulder_and_moves_the_uncertain_depths():
     assert max(moved[0], moved[1], moved[3], moved[4]) < 0.006  # x, y: at most 6 mm
     assert moved[2] > 0.03 and moved[5] > 0.01  # the depths take the correction
     assert project_forearm(s, (*e, 0.9, 0.5, 1.95), v, 0.29, 0.26) is None  # the wrist out of reach
+
+
+def test_arm_projection_is_the_general_projection_with_two_steps():
+    # Bit-identical to project_lengths (two steps, the chi2 gate) over random arms near and far from the
+    # lengths, with and without the calibration variance, including the gated and the out-of-reach ones.
+    rng = random.Random(5)
+    outcomes = {"arm": 0, "none": 0}
+    for _ in range(3000):
+        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
+        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
+        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        var = tuple(rng.uniform(1e-5, 1e-2) for _ in range(9))
+        length_var, gate = rng.choice(((0.0, math.inf), (1e-4, 1.0), (4e-4, 0.2)))
+        want, _ = project_lengths((*s, *e, *w), var, 0.29, 0.26, length_var, gate)
+        got = project_arm((*s, *e, *w), var, 0.29, 0.26, length_var, gate)
+        assert got == want
+        outcomes["none" if got is None else "arm"] += 1
+    assert min(outcomes.values()) > 300
+
+
+def test_arm_projection_meets_the_lengths_and_moves_the_uncertain_depths():
+    s, e, w = (0.18, 0.0, 2.0), (0.2, 0.27, 2.05), (0.25, 0.5, 1.95)
+    var = (1e-4, 1e-4, 1e-3, 1e-4, 1e-4, 4e-3, 1e-4, 1e-4, 2.5e-3)
+    arm = project_arm((*s, *e, *w), var, 0.29, 0.26, 0.0, math.inf)
+    assert math.dist(arm[:3], arm[3:6]) == pytest.approx(0.29, abs=1e-12)
+    assert math.dist(arm[3:6], arm[6:]) == pytest.approx(0.26, abs=1e-12)
+    moved = [abs(a - b) for a, b in zip(arm, (*s, *e, *w), strict=True)]
+    assert max(moved[i] for i in (0, 1, 3, 4, 6, 7)) < 0.006  # x, y: at most 6 mm
+    assert moved[5] > moved[2] and moved[5] > 0.02  # the least certain depth (the elbow's) moves most
+    # 1.5 and 0.4 cm short: chi2 0.47 with a 1 cm calibration sigma (passes 0.5, not 0.4)
+    assert project_arm((*s, *e, *w), var, 0.29, 0.26, 1e-4, 0.5) is not None
+    assert project_arm((*s, *e, *w), var, 0.29, 0.26, 1e-4, 0.4) is None

@@ -5,6 +5,7 @@ import pytest
 
 from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
 from akc_drake.core.akc_plus_search import BACKWARDS
+from akc_drake.core.arm_geometry import bends_backwards, torso_axes
 from akc_drake.core.skeleton import BodyDimensions
 
 DIMS = BodyDimensions(LUA=0.29, LLA=0.26, RUA=0.29, RLA=0.26, SW=0.36)
@@ -78,3 +79,28 @@ def test_rebuild_from_the_wrist_has_the_calibrated_lengths_and_follows_the_filte
     assert s2[:2] == f[:2] and e2[:2] != f[3:5]  # the elbow moved radially, the shoulder's x, y kept
     mirror = 2.0 * e2[2] - s2[2]  # eq. 8's other candidate
     assert abs(s2[2] - f[2]) == pytest.approx(0.1213, abs=1e-4) and abs(mirror - f[2]) > 0.13
+
+
+def test_penalty_is_the_angle_test_and_bends_backwards():
+    # _penalty inlines bends_backwards: the same verdict as the reference functions over random arms.
+    rng = random.Random(8)
+    akc = corrector()
+    v = [rng.uniform(-0.3, 0.3) for _ in range(36)]
+    for i in range(2, 36, 3):
+        v[i] += 2.0
+    akc._v0 = v
+    axes = torso_axes(v)
+    cos_min = math.cos(math.radians(akc.config.elbow_min_deg))
+    verdicts = set()
+    for _ in range(3000):
+        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
+        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
+        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        u = [(a - b) / 0.29 for a, b in zip(s, e, strict=True)]
+        f = [a - b for a, b in zip(w, e, strict=True)]
+        folded = ((s[0] - e[0]) * f[0] + (s[1] - e[1]) * f[1] + (s[2] - e[2]) * f[2]) / (0.29 * 0.26) > cos_min
+        want = BACKWARDS if folded or bends_backwards(*u, *f, 0.26, axes) else 0.0
+        got = akc._penalty(s, e, w, 0.29, 0.26)
+        assert got == want
+        verdicts.add((folded, got))
+    assert verdicts == {(True, BACKWARDS), (False, BACKWARDS), (False, 0.0)}

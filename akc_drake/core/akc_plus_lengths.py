@@ -1,22 +1,122 @@
-"""AKC+'s length projection with a kept shoulder: the elbow and the wrist share the correction.
+"""AKC+'s length projections, written out for its two calls (plain floats, bit-identical to the general one).
 
-:func:`~akc_drake.core.arm_geometry.project_lengths` with the shoulder's variances zero (the shoulder fixed),
-no calibration variance and no gate, written out for that case: the terms the zero variances cancel are not
-computed, and the operations that remain are the same, in the same order (the arm is bit-identical to
-``project_lengths(f, (0, 0, 0, *v_ew), lu, lf)``). AKC+ runs it on the frames where a lost elbow cannot close
-the arm at its image x, y from a kept shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of
-some clips.
+:func:`~akc_drake.core.arm_geometry.project_lengths` (two steps of sequential quadratic programming, then the
+elbow on the exact circle between the shoulder and the wrist) as AKC+ runs it on most frames, unrolled with
+the circle inlined: the operations are the same, in the same order, so the arms are bit-identical; only the
+loop, the branches on the step number and the calls are gone (about a third of its time).
+
+* :func:`project_arm`: both depths known, the whole arm in the filter's metric with the chi2 gate (the arm of
+  ``project_lengths(f, var, lu, lf, length_var, gate)``).
+* :func:`project_forearm`: a kept shoulder (its variances zero, no calibration variance, no gate): the terms
+  the zero variances cancel are not computed either (the arm of ``project_lengths(f, (0, 0, 0, *v_ew), lu,
+  lf)``). AKC+ runs it on the frames where a lost elbow cannot close the arm at its image x, y from a kept
+  shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of some clips.
 """
 
 from __future__ import annotations
 
 import math
 
-from akc_drake.core.arm_geometry import circle_point
-
 _hypot = math.hypot
+_sqrt = math.sqrt
+_inf = math.inf
 #: A segment shorter than this (m) has no direction (as in ``project_lengths``).
 _MIN_SEGMENT_M = 1e-12
+
+
+def _circle(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
+    """:func:`~akc_drake.core.arm_geometry.circle_point`'s operations, the arm returned (None if no circle)."""
+    nx, ny, nz = sx - wx, sy - wy, sz - wz
+    d = _hypot(nx, ny, nz)
+    if not (abs(lf - lu) < d < lf + lu):
+        return None
+    nx, ny, nz = nx / d, ny / d, nz / d
+    a = (d * d + lf * lf - lu * lu) / (2.0 * d)
+    h = lf * lf - a * a
+    h = _sqrt(0.0 if 0.0 > h else h)  # (max(h, 0.0) exactly: -0.0 and NaN kept)
+    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
+    qx, qy, qz = px - cx, py - cy, pz - cz
+    t = qx * nx + qy * ny + qz * nz
+    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
+    q = _hypot(qx, qy, qz)
+    if q < 1e-12:  # p on the axis: any point of the circle; one orthogonal to the axis and to y
+        qx, qy, qz = nz, 0.0, -nx
+        q = _hypot(qx, qy, qz)
+        if q < 1e-12:
+            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
+    f = h / q
+    return (sx, sy, sz, cx + qx * f, cy + qy * f, cz + qz * f, wx, wy, wz)
+
+
+def project_arm(f, var, lu, lf, length_var, gate):
+    """The arm nearest ``f`` in the metric of variances ``var`` with the exact lengths ``lu`` and ``lf``.
+
+    The arm of :func:`~akc_drake.core.arm_geometry.project_lengths` with two steps (see there: the chi2 test of
+    the filter's arm against the calibrated lengths first, then the steps, then the circle), bit-identical.
+
+    Args:
+        f: nine floats, the filter's shoulder, elbow and wrist.
+        var: their nine variances (> 0).
+        lu, lf: the upper and lower arm lengths.
+        length_var: the variance of each calibrated length (m^2).
+        gate: the largest chi2 accepted.
+
+    Returns:
+        The arm (nine floats), or None when chi2 > gate or no arm with these lengths exists near ``f``.
+    """
+    fsx, fsy, fsz, fex, fey, fez, fwx, fwy, fwz = f
+    vsx, vsy, vsz, vex, vey, vez, vwx, vwy, vwz = var
+    # Step 1, at x = f (the linearised constraints are the residuals themselves).
+    ax, ay, az = fsx - fex, fsy - fey, fsz - fez
+    bx, by, bz = fex - fwx, fey - fwy, fez - fwz
+    n1, n2 = _hypot(ax, ay, az), _hypot(bx, by, bz)
+    if not (n1 >= _MIN_SEGMENT_M and n2 >= _MIN_SEGMENT_M):
+        return None
+    ax, ay, az = ax / n1, ay / n1, az / n1
+    bx, by, bz = bx / n2, by / n2, bz / n2
+    a11 = ax * ax * (vsx + vex) + ay * ay * (vsy + vey) + az * az * (vsz + vez)
+    a22 = bx * bx * (vex + vwx) + by * by * (vey + vwy) + bz * bz * (vez + vwz)
+    a12 = -(ax * bx * vex + ay * by * vey + az * bz * vez)
+    b1, b2 = n1 - lu, n2 - lf
+    c11, c22 = a11 + length_var, a22 + length_var
+    det = c11 * c22 - a12 * a12
+    chi2 = (c22 * b1 * b1 - 2.0 * a12 * b1 * b2 + c11 * b2 * b2) / det if det > 0.0 else _inf
+    if not chi2 <= gate:
+        return None
+    det = a11 * a22 - a12 * a12
+    if not det > 1e-30:
+        return None
+    l1 = (a22 * b1 - a12 * b2) / det
+    l2 = (a11 * b2 - a12 * b1) / det
+    sx, sy, sz = fsx - vsx * ax * l1, fsy - vsy * ay * l1, fsz - vsz * az * l1
+    ex, ey, ez = fex - vex * (bx * l2 - ax * l1), fey - vey * (by * l2 - ay * l1), fez - vez * (bz * l2 - az * l1)
+    wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
+    # Step 2, unless the lengths are met to 0.01 mm: the constraints linearised at x, for the target f.
+    ax, ay, az = sx - ex, sy - ey, sz - ez
+    bx, by, bz = ex - wx, ey - wy, ez - wz
+    n1, n2 = _hypot(ax, ay, az), _hypot(bx, by, bz)
+    if not (n1 >= _MIN_SEGMENT_M and n2 >= _MIN_SEGMENT_M):
+        return None
+    if not abs(n1 - lu) + abs(n2 - lf) < 1e-5:
+        ax, ay, az = ax / n1, ay / n1, az / n1
+        bx, by, bz = bx / n2, by / n2, bz / n2
+        a11 = ax * ax * (vsx + vex) + ay * ay * (vsy + vey) + az * az * (vsz + vez)
+        a22 = bx * bx * (vex + vwx) + by * by * (vey + vwy) + bz * bz * (vez + vwz)
+        a12 = -(ax * bx * vex + ay * by * vey + az * bz * vez)
+        dsx, dsy, dsz = fsx - sx, fsy - sy, fsz - sz
+        dex, dey, dez = fex - ex, fey - ey, fez - ez
+        b1 = n1 - lu + ax * (dsx - dex) + ay * (dsy - dey) + az * (dsz - dez)
+        b2 = n2 - lf + bx * (dex - (fwx - wx)) + by * (dey - (fwy - wy)) + bz * (dez - (fwz - wz))
+        det = a11 * a22 - a12 * a12
+        if not det > 1e-30:
+            return None
+        l1 = (a22 * b1 - a12 * b2) / det
+        l2 = (a11 * b2 - a12 * b1) / det
+        sx, sy, sz = fsx - vsx * ax * l1, fsy - vsy * ay * l1, fsz - vsz * az * l1
+        ex, ey = fex - vex * (bx * l2 - ax * l1), fey - vey * (by * l2 - ay * l1)
+        ez = fez - vez * (bz * l2 - az * l1)
+        wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
+    return _circle(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
 
 
 def project_forearm(s, f, v, lu, lf):
@@ -38,34 +138,46 @@ def project_forearm(s, f, v, lu, lf):
     sx, sy, sz = s
     fex, fey, fez, fwx, fwy, fwz = f
     vex, vey, vez, vwx, vwy, vwz = v
-    ex, ey, ez, wx, wy, wz = f
-    for it in (0, 1):
-        ax, ay, az = sx - ex, sy - ey, sz - ez
-        bx, by, bz = ex - wx, ey - wy, ez - wz
-        n1, n2 = _hypot(ax, ay, az), _hypot(bx, by, bz)
-        if not (n1 >= _MIN_SEGMENT_M and n2 >= _MIN_SEGMENT_M):
-            return None
-        if it and abs(n1 - lu) + abs(n2 - lf) < 1e-5:
-            break  # converged: the linearisation error is below 0.01 mm (the circle below makes it exact)
+    # Step 1, at x = f.
+    ax, ay, az = sx - fex, sy - fey, sz - fez
+    bx, by, bz = fex - fwx, fey - fwy, fez - fwz
+    n1, n2 = _hypot(ax, ay, az), _hypot(bx, by, bz)
+    if not (n1 >= _MIN_SEGMENT_M and n2 >= _MIN_SEGMENT_M):
+        return None
+    ax, ay, az = ax / n1, ay / n1, az / n1
+    bx, by, bz = bx / n2, by / n2, bz / n2
+    a11 = ax * ax * vex + ay * ay * vey + az * az * vez
+    a22 = bx * bx * (vex + vwx) + by * by * (vey + vwy) + bz * bz * (vez + vwz)
+    a12 = -(ax * bx * vex + ay * by * vey + az * bz * vez)
+    b1, b2 = n1 - lu, n2 - lf
+    det = a11 * a22 - a12 * a12
+    if not det > 1e-30:
+        return None
+    l1 = (a22 * b1 - a12 * b2) / det
+    l2 = (a11 * b2 - a12 * b1) / det
+    ex, ey, ez = fex - vex * (bx * l2 - ax * l1), fey - vey * (by * l2 - ay * l1), fez - vez * (bz * l2 - az * l1)
+    wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
+    # Step 2, unless the lengths are met to 0.01 mm.
+    ax, ay, az = sx - ex, sy - ey, sz - ez
+    bx, by, bz = ex - wx, ey - wy, ez - wz
+    n1, n2 = _hypot(ax, ay, az), _hypot(bx, by, bz)
+    if not (n1 >= _MIN_SEGMENT_M and n2 >= _MIN_SEGMENT_M):
+        return None
+    if not abs(n1 - lu) + abs(n2 - lf) < 1e-5:
         ax, ay, az = ax / n1, ay / n1, az / n1
         bx, by, bz = bx / n2, by / n2, bz / n2
         a11 = ax * ax * vex + ay * ay * vey + az * az * vez
         a22 = bx * bx * (vex + vwx) + by * by * (vey + vwy) + bz * bz * (vez + vwz)
         a12 = -(ax * bx * vex + ay * by * vey + az * bz * vez)
-        if it == 0:
-            b1, b2 = n1 - lu, n2 - lf  # (at x = f the linearised constraints are the residuals)
-        else:
-            dex, dey, dez = fex - ex, fey - ey, fez - ez
-            b1 = n1 - lu - ax * dex - ay * dey - az * dez
-            b2 = n2 - lf + bx * (dex - (fwx - wx)) + by * (dey - (fwy - wy)) + bz * (dez - (fwz - wz))
+        dex, dey, dez = fex - ex, fey - ey, fez - ez
+        b1 = n1 - lu - ax * dex - ay * dey - az * dez
+        b2 = n2 - lf + bx * (dex - (fwx - wx)) + by * (dey - (fwy - wy)) + bz * (dez - (fwz - wz))
         det = a11 * a22 - a12 * a12
         if not det > 1e-30:
             return None
         l1 = (a22 * b1 - a12 * b2) / det
         l2 = (a11 * b2 - a12 * b1) / det
-        ex, ey, ez = fex - vex * (bx * l2 - ax * l1), fey - vey * (by * l2 - ay * l1), fez - vez * (bz * l2 - az * l1)
+        ex, ey = fex - vex * (bx * l2 - ax * l1), fey - vey * (by * l2 - ay * l1)
+        ez = fez - vez * (bz * l2 - az * l1)
         wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
-    e = circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
-    if e is None:
-        return None
-    return (sx, sy, sz, *e, wx, wy, wz)
+    return _circle(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)

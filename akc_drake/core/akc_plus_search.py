@@ -18,13 +18,15 @@ from __future__ import annotations
 
 import math
 
-from akc_drake.core.arm_geometry import bends_backwards, torso_axes
+from akc_drake.core.arm_geometry import _BACKWARD_FRACTION, torso_axes
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import radial as _radial
 
 _hypot = math.hypot
 _inf = math.inf
+#: ``bends_backwards``'s threshold per metre of forearm (the same product as there).
+_BACKWARD_LIMIT = -_BACKWARD_FRACTION
 #: The anatomical tests' penalty (a squared standard deviation) for a folded (below elbow_min_deg) or a
 #: hyperextended (m5) elbow: both are tests on noisy positions near their limits (a tight but real fold
 #: whose filtered elbow depth is a few cm off reads below the limit; a nearly straight arm's direction of
@@ -79,29 +81,39 @@ class CandidateSearch:
         cost), with the penalty (0 or ``BACKWARDS``) computed only where it can change the choice: not at all
         when the candidate with the smallest other terms wins even with the penalty and the others without it
         (mirror candidates tens of cm apart usually differ by more than the penalty), else only for a
-        candidate whose other terms leave it a chance to win.
+        candidate whose other terms leave it a chance to win. (``_inv_f2`` inline: this runs on most frames.)
         """
-        inv_f2 = self._inv_f2(k_lost)
+        if k_lost in self._no_prior:
+            inv_f2 = 0.0
+        else:
+            vs = self._cur_var
+            if vs is None:
+                inv_f2 = self._inv_f2(k_lost)
+            else:
+                v = vs[5 if k_lost % 2 == 0 else 2]
+                inv_f2 = 1.0 / (1e-12 if 1e-12 > v else v) if v == v else 0.0  # (max(v, 1e-12) exactly)
         inv_t2, t_cap = self._inv_t2, self._t_cap
-        wx, wy, wz = w
-        js, xs = [], []
-        for p in cands:
-            px, py, pz = p
+        if prev_p is not None:
+            qx, qy, qz = prev_p
+        # Each candidate's terms without the penalty: j (filter, temporal) and x (the wrist's), low = j + x.
+        js, xs, lows = [], [], []
+        for px, py, pz in cands:
             dx, dy, dz = px - fx, py - fy, pz - fz
             j = (dx * dx + dy * dy + dz * dz) * inv_f2
             if prev_p is not None:
-                dx, dy, dz = px - prev_p[0], py - prev_p[1], pz - prev_p[2]
+                dx, dy, dz = px - qx, py - qy, pz - qz
                 t = (dx * dx + dy * dy + dz * dz) * inv_t2
                 j += t_cap if t_cap < t else t  # (min(t, t_cap), NaN included)
-            js.append(j)
             if inv_w2 is None:
-                xs.append(0.0)
+                x = 0.0
             else:
-                dw = _hypot(px - wx, py - wy, pz - wz) - lf
-                xs.append(dw * dw * inv_w2)
+                x = _hypot(px - w[0], py - w[1], pz - w[2]) - lf
+                x = x * x * inv_w2
+            js.append(j)
+            xs.append(x)
+            lows.append(j + x)
         # Bounds on each cost j + (x + penalty) (rounding is monotone): j + x <= cost <= j + (x + BACKWARDS).
-        n = len(cands)
-        lows = [js[i] + xs[i] for i in range(n)]
+        n = len(lows)
         b = 0
         for i in range(1, n):
             if lows[i] < lows[b]:
@@ -115,18 +127,21 @@ class CandidateSearch:
         best = None
         best_j = _inf
         for i in range(n):
-            j, x = js[i], xs[i]
-            if j + x >= best_j:
+            if lows[i] >= best_j:
                 continue  # (the penalty is >= 0)
-            j += x + self._penalty(s, cands[i], w, lu, lf)
+            j = js[i] + (xs[i] + self._penalty(s, cands[i], w, lu, lf))
             if j < best_j:
                 best_j, best = j, cands[i]
         return best
 
     def _penalty(self, s, e, w, lu, lf, axes=None):
-        """BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign)."""
-        ux, uy, uz = s[0] - e[0], s[1] - e[1], s[2] - e[2]
-        fx, fy, fz = w[0] - e[0], w[1] - e[1], w[2] - e[2]
+        """BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign).
+
+        (:func:`~akc_drake.core.arm_geometry.bends_backwards`'s operations inline, in the same order.)
+        """
+        ex, ey, ez = e
+        ux, uy, uz = s[0] - ex, s[1] - ey, s[2] - ez
+        fx, fy, fz = w[0] - ex, w[1] - ey, w[2] - ez
         cos_t = (ux * fx + uy * fy + uz * fz) / (lu * lf)
         if cos_t > self._cos_min:
             return BACKWARDS
@@ -134,7 +149,19 @@ class CandidateSearch:
             axes = self._axes
             if axes is None:
                 axes = self._axes = torso_axes(self._v0)
-        if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes):
+        (ax, ay, az), (bx, by, bz), (cx, cy, cz) = axes
+        ux, uy, uz = ux / lu, uy / lu, uz / lu
+        hd = -(ux * bx + uy * by + uz * bz)  # humerus (shoulder -> elbow) . down
+        hf = -(ux * ax + uy * ay + uz * az)  # . front
+        hl = abs(ux * cx + uy * cy + uz * cz)  # |. lateral|
+        k = hd + hl
+        nx, ny, nz = ax * k - bx * hf, ay * k - by * hf, az * k - bz * hf
+        n = _hypot(nx, ny, nz)
+        if n < 0.3:
+            return 0.0
+        t = fx * ux + fy * uy + fz * uz
+        px, py, pz = fx - t * ux, fy - t * uy, fz - t * uz
+        if (px * nx + py * ny + pz * nz) / n < _BACKWARD_LIMIT * lf:
             return BACKWARDS
         return 0.0
 
