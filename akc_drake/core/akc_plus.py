@@ -30,7 +30,10 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   depth variance), and the arm passes the chi2 test against the calibrated lengths
   (``length_sigma_m``), the output is the arm nearest the filter's in its covariance metric with the exact
   lengths (:func:`~akc_drake.core.arm_geometry.project_lengths`): the joint the filter is least sure of moves,
-  mostly in depth. A shoulder so known is kept when the elbow is rebuilt.
+  mostly in depth. The metric adds each landmark's offset from its joint centre (isotropic, ``length_sigma_m^2
+  / 2`` per axis: what makes a measured segment's length differ from the calibrated one), so that a length
+  mismatch of a segment near the image plane is shared with the x, y instead of becoming a depth error several
+  times as large. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y) that the filter knows worse than the shoulder and the elbow
   is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist follows.
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
@@ -120,6 +123,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
     # Slots: this object's attributes are read tens of times a frame on the hot path.
     __slots__ = ("config", "_arm_index", "_axes", "_chi2_gate", "_cos_min", "_cur_var", "_dims", "_f0", "_fits",
                  "_gate2", "_hip_z", "_inv_t2", "_inv_torso2", "_inv_w2", "_inv_wrist2", "_len_var", "_lf", "_lost",
+                 "_off_var",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
                  "_v", "_v0", "_var")
@@ -147,6 +151,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
         self._r_z = config.depth_sigma_m**2
         self._len_var = config.length_sigma_m**2
+        # The length projections' landmark-offset variance per coordinate (see ``_arm``): half the calibrated
+        # length's variance, so that a segment's two ends together account for all of it.
+        self._off_var = 0.5 * self._len_var
         self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
         # Flat indices of each arm's nine coordinates, and (position in the arm, flat index, R) per coordinate.
         self._arm_index = tuple(tuple(o + ax for o in offs for ax in range(3)) for offs in self._offsets)
@@ -364,7 +371,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its
             # covariance), the arm nearest it in that metric with the exact lengths (the joints move least
             # where the filter is surest, and mostly in depth).
-            arm, _ = project_lengths((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, self._len_var,
+            # The metric: the filter's variances plus each landmark's offset from its joint centre (isotropic,
+            # persistent, variance ``_off_var`` per axis), which is what makes a measured segment's length differ
+            # from the calibrated one (variance ``_len_var`` = 2 ``_off_var``): a length mismatch is then shared
+            # with the precise x, y instead of going wholly into the depth of the joint the filter is least sure
+            # of (a segment near the image plane turned 1-2 cm of length into 5-10 cm of a seen shoulder's depth).
+            # The chi2 test uses the same model (the offsets stand for the calibration's variance).
+            ov = self._off_var
+            arm, _ = project_lengths((sx, sy, sz, ex, ey, ez, wx, wy, wz), [x + ov for x in vs], lu, lf, 0.0,
                                      self._chi2_gate)
             if arm is not None:
                 return arm
@@ -421,7 +435,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     # With the covariance, the wrist does not take the whole correction: the elbow (at its image
                     # x, y and this depth) and the wrist move as little as their variances allow (the kept
                     # shoulder fixed), mostly in depth.
-                    arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), vs[3:], lu, lf)
+                    ov = self._off_var  # (the landmark offsets, as in the projection above)
+                    arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), [x + ov for x in vs[3:]], lu, lf)
                     if arm is not None:
                         return arm
                 w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)

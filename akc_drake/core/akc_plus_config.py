@@ -38,7 +38,9 @@ class AKCPlusConfig:
         depth_sigma_m, image_sigma_m: the measurement's standard deviations in depth and in x, y (the
             filter's R: ``KFConfig.sigma_z``, ``sigma_x``); without the filter's covariance they also stand
             for it.
-        length_sigma_m: the calibrated lengths' standard deviation (a T-pose calibration: ``EKFConfig.sigma_c``).
+        length_sigma_m: the calibrated lengths' standard deviation (a T-pose calibration: ``EKFConfig.sigma_c``);
+            the length projections read it as each landmark's offset from its joint centre (variance
+            ``length_sigma_m^2 / 2`` per axis and landmark: a segment's two ends make up the length's variance).
         gate_sigma: the statistical tests' gate in standard deviations (a measured depth against the filter,
             the arm against the calibrated lengths: chi2 at the same tail probability, 99.7 % for 3).
         nis_alpha: weight of the newest frame in the running mean of each joint's normalised innovation
