@@ -398,8 +398,9 @@ def test_a_wrist_lost_altogether_is_no_anchor():
     np.testing.assert_allclose(out[LS], p[LS], atol=1e-9)
     np.testing.assert_allclose(out[LE], p[LE], atol=1e-9)
     assert abs(np.linalg.norm(out[LW] - out[LE]) - dims.LLA) < 1e-9
-    # x, y of the wrist kept where the forearm allows (its depth moves instead).
-    np.testing.assert_allclose(out[LW, :2], f[LW, :2], atol=1e-9)
+    # x, y of the wrist kept where the forearm allows (its depth moves instead): those of the wrist's prior, the
+    # filter's extrapolation fused with our last output (variances 0.09 and sigma_temporal^2 = 0.01).
+    np.testing.assert_allclose(out[LW, :2], (0.01 * f[LW, :2] + 0.09 * p[LW, :2]) / 0.1, atol=1e-9)
 
 
 def test_a_filter_counts_as_following_a_rejected_depth_only_if_it_moved_towards_it():
@@ -466,3 +467,22 @@ def test_a_length_mismatch_near_the_image_plane_is_shared_with_the_landmarks_off
     assert abs(out[LS, 2] - p[LS, 2]) < 0.02
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_wrist_lost_altogether_is_pulled_back_from_the_filters_extrapolation():
+    # The detector loses the wrist altogether for six frames; the hand has stopped, the KF runs on at 3 cm a
+    # frame in x with its variance growing. The filter's wrist fused with our last output (the temporal prior)
+    # before the arm is corrected: 10.8 cm off after six frames; the filter's alone, put at the forearm length
+    # from the elbow, 13.8 cm.
+    p, dims = arm_pose()
+    akc = settled_corrector(p, dims)
+    m = p.copy()
+    m[LW] = np.nan
+    for k in range(1, 7):
+        f = p.copy()
+        f[LW, 0] += 0.03 * k
+        var = kf_var()
+        var[LW] = (0.03 * k) ** 2 + 1e-4
+        out = akc.correct(f, measured=m, variance=var).pose
+        assert abs(np.linalg.norm(out[LW] - out[LE]) - dims.LLA) < 1e-9
+    assert np.linalg.norm(out[LW] - p[LW]) < 0.12

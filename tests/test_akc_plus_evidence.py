@@ -1,6 +1,6 @@
 import pytest
 
-from akc_drake.core.akc_plus_evidence import arm_variances, hold_blind, known_depths
+from akc_drake.core.akc_plus_evidence import arm_variances, fuse_blind_wrist, hold_blind, known_depths
 
 R_XY, R_Z = 0.01**2, 0.05**2
 #: One arm's coordinates at flat indices 0-8 (position in the arm, flat index, R, running-NIS index).
@@ -92,3 +92,16 @@ def test_a_dropped_depth_is_known_recently_only_if_the_filter_beats_the_rebuild(
     assert _known(vs, [2.0, 0.0], ms=True)[0] is False
     vs[5] = float("nan")  # a variance the filter does not know counts as above any
     assert _known(vs, [1.0, 0.0], ms=False)[0] is False
+
+
+def test_a_blind_wrist_is_the_product_of_the_filters_and_the_temporal_prior():
+    f = [0.0] * 6 + [1.0, 2.0, 3.0]
+    vs = [1e-4] * 6 + [0.03, 0.01, NAN]
+    prev = [0.0] * 6 + [0.0, 0.0, 2.0]
+    fuse_blind_wrist(f, vs, prev, 0.01)
+    assert f[6] == pytest.approx(0.25, rel=1e-12)  # weight v_t / (v + v_t) = 1/4 on the filter's
+    assert f[7] == pytest.approx(1.0, rel=1e-12)  # equal variances: the midpoint
+    assert vs[6] == pytest.approx(0.03 * 0.01 / 0.04, rel=1e-12)
+    assert vs[7] == pytest.approx(0.005, rel=1e-12)
+    assert f[8] == 3.0 and vs[8] != vs[8]  # an unknown variance: left as it is
+    assert f[:6] == [0.0] * 6 and vs[:6] == [1e-4] * 6  # shoulder and elbow untouched

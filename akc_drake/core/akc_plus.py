@@ -75,7 +75,7 @@ import numpy as np
 
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
-from akc_drake.core.akc_plus_evidence import arm_variances, hold_blind, known_depths
+from akc_drake.core.akc_plus_evidence import arm_variances, fuse_blind_wrist, hold_blind, known_depths
 from akc_drake.core.akc_plus_lengths import project_forearm
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.arm_geometry import arm_inputs, project_lengths, ray_check
@@ -123,7 +123,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
     # Slots: this object's attributes are read tens of times a frame on the hot path.
     __slots__ = ("config", "_arm_index", "_axes", "_chi2_gate", "_cos_min", "_cur_var", "_dims", "_f0", "_fits",
                  "_gate2", "_hip_z", "_inv_t2", "_inv_torso2", "_inv_w2", "_inv_wrist2", "_len_var", "_lf", "_lost",
-                 "_off_var",
+                 "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
                  "_v", "_v0", "_var")
@@ -141,6 +141,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._ls = dims.SW
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
         self._inv_t2 = 1.0 / config.sigma_temporal_m**2
+        self._v_t = config.sigma_temporal_m**2
         self._t_cap = config.temporal_cap**2
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
@@ -260,6 +261,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             f = list(joints)
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2)
+            o_w = offsets[2]
+            if m is not None and prev is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
+                # A wrist lost altogether (no x, y): the filter's extrapolation and our last output, fused.
+                fuse_blind_wrist(f, vs, prev, self._v_t)
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
                 g2, rz, o_w = self._gate2, self._r_z, offsets[2]

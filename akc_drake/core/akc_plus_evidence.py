@@ -2,9 +2,10 @@
 
 The statistical side of :mod:`akc_drake.core.akc_plus` with the filter's covariance: covariance matching of
 the filter's variances by the running normalised innovation squared (:func:`arm_variances`), the hold of a
-joint the detector lost altogether (:func:`hold_blind`) and the known-depth test of a depth not measured
-this frame (:func:`known_depths`). Pure functions on plain floats and lists (a numpy call costs more than
-the arithmetic of one arm); the state they update (the running NIS, the arm's coordinates) is passed in.
+joint the detector lost altogether (:func:`hold_blind`; the wrist's soft hold, :func:`fuse_blind_wrist`) and
+the known-depth test of a depth not measured this frame (:func:`known_depths`). Pure functions on plain floats
+and lists (a numpy call costs more than the arithmetic of one arm); the state they update (the running NIS, the
+arm's coordinates) is passed in.
 """
 
 from __future__ import annotations
@@ -84,6 +85,29 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     if vs[base + 2] > r_z and (p[2] - f0z) ** 2 > r_z:
         return (p[0], p[1], prev[base + 2]), True
     return p, False
+
+
+def fuse_blind_wrist(f, vs, prev, v_t):
+    """A wrist the detector lost altogether: the filter's extrapolation fused with our last output.
+
+    Both are Gaussian priors of the wrist: the filter's (its covariance-matched variances ``vs[6:9]``) and the
+    temporal one the candidate costs use (our last output, variance ``v_t`` per axis: how far a joint may move
+    between two frames). Their product, per axis, replaces the filter's wrist and its variances: a constant-
+    velocity extrapolation that runs on while the hand stopped or turned is pulled back towards where the arm
+    was, by the weight of its own growing variance (a soft hold: the filter's wrist still counts, by
+    ``v_t / (v + v_t)``).
+
+    Args:
+        f: the arm's nine coordinates (changed in place); vs: their nine variances (changed in place).
+        prev: our last output of the arm (nine floats).
+        v_t: the temporal prior's variance per axis.
+    """
+    for i in (6, 7, 8):
+        v = vs[i]
+        if v == v:  # (a variance the filter does not know: NaN, left as it is)
+            s = v + v_t
+            f[i] = (v_t * f[i] + v * prev[i]) / s
+            vs[i] = v * v_t / s
 
 
 def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, no_prior, lost, recent):
