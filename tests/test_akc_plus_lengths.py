@@ -67,3 +67,18 @@ def test_arm_projection_meets_the_lengths_and_moves_the_uncertain_depths():
     # 1.5 and 0.4 cm short: chi2 0.47 with a 1 cm calibration sigma (passes 0.5, not 0.4)
     assert project_arm((*s, *e, *w), var, 0.29, 0.26, 1e-4, 0.5) is not None
     assert project_arm((*s, *e, *w), var, 0.29, 0.26, 1e-4, 0.4) is None
+
+
+def test_offset_variance_is_added_to_each_variance():
+    # offset_var gives the arm of the variances with the offset added by the caller (bit-identical).
+    rng = random.Random(9)
+    for _ in range(500):
+        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
+        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
+        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        var = [rng.uniform(1e-5, 1e-2) for _ in range(9)]
+        ov = rng.choice((5e-5, 2e-4))
+        want = project_arm((*s, *e, *w), [x + ov for x in var], 0.29, 0.26, 0.0, 13.8)
+        assert project_arm((*s, *e, *w), var, 0.29, 0.26, 0.0, 13.8, ov) == want
+        want = project_forearm(s, (*e, *w), [x + ov for x in var[3:]], 0.29, 0.26)
+        assert project_forearm(s, (*e, *w), var[3:], 0.29, 0.26, ov) == want

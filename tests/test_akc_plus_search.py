@@ -104,3 +104,20 @@ def test_penalty_is_the_angle_test_and_bends_backwards():
         assert got == want
         verdicts.add((folded, got))
     assert verdicts == {(True, BACKWARDS), (False, BACKWARDS), (False, 0.0)}
+
+
+def test_other_shoulder_is_the_last_seen_output_else_the_filtered_one():
+    akc = corrector()
+    v = [0.1 * i for i in range(36)]
+    akc._v = v
+    o_left, o_right = akc._offsets[0][0], akc._offsets[1][0]
+    akc._prev = [None, None]
+    assert akc._other_shoulder(1) == tuple(v[o_left : o_left + 3])  # no output yet: the filtered one
+    v[o_left + 2] = math.nan
+    assert akc._other_shoulder(1) is None  # not known at all
+    right = tuple(0.5 + 0.01 * i for i in range(9))
+    akc._prev = [None, right]
+    akc._lost = [0.0, 0.0, 0.0, 0.0]
+    assert akc._other_shoulder(0) == right[:3]  # the right shoulder's last output, seen when last corrected
+    akc._lost[3] = 2.0
+    assert akc._other_shoulder(0) is None  # rebuilt when last corrected: no evidence for the width

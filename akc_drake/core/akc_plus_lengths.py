@@ -3,7 +3,8 @@
 :func:`~akc_drake.core.arm_geometry.project_lengths` (two steps of sequential quadratic programming, then the
 elbow on the exact circle between the shoulder and the wrist) as AKC+ runs it on most frames, unrolled with
 the circle inlined: the operations are the same, in the same order, so the arms are bit-identical; only the
-loop, the branches on the step number and the calls are gone (about a third of its time).
+loop, the branches on the step number and the calls are gone (about a third of its time). ``offset_var`` (AKC+'s
+landmark offsets) is added to each variance here, as the caller's ``[x + offset_var for x in var]`` would.
 
 * :func:`project_arm`: both depths known, the whole arm in the filter's metric with the chi2 gate (the arm of
   ``project_lengths(f, var, lu, lf, length_var, gate)``).
@@ -48,7 +49,7 @@ def _circle(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
     return (sx, sy, sz, cx + qx * f, cy + qy * f, cz + qz * f, wx, wy, wz)
 
 
-def project_arm(f, var, lu, lf, length_var, gate):
+def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
     """The arm nearest ``f`` in the metric of variances ``var`` with the exact lengths ``lu`` and ``lf``.
 
     The arm of :func:`~akc_drake.core.arm_geometry.project_lengths` with two steps (see there: the chi2 test of
@@ -60,12 +61,17 @@ def project_arm(f, var, lu, lf, length_var, gate):
         lu, lf: the upper and lower arm lengths.
         length_var: the variance of each calibrated length (m^2).
         gate: the largest chi2 accepted.
+        offset_var: added to each variance (AKC+'s landmark offsets), as ``[x + offset_var for x in var]``.
 
     Returns:
         The arm (nine floats), or None when chi2 > gate or no arm with these lengths exists near ``f``.
     """
     fsx, fsy, fsz, fex, fey, fez, fwx, fwy, fwz = f
     vsx, vsy, vsz, vex, vey, vez, vwx, vwy, vwz = var
+    if offset_var:
+        o = offset_var
+        vsx, vsy, vsz, vex, vey, vez = vsx + o, vsy + o, vsz + o, vex + o, vey + o, vez + o
+        vwx, vwy, vwz = vwx + o, vwy + o, vwz + o
     # Step 1, at x = f (the linearised constraints are the residuals themselves).
     ax, ay, az = fsx - fex, fsy - fey, fsz - fez
     bx, by, bz = fex - fwx, fey - fwy, fez - fwz
@@ -119,7 +125,7 @@ def project_arm(f, var, lu, lf, length_var, gate):
     return _circle(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
 
 
-def project_forearm(s, f, v, lu, lf):
+def project_forearm(s, f, v, lu, lf, offset_var=0.0):
     """The elbow and wrist nearest ``f`` in the metric of variances ``v`` with ``|s - e| = lu``, ``|e - w| = lf``.
 
     Two steps of sequential quadratic programming (fewer once the lengths are met to 0.01 mm), then the elbow
@@ -130,6 +136,7 @@ def project_forearm(s, f, v, lu, lf):
         f: the elbow's and the wrist's six coordinates.
         v: their six variances.
         lu, lf: the upper and lower arm lengths.
+        offset_var: added to each variance (AKC+'s landmark offsets), as ``[x + offset_var for x in v]``.
 
     Returns:
         The arm (nine floats: shoulder, elbow, wrist), or None when no arm with these lengths exists near ``f``
@@ -138,6 +145,9 @@ def project_forearm(s, f, v, lu, lf):
     sx, sy, sz = s
     fex, fey, fez, fwx, fwy, fwz = f
     vex, vey, vez, vwx, vwy, vwz = v
+    if offset_var:
+        o = offset_var
+        vex, vey, vez, vwx, vwy, vwz = vex + o, vey + o, vez + o, vwx + o, vwy + o, vwz + o
     # Step 1, at x = f.
     ax, ay, az = sx - fex, sy - fey, sz - fez
     bx, by, bz = fex - fwx, fey - fwy, fez - fwz

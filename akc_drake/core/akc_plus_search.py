@@ -25,6 +25,7 @@ from akc_drake.core.arm_geometry import radial as _radial
 
 _hypot = math.hypot
 _inf = math.inf
+_isfinite = math.isfinite
 #: ``bends_backwards``'s threshold per metre of forearm (the same product as there).
 _BACKWARD_LIMIT = -_BACKWARD_FRACTION
 #: The anatomical tests' penalty (a squared standard deviation) for a folded (below elbow_min_deg) or a
@@ -39,6 +40,22 @@ class CandidateSearch:
     """The candidate costs and choices of AKC+ (a mixin: the corrector holds the state it reads)."""
 
     __slots__ = ()
+
+    def _other_shoulder(self, side):
+        """The other shoulder for the shoulder width term: its last corrected position (the filtered one may be
+        drifting on a lost depth), else the filtered one; None if neither is known.
+
+        Only a shoulder seen when last corrected counts (a rebuilt one may be a wrong configuration, which the
+        width term would copy to this side). Needed only when a shoulder is rebuilt (a few frames in a hundred),
+        so computed then: neither the other arm's output, its counters nor the pose change during this arm's
+        correction, so it is what it would have been before it.
+        """
+        po = self._prev[1 - side]
+        if po is not None:
+            return None if self._lost[3 - 2 * side] > 0 else (po[0], po[1], po[2])
+        v, o = self._v, self._offsets[1 - side][0]
+        x, y, z = v[o], v[o + 1], v[o + 2]
+        return (x, y, z) if _isfinite(x + y + z) else None
 
     def _inv_f2(self, k):
         """1 / sigma_f^2 of joint ``k``'s filter prior (0 when the filter's estimate was replaced by ours)."""
