@@ -76,9 +76,9 @@ import numpy as np
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.akc_plus_evidence import arm_variances, fuse_blind_wrist, hold_blind, known_depths
-from akc_drake.core.akc_plus_lengths import project_forearm
+from akc_drake.core.akc_plus_lengths import project_arm, project_forearm
 from akc_drake.core.akc_plus_search import CandidateSearch
-from akc_drake.core.arm_geometry import arm_inputs, project_lengths, ray_check
+from akc_drake.core.arm_geometry import arm_inputs, ray_check
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
@@ -99,6 +99,7 @@ def _as_f64(x):
     return x if type(x) is np.ndarray and x.dtype == _F64 else np.asarray(x, dtype=np.float64)
 
 
+_FLAT = 3 * NUM_LANDMARKS
 _LHIP_Z = 3 * INDEX["left_hip"] + 2
 _RHIP_Z = 3 * INDEX["right_hip"] + 2
 
@@ -249,7 +250,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             return False
         return abs(mz - fz) <= self.config.consistency_m
 
-    def _arm(self, v, m, side, other_shoulder):
+    def _arm(self, v, m, side):
         """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
         prev = self._prev[side]
         o_s, o_e, _ = offsets = self._offsets[side]
@@ -382,9 +383,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             # with the precise x, y instead of going wholly into the depth of the joint the filter is least sure
             # of (a segment near the image plane turned 1-2 cm of length into 5-10 cm of a seen shoulder's depth).
             # The chi2 test uses the same model (the offsets stand for the calibration's variance).
-            ov = self._off_var
-            arm, _ = project_lengths((sx, sy, sz, ex, ey, ez, wx, wy, wz), [x + ov for x in vs], lu, lf, 0.0,
-                                     self._chi2_gate)
+            # (project_arm adds the offsets' variance to each of vs: project_lengths' arm, unrolled.)
+            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var)
             if arm is not None:
                 return arm
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
@@ -440,18 +440,19 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     # With the covariance, the wrist does not take the whole correction: the elbow (at its image
                     # x, y and this depth) and the wrist move as little as their variances allow (the kept
                     # shoulder fixed), mostly in depth.
-                    ov = self._off_var  # (the landmark offsets, as in the projection above)
-                    arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), [x + ov for x in vs[3:]], lu, lf)
+                    # (The landmark offsets' variance added, as in the projection above.)
+                    arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), vs[3:], lu, lf, self._off_var)
                     if arm is not None:
                         return arm
                 w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
         if te:
-            s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy, other_shoulder)
+            s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,
+                                          self._other_shoulder(side))
         else:
             s, e = self._rebuild_from_wrist((sx, sy, sz, ex, ey, ez), w, pe, ps, ke, ks, lu, lf, exy, sxy,
-                                            other_shoulder)
+                                            self._other_shoulder(side))
         return (*s, *e, *w)
 
     def correct(self, pose, measured=None, variance=None) -> AKCResult:
@@ -474,19 +475,19 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         a = _as_f64(pose)
         if a.shape != (NUM_LANDMARKS, 3):
             raise ValueError(f"pose must have shape ({NUM_LANDMARKS}, 3), got {a.shape}")
-        v = a.ravel().tolist()
+        v = a.reshape(_FLAT).tolist()  # (reshape: about 0.1 us less than ravel)
         m = None
         if measured is not None:
             b = _as_f64(measured)
             if b.shape != (NUM_LANDMARKS, 3):
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
-            m = b.ravel().tolist()
+            m = b.reshape(_FLAT).tolist()
         self._var = None
         if variance is not None:
             c = _as_f64(variance)
             if c.shape != (NUM_LANDMARKS, 3):
                 raise ValueError(f"variance must have shape ({NUM_LANDMARKS}, 3), got {c.shape}")
-            self._var = c.ravel().tolist()
+            self._var = c.reshape(_FLAT).tolist()
         self._v = v
         self._axes = None  # (see ``_penalty``)
         self._v0 = v[:]
@@ -497,21 +498,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         fallback = [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
         for side in (0, 1):
-            # The other shoulder for the width term: its last corrected position (the filtered one may be
-            # drifting on a lost depth), else the filtered one.
-            # (Only a shoulder seen when last corrected: a rebuilt one may be a wrong configuration, which
-            # the width term would copy to this side.)
-            po = prevs[1 - side]
-            if po is not None:
-                other = None if lost[3 - 2 * side] > 0 else (po[0], po[1], po[2])
-            else:
-                o_other = offsets[1 - side][0]
-                other = (v[o_other], v[o_other + 1], v[o_other + 2])
-                if not _isfinite(other[0] + other[1] + other[2]):
-                    other = None
             ke = 2 * side
             lost_e, lost_s = lost[ke], lost[ke + 1]
-            out = self._arm(v, m, side, other)
+            out = self._arm(v, m, side)  # (the other shoulder for the width term: ``_other_shoulder``, lazily)
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out
                 held[side] = False
