@@ -141,12 +141,18 @@ class CandidateSearch:
                 break
         else:
             return cands[b] if high < _inf else None
+        # The candidate with the smallest other terms first: without the penalty its cost is its low, and it wins
+        # outright (a later candidate's cost is at least its own low, which is no smaller: a tie goes to the
+        # first; an earlier one's low is larger, as b is the first smallest).
+        pen_b = self._penalty(s, cands[b], w, lu, lf)
+        if pen_b == 0.0 and lows[b] < _inf:
+            return cands[b]
         best = None
         best_j = _inf
         for i in range(n):
             if lows[i] >= best_j:
                 continue  # (the penalty is >= 0)
-            j = js[i] + (xs[i] + self._penalty(s, cands[i], w, lu, lf))
+            j = js[i] + (xs[i] + (pen_b if i == b else self._penalty(s, cands[i], w, lu, lf)))
             if j < best_j:
                 best_j, best = j, cands[i]
         return best
