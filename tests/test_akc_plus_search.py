@@ -6,7 +6,7 @@ import pytest
 from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
 from akc_drake.core.akc_plus_search import BACKWARDS
 from akc_drake.core.arm_geometry import bends_backwards, torso_axes
-from akc_drake.core.skeleton import BodyDimensions
+from akc_drake.core.skeleton import INDEX, BodyDimensions
 
 DIMS = BodyDimensions(LUA=0.29, LLA=0.26, RUA=0.29, RLA=0.26, SW=0.36)
 
@@ -15,11 +15,11 @@ def corrector():
     """A corrector mid-frame: no filter prior left out, the filter's elbow/shoulder depth variance 1e-2."""
     akc = ArmKinematicCorrectorPlus(DIMS)
     v = [0.0] * 36
+    v[3 * INDEX["left_hip"] + 2] = v[3 * INDEX["right_hip"] + 2] = math.nan  # no torso depth term
     akc._v0 = v
     akc._axes = None
     akc._no_prior = set()
     akc._cur_var = [1e-2] * 9
-    akc._hip_z = None
     return akc
 
 
@@ -110,7 +110,7 @@ def test_other_shoulder_is_the_last_seen_output_else_the_filtered_one():
     akc = corrector()
     v = [0.1 * i for i in range(36)]
     akc._v = v
-    o_left, o_right = akc._offsets[0][0], akc._offsets[1][0]
+    o_left = akc._offsets[0][0]
     akc._prev = [None, None]
     assert akc._other_shoulder(1) == tuple(v[o_left : o_left + 3])  # no output yet: the filtered one
     v[o_left + 2] = math.nan

@@ -22,10 +22,13 @@ from akc_drake.core.arm_geometry import _BACKWARD_FRACTION, torso_axes
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import radial as _radial
+from akc_drake.core.skeleton import INDEX
 
 _hypot = math.hypot
 _inf = math.inf
 _isfinite = math.isfinite
+_LHIP_Z = 3 * INDEX["left_hip"] + 2
+_RHIP_Z = 3 * INDEX["right_hip"] + 2
 #: ``bends_backwards``'s threshold per metre of forearm (the same product as there).
 _BACKWARD_LIMIT = -_BACKWARD_FRACTION
 #: The anatomical tests' penalty (a squared standard deviation) for a folded (below elbow_min_deg) or a
@@ -204,8 +207,9 @@ class CandidateSearch:
         if other is not None and self._inv_w2:
             dw = _hypot(c[0] - other[0], c[1] - other[1], c[2] - other[2]) - self._ls
             j += dw * dw * self._inv_w2
-        hz = self._hip_z
-        if hz is not None:
+        v0 = self._v0  # (the pose as given: the hips' depth, computed only when a shoulder is rebuilt)
+        hz = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z])
+        if _isfinite(hz):
             # The shoulders sit on the torso: near the hips' depth (both arms' mirror candidates together
             # would otherwise keep the shoulder width).
             dz = c[2] - hz
