@@ -3,8 +3,8 @@ import random
 
 import pytest
 
-from akc_drake.core.akc_plus_lengths import project_arm, project_forearm
-from akc_drake.core.arm_geometry import project_lengths
+from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm
+from akc_drake.core.arm_geometry import circle_point, project_lengths
 
 
 def test_forearm_projection_is_the_general_projection_with_a_fixed_shoulder():
@@ -82,3 +82,22 @@ def test_offset_variance_is_added_to_each_variance():
         assert project_arm((*s, *e, *w), var, 0.29, 0.26, 0.0, 13.8, ov) == want
         want = project_forearm(s, (*e, *w), [x + ov for x in var[3:]], 0.29, 0.26)
         assert project_forearm(s, (*e, *w), var[3:], 0.29, 0.26, ov) == want
+
+
+def test_circle_pair_is_circle_point_twice():
+    rng = random.Random(4)
+    met = 0
+    for _ in range(2000):
+        w = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
+        s = tuple(c + rng.gauss(0.0, 0.25) for c in w)
+        p, p2 = (tuple(c + rng.gauss(0.0, 0.2) for c in w) for _ in range(2))
+        if rng.random() < 0.05:
+            p = tuple(a + 0.3 * (b - a) for a, b in zip(w, s, strict=True))  # on the axis
+        want = circle_point(*w, *s, 0.26, 0.29, *p)
+        got = circle_pair(*w, *s, 0.26, 0.29, p, p2)
+        if want is None:
+            assert got is None
+        else:
+            assert got == (want, circle_point(*w, *s, 0.26, 0.29, *p2))
+            met += 1
+    assert 500 < met < 2000

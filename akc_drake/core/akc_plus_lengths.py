@@ -12,6 +12,7 @@ landmark offsets) is added to each variance here, as the caller's ``[x + offset_
   the zero variances cancel are not computed either (the arm of ``project_lengths(f, (0, 0, 0, *v_ew), lu,
   lf)``). AKC+ runs it on the frames where a lost elbow cannot close the arm at its image x, y from a kept
   shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of some clips.
+* :func:`circle_pair`: ``circle_point`` for the two Pythagorean elbow candidates, the circle computed once.
 """
 
 from __future__ import annotations
@@ -191,3 +192,42 @@ def project_forearm(s, f, v, lu, lf, offset_var=0.0):
         ez = fez - vez * (bz * l2 - az * l1)
         wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
     return _circle(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
+
+
+def circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, p, p2):
+    """:func:`~akc_drake.core.arm_geometry.circle_point` for two points ``p`` and ``p2`` (the two Pythagorean
+    elbow candidates), the circle computed once: ``(q, q2)``, each bit-identical to ``circle_point``'s, or None
+    when the circle does not exist (it depends on the shoulder and the wrist alone)."""
+    nx, ny, nz = sx - wx, sy - wy, sz - wz
+    d = _hypot(nx, ny, nz)
+    if not (abs(lf - lu) < d < lf + lu):
+        return None
+    nx, ny, nz = nx / d, ny / d, nz / d
+    a = (d * d + lf * lf - lu * lu) / (2.0 * d)
+    h = lf * lf - a * a
+    h = _sqrt(0.0 if 0.0 > h else h)  # (max(h, 0.0) exactly)
+    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
+    px, py, pz = p
+    qx, qy, qz = px - cx, py - cy, pz - cz
+    t = qx * nx + qy * ny + qz * nz
+    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
+    q = _hypot(qx, qy, qz)
+    if q < 1e-12:  # p on the axis: any point of the circle; one orthogonal to the axis and to y
+        qx, qy, qz = nz, 0.0, -nx
+        q = _hypot(qx, qy, qz)
+        if q < 1e-12:
+            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
+    f = h / q
+    r = (cx + qx * f, cy + qy * f, cz + qz * f)
+    px, py, pz = p2
+    qx, qy, qz = px - cx, py - cy, pz - cz
+    t = qx * nx + qy * ny + qz * nz
+    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
+    q = _hypot(qx, qy, qz)
+    if q < 1e-12:  # p on the axis: any point of the circle; one orthogonal to the axis and to y
+        qx, qy, qz = nz, 0.0, -nx
+        q = _hypot(qx, qy, qz)
+        if q < 1e-12:
+            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
+    f = h / q
+    return r, (cx + qx * f, cy + qy * f, cz + qz * f)
