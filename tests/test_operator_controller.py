@@ -11,6 +11,7 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from akc_drake.operator.closed_loop import ClosedLoopOperator
+from akc_drake.operator.motions import PICK_BOX_T
 from akc_drake.robot.model import add_dual_arm_robot, ee_frame, torso_frame
 from akc_drake.systems.operator_controller import OperatorController
 
@@ -82,3 +83,9 @@ def test_in_the_teleop_diagram_the_camera_renders_the_operator_s_posture(parts):
     q_out = td.operator.GetOutputPort("q_operator").Eval(td.operator.GetMyContextFromRoot(root))
     np.testing.assert_array_equal(q_in, q_out)  # the camera's operator is the controller's
     assert len(td.operator.trace) == 12  # updates at 0.01, 0.03, ..., 0.23 s
+    t, tool, box = td.operator.watched()  # what it saw: the robot's tool on its way, the box where the scene has it
+    np.testing.assert_allclose(t, 0.01 + 0.02 * np.arange(12))
+    assert np.all(np.isfinite(tool)) and np.all(np.abs(tool) < 1.0)
+    np.testing.assert_allclose(box, np.tile(box[0], (12, 1)), atol=3e-3)  # settling on the table only
+    np.testing.assert_allclose(box[0, :2], PICK_BOX_T[:2], atol=0.01)
+    assert 6.0 < td.operator.grasp_time() < 7.0  # the plan's hand first closes after ~6.5 s

@@ -45,6 +45,21 @@ def test_score_box():
     assert not score_box(tilted, [0.55, -0.40, 0.745], [0.55, -0.15, 0.745], ("table",)).upright
 
 
+def test_grasp_report_is_the_tool_against_the_box_when_the_hand_begins_to_close():
+    from akc_drake.teleop.task import grasp_report
+
+    t = np.arange(0.0, 2.0, 0.02)
+    box = np.tile([0.55, -0.15, -0.355], (len(t), 1))
+    box[t >= 1.0, 0] += 0.07  # pushed 7 cm forward at 1 s
+    tool = box + np.array([-0.05, 0.01, 0.02])
+    r = grasp_report(t, tool, box, 1.5)
+    np.testing.assert_allclose(r["grasp_tool_minus_box_cm"], [-5.0, 1.0, 2.0], atol=1e-9)
+    assert r["box_moved_before_grasp_cm"] == pytest.approx(7.0)
+    assert grasp_report(t, tool, box, 0.5)["box_moved_before_grasp_cm"] == pytest.approx(0.0)
+    assert grasp_report(t, tool, box, float("inf")) == {}  # no grasp
+    assert grasp_report(t, tool, np.full_like(box, np.nan), 1.5) == {}  # no box seen
+
+
 def test_pick_and_place_with_ground_truth_landmarks_succeeds(motion):
     from akc_drake.config import PipelineConfig
     from akc_drake.core.frames import TorsoModel

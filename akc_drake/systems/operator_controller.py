@@ -62,6 +62,8 @@ class OperatorController(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, offset, self._update)
         #: (t, offset (3,)) after each update, for the report.
         self.trace: list[tuple[float, np.ndarray]] = []
+        #: (t, tool position (3,), object position (3,), NaN without one) as seen at each update, for the report.
+        self.seen_trace: list[tuple[float, np.ndarray, np.ndarray]] = []
 
     def tool_position(self, context) -> np.ndarray:
         """The robot's tool position in T (3,) from the ``plant_state`` input."""
@@ -77,10 +79,12 @@ class OperatorController(LeafSystem):
     def _update(self, context, state):
         t = self._op.plan.start + context.get_time()
         core, _ = context.get_abstract_state(self._state).get_value()
-        core = self._op.step(core, t, *self.seen(context))
+        X, obj = self.seen(context)
+        core = self._op.step(core, t, X, obj)
         q = self._op.posture(core, t)
         state.get_mutable_abstract_state(self._state).set_value((core, q))
         self.trace.append((context.get_time(), core.offset.copy()))
+        self.seen_trace.append((context.get_time(), X[:3, 3].copy(), np.full(3, np.nan) if obj is None else obj.copy()))
 
     def _calc_q(self, context, output):
         _, q = context.get_abstract_state(self._state).get_value()
@@ -92,3 +96,15 @@ class OperatorController(LeafSystem):
             return np.zeros(0), np.zeros((0, 3))
         t, c = zip(*self.trace, strict=True)
         return np.array(t), np.array(c)
+
+    def watched(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(times (n,), tool (n, 3), object (n, 3))`` what the operator saw at each update (in T; the object NaN
+        without a watched object)."""
+        if not self.seen_trace:
+            return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+        t, p, o = zip(*self.seen_trace, strict=True)
+        return np.array(t), np.array(p), np.array(o)
+
+    def grasp_time(self) -> float:
+        """When (diagram time, seconds) the plan's hand first closes (inf: never)."""
+        return float(self._op.first_grasp_t - self._op.plan.start)

@@ -112,6 +112,28 @@ def score_box(X_WB, target_W, start_W, contacts, *, seed: int = 0, corrector: st
     return TaskOutcome(seed, corrector, ok, 100 * err, 100 * height, upright, released, moved, tuple(contacts), tilt)
 
 
+def grasp_report(times, tool, obj, grasp_t: float) -> dict:
+    """Where the robot's tool was against the box when the operator's hand began to close (the closed loop's
+    report; what tells a missed grasp from a box pushed away on the robot's way in).
+
+    Args:
+        times: ``(n,)`` the operator's update times; tool, obj: ``(n, 3)`` the tool's and the box's positions it saw
+            (in T); grasp_t: when the plan's hand first closes (same clock; inf: never).
+
+    Returns:
+        ``{"grasp_tool_minus_box_cm": [x, y, z], "box_moved_before_grasp_cm": horizontal distance from where the box
+        was first seen}`` at the first update at or after ``grasp_t``; ``{}`` without a grasp or a box seen then.
+    """
+    times, tool, obj = np.asarray(times, float), np.asarray(tool, float), np.asarray(obj, float)
+    if not len(times) or not np.isfinite(grasp_t) or grasp_t > times[-1]:
+        return {}
+    i = int(np.searchsorted(times, grasp_t - 1e-9))
+    if not (np.all(np.isfinite(obj[i])) and np.all(np.isfinite(obj[0]))):
+        return {}
+    return {"grasp_tool_minus_box_cm": (100 * (tool[i] - obj[i])).round(2).tolist(),
+            "box_moved_before_grasp_cm": float(100 * np.linalg.norm(obj[i, :2] - obj[0, :2]))}
+
+
 class RememberingDetector:
     """A pose detector that keeps its last detection, so the hand channel can tell the hands apart by the pose's
     wrists (:func:`~akc_drake.core.gripper.hand_sides`)."""
@@ -351,11 +373,13 @@ def run_pick_place(
                 else:
                     run, td = _closed_loop_run(cfg, calib, corrector, (motion, plan), mapping, landmarks, seed,
                                                progress, hand_detector)
+                if operator == "closed":  # the recorded run too (before, its line showed the previous run's)
                     t_c, c = td.operator.offsets()
+                    grasp = grasp_report(*td.operator.watched(), td.operator.grasp_time())
                     offsets.append({"seed": seed, "corrector": corrector,
                                     "final_offset_cm": (100 * c[-1]).tolist() if len(c) else None,
                                     "max_offset_cm": float(100 * np.max(np.linalg.norm(c, axis=1))) if len(c)
-                                    else 0.0, "wall_s": float(run.wall_s)})
+                                    else 0.0, "wall_s": float(run.wall_s), **grasp})
                 out = score_box(run.box_pose, target_W, start_W, run.box_contacts, seed=seed, corrector=corrector)
                 outcomes.append(out)
                 log(
@@ -363,7 +387,10 @@ def run_pick_place(
                     f"(box {out.box_error_cm:.1f} cm from the target, {out.box_height_cm:+.1f} cm high, "
                     f"tilt {out.tilt_deg:.0f} deg, {'released' if out.released else 'held'}"
                     + (f"; operator's correction up to {offsets[-1]['max_offset_cm']:.1f} cm, run {run.wall_s:.0f} s"
-                       if operator == "closed" else "") + ")"
+                       if operator == "closed" else "")
+                    + (f"; at the grasp the tool {np.round(offsets[-1]['grasp_tool_minus_box_cm'], 1).tolist()} cm "
+                       f"from the box, moved {offsets[-1]['box_moved_before_grasp_cm']:.1f} cm before"
+                       if operator == "closed" and "grasp_tool_minus_box_cm" in offsets[-1] else "") + ")"
                 )
     if hand_detector is not None:
         hand_detector.close()
