@@ -113,31 +113,106 @@ def test_tracker_keeps_the_wrist_frame_off_its_mirror_when_the_hand_vector_is_un
 
 
 def test_hand_vector_is_rebuilt_from_its_image_part_and_the_hand_width():
-    # Image part 3 cm, hand 7 cm wide: the depth part is sqrt(7^2 - 3^2) cm, with the measured sign first...
+    # Image part 3 cm, hand 7 cm wide: the depth part is sqrt(7^2 - 3^2) cm, with the measured sign...
     h = F.reconstruct_hand_vector([0.03, 0.0, -0.01], 0.07)
     np.testing.assert_allclose(h, [0.03, 0.0, -np.sqrt(0.07**2 - 0.03**2)])
-    # ... then the previous frame's sign, whatever the noisy depth says.
-    h2 = F.reconstruct_hand_vector([0.03, 0.0, +0.02], 0.07, h)
-    assert h2[2] < 0
-    # An image part as long as the hand: no depth part (1 nm, which keeps the sign for the next frame).
-    flat = F.reconstruct_hand_vector([0.0, 0.08, -0.05], 0.07, h)
-    np.testing.assert_allclose(flat, [0.0, 0.08, 0.0], atol=1e-8)
-    assert F.reconstruct_hand_vector([0.03, 0.0, +0.03], 0.07, flat)[2] < 0  # the sign survived the flat frame
+    # ... unless the tracker's filter gives one, whatever the noisy depth says.
+    assert F.reconstruct_hand_vector([0.03, 0.0, -0.02], 0.07, h, None, 1.0)[2] > 0
+    # An image part as long as the hand: no depth part.
+    np.testing.assert_allclose(F.reconstruct_hand_vector([0.0, 0.08, -0.05], 0.07, h), [0.0, 0.08, 0.0], atol=1e-8)
     # A knuckle line three hands long is a failed landmark: the previous vector is kept.
     np.testing.assert_array_equal(F.reconstruct_hand_vector([0.2, 0.1, 0.0], 0.07, h), h)
 
 
 def test_hand_vector_sign_from_the_forearm():
     # Forearm f = (0.9, 0, 0.43), partly along the camera ray: of (3, 0, +6.3) and (3, 0, -6.3) cm, the second
-    # is perpendicular to it (|cos| 0.0 against 0.77): it wins over the previous frame's sign and over the
-    # measured depth.
+    # is perpendicular to it (|cos| 0.0 against 0.77): it wins over the filter's sign and the measured depth.
     f = np.array([0.9, 0.0, 0.43])
-    prev = np.array([0.03, 0.0, 0.06])
-    h = F.reconstruct_hand_vector([0.03, 0.0, 0.05], 0.07, prev, f)
-    assert h[2] < 0
-    # A forearm in the image plane says nothing about the depth sign: the previous frame's is kept.
-    h = F.reconstruct_hand_vector([0.03, 0.0, -0.05], 0.07, prev, np.array([0.0, 1.0, 0.0]))
-    assert h[2] > 0
+    assert F.forearm_depth_sign([0.03, 0.0, 0.05], np.sqrt(0.07**2 - 0.03**2), f) == -1.0
+    assert F.reconstruct_hand_vector([0.03, 0.0, 0.05], 0.07, None, f, 1.0)[2] < 0
+    # A forearm in the image plane says nothing about the depth sign: the filter's is taken.
+    assert F.forearm_depth_sign([0.03, 0.0, -0.05], 0.063, [0.0, 1.0, 0.0]) == 0.0
+    assert F.reconstruct_hand_vector([0.03, 0.0, -0.05], 0.07, None, np.array([0.0, 1.0, 0.0]), 1.0)[2] > 0
+
+
+def _t_pose_arm(roll_deg: float):
+    """A left arm held out sideways in the image plane (torso facing the camera, C: x right, y down, z forward;
+    the operator's left is +x), its knuckle line rolled ``roll_deg`` about the forearm from the palms-down
+    neutral (index toward the camera: -z), toward up (-y)."""
+    R_torso = np.column_stack([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # forward -z, left +x, up -y
+    p_s, p_e, p_w = np.array([0.17, 0.0, 2.0]), np.array([0.45, 0.0, 2.0]), np.array([0.73, 0.0, 2.0])
+    a = np.radians(roll_deg)
+    h = 0.07 * np.array([0.0, -np.sin(a), -np.cos(a)])
+    return R_torso, p_s, p_e, p_w, h
+
+
+def test_neutral_hand_direction_is_the_palm_down_t_pose_and_thumbs_up_on_a_bent_elbow():
+    from akc_drake.core.control_frames import NEUTRAL_STRAIGHT_WEIGHT as W
+    from akc_drake.core.control_frames import neutral_hand_direction
+
+    R_torso, p_s, p_e, p_w, _ = _t_pose_arm(0.0)  # a straight arm: half the weight of a bent one
+    np.testing.assert_allclose(neutral_hand_direction(p_s, p_e, p_w, R_torso), [0.0, 0.0, -W], atol=1e-9)
+    # Hanging (wrist below the elbow, +y): forward, the index in front of the pinky with the palm toward the thigh.
+    np.testing.assert_allclose(neutral_hand_direction(p_s, p_s + [0, 0.28, 0], p_s + [0, 0.56, 0], R_torso),
+                               [0.0, 0.0, -W], atol=1e-9)
+    # Upper arm hanging, forearm forward (elbow at 90 deg): thumbs up, whatever the torso says.
+    n = neutral_hand_direction(p_s, p_s + [0, 0.28, 0], p_s + [0, 0.28, -0.28], R_torso)
+    np.testing.assert_allclose(n, [0.0, -1.0, 0.0], atol=1e-9)
+    # Straight arm overhead: the swing from hanging is undefined, no prior.
+    assert np.linalg.norm(neutral_hand_direction(p_s, p_s - [0, 0.28, 0], p_s - [0, 0.56, 0], R_torso)) < 1e-9
+
+
+def test_depth_sign_takes_the_anatomical_sign_only_when_nothing_measured_decides():
+    from akc_drake.core.control_frames import depth_sign_step, neutral_hand_direction
+
+    # The demo's failure (issue 13): a T-pose arm, its knuckle line 40 deg from palms down, mostly along the camera
+    # ray; the forearm in the image plane does not decide, Hands' relative depth reads ~0 (+1 mm). Before: the
+    # measured (or a carried-over 1 nm) sign, here the mirror (the index behind the pinky), kept by continuity.
+    R_torso, p_s, p_e, p_w, h = _t_pose_arm(40.0)
+    dz = abs(h[2])
+    measured = np.array([h[0], h[1], 0.001])
+    assert F.forearm_depth_sign(measured, dz, p_e - p_w) == 0.0
+    neutral = neutral_hand_direction(p_s, p_e, p_w, R_torso)
+    sign, belief = depth_sign_step(np.nan, measured, dz, p_e - p_w, None, neutral, 0.07, 0.1)
+    assert sign == -1.0 and 0.5 < belief  # the index toward the camera
+    # A measured depth that says enough (2 cm the other way) wins over the prior on a first frame.
+    sign, _ = depth_sign_step(np.nan, measured * [1, 1, 20], dz, p_e - p_w, None, neutral, 0.07, 0.1)
+    assert sign == 1.0
+    # A real turn is followed, not fought: the hand held at 160 deg (the index behind the pinky, far from the
+    # prior) while Hands' depth says so (2 cm) for 0.5 s, then silent (0.5 mm) while the hand rolls to 110 deg and
+    # back to 170 deg at 1-2 rad/s over a second: the branch continues the roll.
+    belief, previous = np.nan, None
+    rolls = [160.0] * 5 + list(np.linspace(160.0, 110.0, 5)) + list(np.linspace(110.0, 170.0, 5))
+    for k, roll in enumerate(rolls):
+        _, _, _, _, h = _t_pose_arm(roll)
+        meas = np.array([h[0], h[1], 0.02 if k < 5 else 0.0005])
+        sign, belief = depth_sign_step(belief, meas, abs(h[2]), p_e - p_w, previous, neutral, 0.07, 0.1)
+        assert sign == 1.0, (k, roll)
+        previous = np.array([0.0, h[1], sign * abs(h[2])])  # the chosen hand across the forearm (along x)
+
+
+def test_tracker_puts_a_t_pose_knuckle_line_along_the_ray_on_the_anatomical_side():
+    # Issue 13: both arms held out sideways in the image plane, each knuckle line 40 deg up from palms down (mostly
+    # along the camera ray, the index toward the camera); Hands' relative depth reads ~0 (+1 mm). The wrist frames
+    # must be those a decisive depth (2 cm, the right sign) gives, not their mirrors (100 deg off).
+    pose = np.zeros((12, 3))
+    for side, sx in (("left", 1.0), ("right", -1.0)):
+        pose[INDEX[f"{side}_shoulder"]] = [0.17 * sx, -0.05, 2.0]
+        pose[INDEX[f"{side}_elbow"]] = [0.45 * sx, -0.05, 2.0]
+        pose[INDEX[f"{side}_wrist"]] = [0.73 * sx, -0.05, 2.0]
+        pose[INDEX[f"{side}_hip"]] = [0.09 * sx, 0.45, 2.0]
+        h = 0.07 * np.array([0.0, -np.sin(np.radians(40.0)), -np.cos(np.radians(40.0))])
+        c = np.array([0.82 * sx, -0.05, 2.0])
+        pose[INDEX[f"{side}_index"]], pose[INDEX[f"{side}_pinky"]] = c + h / 2, c - h / 2
+    targets = {}
+    for z in (0.001, -0.02):
+        knuckles = np.array([[h[0], h[1], z]] * 2) / 2.0  # normalised image units at 2 m
+        t = ControlFrameTracker(F.RobotMapping.default(), wrist_smoothing=None, torso_smoothing=None)
+        s = t.initial_state()
+        for k in range(5):
+            s, targets[z], _, _ = t.step(s, 0.1 * k, pose, knuckles)
+    for k in range(2):
+        assert F.rotation_angle(targets[0.001][k][:3, :3].T @ targets[-0.02][k][:3, :3]) < np.radians(2.0)
 
 
 def test_a_wrist_hidden_by_its_own_hand_is_put_behind_the_hand():

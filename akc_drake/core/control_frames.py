@@ -39,9 +39,11 @@ from akc_drake.core import smoothing
 from akc_drake.core.frames import (
     DEFAULT_HAND_WIDTH_M,
     DEFAULT_MAX_LANDMARK_SPEED,
+    HAND_OUTLIER_WIDTHS,
     SPEED_GATED_LANDMARKS,
     RobotMapping,
     TorsoModel,
+    forearm_depth_sign,
     map_to_robot,
     plausible_step,
     reconstruct_hand_vector,
@@ -134,6 +136,127 @@ def calibrate_torso(poses) -> TorsoModel:
         if n_across > 1e-6:
             mean[ls], mean[rs] = s_m + half * across / n_across, s_m - half * across / n_across
     return TorsoModel.calibrate(mean[None])
+
+
+#: The elbow bend (deg, between the upper arm and the forearm) from which its plane starts to set the prior's neutral
+#: roll, and from which it alone does (:func:`neutral_hand_direction`): a few centimetres of landmark error bend a
+#: straight arm by 5-10 deg in any direction (on the demo's T-poses the pose's bend pointed anywhere).
+NEUTRAL_BEND_DEG = (20.0, 40.0)
+#: The straight arm's prior counts half the bent elbow's: the upper arm's own rotation (~+-60-90 deg, unseen when the
+#: elbow is straight) adds to the forearm's (a T-pose is held palms down, forward or up).
+NEUTRAL_STRAIGHT_WEIGHT = 0.5
+
+
+def neutral_hand_direction(p_s, p_e, p_w, R_torso) -> np.ndarray:
+    """The anatomical prior on the hand's roll: where the knuckle line ``p_i - p_p`` points, across the forearm,
+    with the forearm neither pronated nor supinated (camera frame), scaled by how well the pose defines it.
+
+    With the forearm in its neutral rotation the thumb side of the hand (the index knuckle's, relative to the
+    pinky's) faces the way elbow flexion moves the wrist: forward for an arm hanging with the palm toward the thigh,
+    up for a forearm held forward. Pronation and supination turn it at most ~80-90 deg either way, so of two
+    candidates mirrored about the image plane the one nearer this direction is the likelier one when nothing
+    measured decides (:func:`depth_sign_step`). A bent elbow (:data:`NEUTRAL_BEND_DEG`) gives it directly: minus
+    the upper arm's part across the forearm. A straight arm
+    does not show the upper arm's own rotation: the hanging arm's direction (the torso's forward axis, for the palm
+    toward the thigh) is carried to the forearm's by the shortest swing from hanging (a T-pose: palms down;
+    reaching forward: thumbs up), faded out from the horizontal to the arm held overhead, where the swing is
+    undefined. It is a prior: wrong for a palms-up T-pose or a hand turned over with the shoulder's help.
+
+    Args:
+        p_s, p_e, p_w: ``(3,)`` shoulder, elbow, wrist in C (a missing shoulder: the straight-arm reference only).
+        R_torso: ``(3, 3)`` the torso frame {0} in C (x forward, z up).
+
+    Returns:
+        ``(3,)`` across the forearm, length in [0, 1] (0: no prior).
+    """
+    f = np.asarray(p_w, dtype=float) - np.asarray(p_e, dtype=float)
+    nf = float(np.linalg.norm(f))
+    if not (math.isfinite(nf) and nf > 1e-6):
+        return np.zeros(3)
+    f /= nf
+    down, forward = -np.asarray(R_torso, dtype=float)[:, 2], np.asarray(R_torso, dtype=float)[:, 0]
+    c, k = float(down @ f), np.cross(down, f)
+    swing = np.zeros(3)
+    if c > -1.0 + 1e-6:  # forward carried by the rotation taking down onto f (Rodrigues, axis k, cos c)
+        swing = forward + np.cross(k, forward) + np.cross(k, np.cross(k, forward)) / (1.0 + c)
+        swing = NEUTRAL_STRAIGHT_WEIGHT * min(1.0 + c, 1.0) * (swing - float(swing @ f) * f)  # faded overhead
+    u = np.asarray(p_e, dtype=float) - np.asarray(p_s, dtype=float)
+    bent = -(u - float(u @ f) * f) / float(np.linalg.norm(u)) if np.all(np.isfinite(u)) and np.linalg.norm(u) > 1e-6 \
+        else np.zeros(3)
+    lo, hi = (math.sin(math.radians(a)) for a in NEUTRAL_BEND_DEG)
+    w = min(max((float(np.linalg.norm(bent)) - lo) / (hi - lo), 0.0), 1.0)
+    return w * bent / max(float(np.linalg.norm(bent)), 1e-12) + (1.0 - w) * swing
+
+
+def roll_cosines(h_C, dz: float, forearm_C, reference_C) -> tuple[float, float] | None:
+    """``(cos(h+, r), cos(h-, r))`` of the two candidates ``h+/- = (h_x, h_y, +/-dz)`` to a reference direction ``r``,
+    all three taken across the forearm ``forearm_C`` (their roll about it); None without ``r``."""
+    if reference_C is None or not np.all(np.isfinite(reference_C)):
+        return None
+    f = np.asarray(forearm_C, dtype=float) / max(float(np.linalg.norm(forearm_C)), 1e-12)
+    units = []
+    for v in (np.array([h_C[0], h_C[1], dz]), np.array([h_C[0], h_C[1], -dz]), np.asarray(reference_C, dtype=float)):
+        v = v - float(v @ f) * f
+        n = float(np.linalg.norm(v))
+        units.append(v / n if n > 1e-9 else np.zeros(3))
+    return float(units[0] @ units[2]), float(units[1] @ units[2])
+
+
+#: The hand's depth sign as a two-hypothesis filter (:func:`depth_sign_step`): the hand's roll rate about the forearm
+#: between frames (rad/s, one sigma: a roll that jumps to the mirror candidate is that unlikely) and the chance per
+#: frame that the branch was left anyway (a wrong previous frame); the measured depth's chance of the right sign,
+#: reached from MEASURED_SIGN_SHARE of the hand's width (Hands' z on the demo, 9 runs: 0.57 under 2 mm, 0.61 2-5 mm,
+#: 0.73 5-10 mm, 0.87 10-20 mm, 0.94 20-30 mm); the concentration of the anatomical prior on the roll (von Mises).
+ROLL_RATE_SIGMA, BRANCH_RESET_S, MEASURED_SIGN_P, MEASURED_SIGN_SHARE, NEUTRAL_KAPPA = 3.0, 2.0, 0.9, 0.25, 1.0
+BRANCH_SWITCH_P = 0.02
+
+
+def depth_sign_step(belief: float, h_C, dz: float, forearm_C, roll_previous_C, neutral_C, width_m: float,
+                    dt: float):
+    """One frame of the filter on the sign of the hand vector's depth part (the knuckle line's two mirror candidates
+    ``(h_x, h_y, +/-dz)``), for frames whose forearm does not decide it
+    (:func:`~akc_drake.core.frames.forearm_depth_sign`).
+
+    A hidden Markov model with two states. Transition: the candidate whose roll about the forearm continues the
+    previous frame's (:func:`roll_cosines` to ``roll_previous_C``) keeps the previous frame's
+    belief; the other takes it with the odds of the roll it would need in ``dt`` (Gaussian roll rate,
+    :data:`ROLL_RATE_SIGMA`), at least :data:`BRANCH_SWITCH_P` (half and half when the previous frame is as near to
+    both, e.g. it had the hand in the image plane; not the camera-z sign). Each frame then weighs in the measured
+    depth's sign (up to :data:`MEASURED_SIGN_P`) and the anatomical prior (:func:`neutral_hand_direction`,
+    ``exp(NEUTRAL_KAPPA |n| cos)``). Neither overrides a clear continuity in one frame (a real turn is followed),
+    but a branch that both keep contradicting is left within a few frames (with continuity alone, a hand put on the
+    mirror once stayed there for a whole rest phase).
+
+    Args:
+        belief: the probability that the previous frame's branch was right (NaN: no previous frame).
+        h_C: ``(3,)`` measured hand vector in C; dz: the depth part's size; forearm_C: ``p_e - p_w``;
+        roll_previous_C: the previous frame's hand direction across its forearm, or None; neutral_C: the prior's
+            direction (:func:`neutral_hand_direction`); width_m: the hand's width; dt: time since that frame, s.
+
+    Returns:
+        ``(sign, belief)``: +1 / -1 and the probability that it is right.
+    """
+    sigma = max(ROLL_RATE_SIGMA * dt, 1e-3)
+    c = roll_cosines(h_C, dz, forearm_C, neutral_C)
+    prior = 1.0 / (1.0 + math.exp(-NEUTRAL_KAPPA * float(np.linalg.norm(neutral_C)) * (c[0] - c[1]))) if c else 0.5
+    c = roll_cosines(h_C, dz, forearm_C, roll_previous_C) if math.isfinite(belief) else None
+    p_plus = prior
+    if c is not None:  # the previous belief carried to the candidate nearer in roll; a reset to the prior
+        a_p, a_m = (math.acos(min(max(x, -1.0), 1.0)) for x in c)
+        stay = 1.0 / (1.0 + math.exp(-min(abs(a_p**2 - a_m**2) / (2.0 * sigma**2), 50.0)))
+        p_cont = belief * stay + (1.0 - belief) * (1.0 - stay)
+        eps = 1.0 - math.exp(-dt / BRANCH_RESET_S)
+        p_plus = (1.0 - eps) * (p_cont if a_p <= a_m else 1.0 - p_cont) + eps * prior
+    log_odds = math.log(max(p_plus, 1e-12) / max(1.0 - p_plus, 1e-12))
+    hz = float(h_C[2])
+    q = 0.5 + (MEASURED_SIGN_P - 0.5) * min(abs(hz) / (MEASURED_SIGN_SHARE * width_m), 1.0)
+    log_odds += math.copysign(math.log(q / (1.0 - q)), hz)
+    post = 1.0 / (1.0 + math.exp(-min(max(log_odds, -50.0), 50.0)))
+    post = max(post, 1.0 - post)
+    c = roll_cosines(h_C, dz, forearm_C, np.array([h_C[0], h_C[1], dz]))  # the two candidates' roll apart
+    apart = math.acos(min(max(c[1], -1.0), 1.0)) if c is not None else math.pi
+    belief = post + (1.0 - post) * math.exp(-(apart**2) / (2.0 * sigma**2))  # right in roll even if not in sign
+    return (1.0 if log_odds >= 0.0 else -1.0), belief
 
 
 #: MediaPipe Hands' index and pinky knuckles (MCP joints): landmarks 5 and 17.
@@ -229,8 +352,8 @@ class ControlFrameTracker:
         # Layout: torso filter | torso R (9) + origin (3) | per side: wrist filter, previous R_C (9), gate,
         # hand width estimate (1), previous hand vector (3), hand length estimate (1), time of the last hand
         # knuckles (1), the last long image part of Hands' knuckle vector (2), the time since which Hands has read it
-        # reversed (1).
-        self._side = _S + 9 + _NG + 9
+        # reversed (1), the belief in the hand's depth sign (1).
+        self._side = _S + 9 + _NG + 10
         self._hold_at = _S + 12 + 2 * self._side  # the torso anchor's state, last
         self.state_size = self._hold_at + smoothing.HOLD_STATE_SIZE
 
@@ -253,15 +376,27 @@ class ControlFrameTracker:
             return None
         return v[:9].reshape(3, 3), v[9:12]
 
-    def _hand_vector(self, state: np.ndarray, sl: slice, h: np.ndarray, forearm: np.ndarray) -> np.ndarray:
-        """The hand vector rebuilt from its image-plane part (:func:`reconstruct_hand_vector`); the hand's
-        width is learnt from frames whose hand vector lies mostly in the image plane (exponential average)."""
+    def _hand_vector(self, state: np.ndarray, sl: slice, i_belief: int, h: np.ndarray, forearm: np.ndarray,
+                     roll_previous, neutral, dt: float) -> np.ndarray:
+        """The hand vector rebuilt from its image-plane part (:func:`reconstruct_hand_vector`), its depth's sign
+        from the forearm else :func:`depth_sign_step`; the hand's width is learnt from frames whose hand vector lies
+        mostly in the image plane (exponential average)."""
         v = state[sl]
         width = v[0] if np.isfinite(v[0]) else DEFAULT_HAND_WIDTH_M
         n = float(np.linalg.norm(h))
         if n > 1e-6 and float(np.linalg.norm(h[:2])) >= 0.8 * n and 0.03 < n < 0.15:
             width += (0.3 if n > width else 0.02) * (n - width)  # the in-plane length is the most the projection shows
-        out = reconstruct_hand_vector(h, width, v[1:4] if np.all(np.isfinite(v[1:4])) else None, forearm)
+        previous = v[1:4] if np.all(np.isfinite(v[1:4])) else None
+        sign = None
+        if previous is None or float(h[0] ** 2 + h[1] ** 2) <= (HAND_OUTLIER_WIDTHS * width) ** 2:  # not an outlier
+            dz = max(math.sqrt(max(width**2 - float(h[0] ** 2 + h[1] ** 2), 0.0)), 1e-9)
+            sign = forearm_depth_sign(h, dz, forearm)
+            if sign:
+                state[i_belief] = 1.0 - BRANCH_SWITCH_P
+            else:
+                sign, state[i_belief] = depth_sign_step(state[i_belief], h, dz, forearm, roll_previous, neutral, width,
+                                                        dt)
+        out = reconstruct_hand_vector(h, width, previous, forearm, sign)
         state[sl] = np.concatenate([[width], out])
         return out
 
@@ -337,8 +472,15 @@ class ControlFrameTracker:
                 if (knuckles is not None and not fresh and self.robust_wrist
                         and np.all(np.isfinite(previous)) and t - state[i_hands_t] <= HANDS_HOLD_S):
                     h = previous.copy()  # Hands missed the hand for a moment: a hand does not turn over in 0.5 s
+                elif self.robust_wrist:  # continuity by the previous frame's roll (-x: the hand across the forearm)
+                    prev = state[prev_sl]
+                    neutral = neutral_hand_direction(pose[INDEX[f"{side}_shoulder"]], p_e, p_w, R0)
+                    t_prev = state[gate_sl][-1]  # the time of the previous frame R_C
+                    h = self._hand_vector(state, hand_sl, b + _S + 18 + _NG, h_meas, p_e - p_w,
+                                          -prev[0::3] if np.all(np.isfinite(prev)) else None, neutral,
+                                          t - t_prev if math.isfinite(t_prev) else 0.0)
                 else:
-                    h = self._hand_vector(state, hand_sl, h_meas, p_e - p_w) if self.robust_wrist else h_meas
+                    h = h_meas
                 R_w = wrist_frame(p_e, p_w, p_p + h, p_p)
             if R_w is None:
                 continue

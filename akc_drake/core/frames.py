@@ -662,39 +662,39 @@ def resolve_wrist_flip(R_C, hand_vector_C, R_previous_C) -> np.ndarray:
 
 #: Initial estimate of the index-to-pinky knuckle distance (metres) before it is learnt from the operator.
 DEFAULT_HAND_WIDTH_M = 0.07
-
-
 #: The knuckle line is ~perpendicular to the forearm (ulnar/radial deviation <= ~30 deg): the depth sign more
 #: perpendicular to it wins when their |cos| differ by this much. Image part > HAND_OUTLIER_WIDTHS widths: failed.
 FOREARM_SIGN_MARGIN, HAND_OUTLIER_WIDTHS = 0.6, 1.5
 
 
-def reconstruct_hand_vector(h_C, width_m: float, h_previous_C=None, forearm_C=None) -> np.ndarray:
+def forearm_depth_sign(h_C, dz: float, forearm_C) -> float:
+    """+1 / -1: the sign of the depth part ``dz`` whose hand vector is more perpendicular to the forearm
+    ``p_e - p_w`` by :data:`FOREARM_SIGN_MARGIN` in |cos|; 0 when undecided (e.g. a forearm in the image plane)."""
+    h, f = np.asarray(h_C, dtype=float), np.asarray(forearm_C if forearm_C is not None else np.full(3, np.nan), float)
+    nf, dxy2 = float(np.linalg.norm(f)), float(h[0] ** 2 + h[1] ** 2)
+    if not (math.isfinite(nf) and nf > MIN_NORM_M):
+        return 0.0
+    c_p, c_m = (abs(float(h[:2] @ f[:2]) + sg * dz * f[2]) / (nf * math.sqrt(dxy2 + dz**2)) for sg in (1, -1))
+    return 0.0 if abs(c_p - c_m) < FOREARM_SIGN_MARGIN else (1.0 if c_p < c_m else -1.0)
+
+
+def reconstruct_hand_vector(h_C, width_m: float, h_previous_C=None, forearm_C=None, sign=None) -> np.ndarray:
     """The hand vector ``p_i - p_p`` (camera frame) rebuilt from its image-plane part and the hand's width.
 
     AKC's idea applied to the hand: the knuckles' image coordinates (x, y of C) are reliable, their depths are not,
-    their distance is a constant of the hand: ``dz = +/- sqrt(width^2 - |h_xy|^2)``. The measured depth difference
-    says little about the sign (wrong in half of the bench's frames where the true one exceeds 2 cm), so the sign
-    comes from the forearm (:data:`FOREARM_SIGN_MARGIN`), else the previous frame (a hand does not turn over between
-    two frames), else the measured depths. ``dz`` is at least 1 nm, so the sign survives frames with the hand in the
-    image plane. An image part over :data:`HAND_OUTLIER_WIDTHS` hand widths is a failed landmark: the previous vector
-    is kept.
+    their distance is a constant of the hand: ``dz = +/- sqrt(width^2 - |h_xy|^2)``. The sign comes from the forearm
+    (:func:`forearm_depth_sign`), else ``sign`` (the tracker's filter over frames,
+    :func:`~akc_drake.core.control_frames.depth_sign_step`), else the measured depth. An image part over
+    :data:`HAND_OUTLIER_WIDTHS` hand widths is a failed landmark: the previous vector ``h_previous_C`` is kept.
 
     Args:
         h_C: ``(3,)`` the measured ``p_i - p_p`` in C; width_m: the hand's knuckle distance;
-        h_previous_C: the previous reconstructed vector, or None; forearm_C: ``p_e - p_w`` in C, or None.
+        h_previous_C: the previous reconstructed vector, or None; forearm_C: ``p_e - p_w`` in C, or None;
+        sign: +1 / -1, the depth's sign when the forearm does not decide, or None.
     """
     h, dxy2 = np.asarray(h_C, dtype=float), float(h_C[0] ** 2 + h_C[1] ** 2)
-    has_previous = h_previous_C is not None and bool(np.all(np.isfinite(h_previous_C)))
-    if has_previous and dxy2 > (HAND_OUTLIER_WIDTHS * width_m) ** 2:
+    if h_previous_C is not None and np.all(np.isfinite(h_previous_C)) and dxy2 > (HAND_OUTLIER_WIDTHS * width_m) ** 2:
         return np.asarray(h_previous_C, dtype=float).copy()
     dz = max(math.sqrt(max(width_m**2 - dxy2, 0.0)), 1e-9)
-    f = np.asarray(forearm_C if forearm_C is not None else np.full(3, np.nan), dtype=float)
-    nf = float(np.linalg.norm(f))
-    if math.isfinite(nf) and nf > MIN_NORM_M:  # |cos| of each candidate to the forearm
-        c_plus, c_minus = (abs(float(h[0] * f[0] + h[1] * f[1] + sg * dz * f[2])) / (nf * math.sqrt(dxy2 + dz**2))
-                           for sg in (1.0, -1.0))
-        if abs(c_plus - c_minus) >= FOREARM_SIGN_MARGIN:
-            return np.array([h[0], h[1], dz if c_plus < c_minus else -dz])
-    ref = float(h_previous_C[2]) if has_previous and float(h_previous_C[2]) != 0.0 else float(h[2])
-    return np.array([h[0], h[1], dz if ref >= 0.0 else -dz])
+    s = forearm_depth_sign(h, dz, forearm_C) or sign or float(h[2])
+    return np.array([h[0], h[1], dz if s >= 0.0 else -dz])
