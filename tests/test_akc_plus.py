@@ -486,3 +486,29 @@ def test_a_wrist_lost_altogether_is_pulled_back_from_the_filters_extrapolation()
         out = akc.correct(f, measured=m, variance=var).pose
         assert abs(np.linalg.norm(out[LW] - out[LE]) - dims.LLA) < 1e-9
     assert np.linalg.norm(out[LW] - p[LW]) < 0.12
+
+
+def test_a_measured_depth_beyond_the_arms_reach_does_not_replace_the_filters():
+    # The wrist's depth pixel reads the wall 1.4 m behind (a landmark off the body's edge), on the wrist's ray; a
+    # filter that followed it 15 cm is off that ray, so the ray test would take the measurement for the truth
+    # (the arm then rebuilt: the wrist 46 cm off). But the measured shoulder and elbow are over 1.2 m from it,
+    # farther than the arm reaches: the filter's wrist stays (the arm corrected from it, within 2 cm).
+    p, dims = arm_pose()
+    akc = settled_corrector(p, dims)
+    m = p.copy()
+    m[LW] *= (p[LW, 2] + 1.4) / p[LW, 2]
+    f = p.copy()
+    f[LW, 2] += 0.15
+    out = akc.correct(f, measured=m, variance=kf_var()).pose
+    assert np.linalg.norm(out[LW] - p[LW]) < 0.02
+    assert np.linalg.norm(out[LE] - p[LE]) < 0.02
+    np.testing.assert_allclose(out[LS], p[LS], atol=0.02)
+    assert abs(np.linalg.norm(out[LE] - out[LW]) - dims.LLA) < 1e-9
+    # The same depth read within the arm's reach (a filter 10 cm off the measured ray) still replaces it.
+    akc = settled_corrector(p, dims)
+    m = p.copy()
+    f = p.copy()
+    f[LW, 1] += 0.10
+    f[LW, 2] += 0.20
+    out = akc.correct(f, measured=m, variance=kf_var()).pose
+    np.testing.assert_allclose(out[LW], p[LW], atol=1e-6)

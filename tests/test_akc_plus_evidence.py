@@ -1,6 +1,12 @@
 import pytest
 
-from akc_drake.core.akc_plus_evidence import arm_variances, fuse_blind_wrist, hold_blind, known_depths
+from akc_drake.core.akc_plus_evidence import (
+    arm_variances,
+    fuse_blind_wrist,
+    hold_blind,
+    known_depths,
+    unreachable_replacements,
+)
 
 R_XY, R_Z = 0.01**2, 0.05**2
 #: One arm's coordinates at flat indices 0-8 (position in the arm, flat index, R, running-NIS index).
@@ -105,3 +111,33 @@ def test_a_blind_wrist_is_the_product_of_the_filters_and_the_temporal_prior():
     assert vs[7] == pytest.approx(0.005, rel=1e-12)
     assert f[8] == 3.0 and vs[8] != vs[8]  # an unknown variance: left as it is
     assert f[:6] == [0.0] * 6 and vs[:6] == [1e-4] * 6  # shoulder and elbow untouched
+
+
+def test_a_replacement_beyond_the_arms_reach_gets_the_filters_point_and_variances_back():
+    # Shoulder (0, 0, 2), elbow 0.3 m below, wrist 0.28 m further; lengths 0.3, 0.28. The wrist's measured depth
+    # reads 1.4 m behind and replaced the filter's (2.05): the measured elbow is 1.43 m from it. Restored: the
+    # filter's point, and its variance times the running NIS (2 here).
+    f0 = [0.0, 0.0, 2.0, 0.0, 0.3, 2.0, 0.0, 0.58, 2.05]
+    m = [0.0, 0.0, 2.0, 0.0, 0.3, 2.0, 0.0, 0.58 * 3.4 / 2.0, 3.4]
+    f = f0[:6] + m[6:]
+    vs = [1e-4] * 6 + [R_XY, R_XY, R_Z]
+    var = [1e-5] * 9
+    nis = [2.0] * 9
+    assert unreachable_replacements(f, vs, f0, m, (0, 3, 6), SUB, var, nis, 0.01, 0.3, 0.28, (R_XY, R_XY, R_Z),
+                                    1e-4, 9.0) == 1
+    assert f == f0
+    assert vs[6:] == pytest.approx([2e-5] * 3, rel=1e-12)
+    assert vs[:6] == [1e-4] * 6
+    # Within reach (the filter's depth 10 cm off, the measured one on the arm): the replacement stays.
+    f0[8] = 2.15
+    m[7], m[8] = 0.58, 2.05
+    f = f0[:6] + m[6:]
+    vs = [1e-4] * 6 + [R_XY, R_XY, R_Z]
+    assert unreachable_replacements(f, vs, f0, m, (0, 3, 6), SUB, var, nis, 0.01, 0.3, 0.28, (R_XY, R_XY, R_Z),
+                                    1e-4, 9.0) == 0
+    assert f[6:] == m[6:]
+    # A shorter pair (a foreshortened depth error either way) is not tested: only a stretch beyond the reach.
+    f = f0[:6] + [0.0, 0.35, 2.0]
+    m[6:] = f[6:]
+    assert unreachable_replacements(f, vs, f0, m, (0, 3, 6), SUB, var, nis, 0.01, 0.3, 0.28, (R_XY, R_XY, R_Z),
+                                    1e-4, 9.0) == 0

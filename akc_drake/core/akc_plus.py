@@ -19,6 +19,10 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
   (chi2, 2 dof) is the filter's error (e.g. the paper's per-joint EKF, whose bone constraint moves a seen
   joint towards a lost neighbour), and the measured point replaces it, with the measurement's variance.
+* *Reach*: a measured point that replaced the filter's (ray test, covariance matching) farther from another
+  joint measured this frame than the arm's calibrated lengths reach (chi2 of the stretch) is no reading of the
+  joint (the background behind a landmark off the body's edge, 1-1.5 m deep with MediaPipe): the filter's point
+  and variances come back (:func:`~akc_drake.core.akc_plus_evidence.unreachable_replacements`).
 * *Covariance matching*: a running mean of each arm coordinate's NIS (each frame's winsorised at the gate,
   weight ``nis_alpha``) scales the filter's variance into the error variance its residuals show: a lagging
   filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
@@ -75,7 +79,13 @@ import numpy as np
 
 from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
-from akc_drake.core.akc_plus_evidence import arm_variances, fuse_blind_wrist, hold_blind, known_depths
+from akc_drake.core.akc_plus_evidence import (
+    arm_variances,
+    fuse_blind_wrist,
+    hold_blind,
+    known_depths,
+    unreachable_replacements,
+)
 from akc_drake.core.akc_plus_lengths import project_arm, project_forearm
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.arm_geometry import arm_inputs, ray_check
@@ -273,6 +283,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 if (d0 * d0 > g2 * (rz - var[o_s + 2]) or d1 * d1 > g2 * (rz - var[o_e + 2])
                         or d2 * d2 > g2 * (rz - var[o_w + 2])):
                     ray_check(m, offsets, f, vs, var, self._r_axes[0], rz, self._gate2, self._chi2_gate)
+                if f[2] != joints[2] or f[5] != joints[5] or f[8] != joints[8]:
+                    # A measured point that replaced the filter's must be within the arm's reach of its neighbours.
+                    unreachable_replacements(f, vs, joints, m, offsets, self._sub_index[side], var, self._nis,
+                                             self._nis_floor, self._lu[side], self._lf[side], self._r_axes,
+                                             self._len_var, g2)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             sx, sy, sz, ex, ey, ez, wx, wy, wz = joints

@@ -152,3 +152,64 @@ def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, n
     if need_s:
         kn_s = vsz <= rebuild_variance(ex, ey, vs[3], vs[4], ve, sx, sy, vs[0], vs[1], lu, length_var, vsz)
     return kn_e, kn_s
+
+
+
+
+def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, lu, lf, r_axes, length_var, g2) -> int:
+    """Undo a measured point that replaced the filter's (covariance matching, the ray test) off the arm's reach.
+
+    Both replacement rules weigh the measurement against the filter alone. A depth read off the joint (the
+    background or another limb behind a landmark that sits off the body's edge: MediaPipe puts landmarks several
+    cm off the joint, and a depth pixel past the silhouette reads the wall 1-1.5 m behind) is on the joint's
+    ray, so the ray test takes it for the filter's error; but no arm with the calibrated lengths joins it to the
+    other joints the camera measured this frame. So a replaced joint is tested against each other measured
+    joint of the arm, measurement against measurement (the filter's neighbour may be the one that is wrong, e.g.
+    a per-joint EKF's lost joint): a pair farther apart than the arm reaches (its segment's calibrated length,
+    or both lengths for the shoulder and the wrist) by more than the gate (``(d - l)^2 > g2 (u^T (R_a + R_b) u +
+    length_var)``, ``u`` the direction, ``R`` the measurement's variances) undoes the replacement of the outer
+    joint of the pair if it was replaced, else the inner one's: it gets back the filter's point and its
+    covariance-matched variances (:func:`arm_variances`' before the replacement). Only a stretch is tested: a
+    pair nearer than its length is a foreshortened depth error either way, and a real measurement's (the
+    design half: testing both ways undid the ray test's fixes of the `ours` EKF's seen joints, worst increase
+    +0.25 -> +0.55 cm with the simulated detector).
+
+    Args:
+        f, vs: the arm's nine coordinates and variances after the replacements (changed in place).
+        f0: the filter's nine coordinates.
+        m: the flat (36) measurement; offsets: the arm's flat shoulder, elbow and wrist x indices.
+        sub_index, var, nis, floor: as :func:`arm_variances` (``nis`` already updated this frame).
+        lu, lf: the calibrated upper and lower arm lengths; r_axes: the measurement's x, y, z variances;
+        length_var: the lengths' variance.
+        g2: the gate squared.
+
+    Returns:
+        How many joints were restored.
+    """
+    mp = [(m[o], m[o + 1], m[o + 2]) for o in offsets]
+    rep = [f[3 * k + 2] == mp[k][2] and f0[3 * k + 2] != mp[k][2] for k in (0, 1, 2)]
+    out = 0
+    rx, ry, rz = r_axes
+    for a, b, length in ((0, 1, lu), (1, 2, lf), (0, 2, lu + lf)):
+        if not (rep[a] or rep[b]):
+            continue
+        pa, pb = mp[a], mp[b]
+        dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
+        d2 = dx * dx + dy * dy + dz * dz
+        if not d2 > 0.0:  # (NaN: a joint not measured)
+            continue
+        r = d2**0.5 - length
+        if r <= 0.0:
+            continue
+        s = 2.0 * (dx * dx * rx + dy * dy * ry + dz * dz * rz) / d2 + length_var
+        if r * r > g2 * s:
+            k = b if rep[b] else a
+            rep[k] = False
+            i = 3 * k
+            for c in (i, i + 1, i + 2):
+                _, j, _, n = sub_index[c]
+                q = nis[n]
+                f[c] = f0[c]
+                vs[c] = var[j] * (q if q > floor else floor)
+            out += 1
+    return out
