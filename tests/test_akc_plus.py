@@ -512,3 +512,21 @@ def test_a_measured_depth_beyond_the_arms_reach_does_not_replace_the_filters():
     f[LW, 2] += 0.20
     out = akc.correct(f, measured=m, variance=kf_var()).pose
     np.testing.assert_allclose(out[LW], p[LW], atol=1e-6)
+
+
+def test_a_wrist_whose_measured_depth_is_rejected_is_no_anchor_for_the_seen_joints():
+    # A KF that followed a depth read on the wall behind the wrist 90 cm of the way: the measured depth (1.4 m
+    # behind) is beyond the arm's reach and the filter's fails the innovation test against it. Either is wrong
+    # about the wrist; the seen shoulder and elbow are kept (before: the arm rebuilt from the filter's wrist, the
+    # elbow 80 cm behind) and the wrist follows at the forearm's length.
+    p, dims = arm_pose()
+    akc = settled_corrector(p, dims)
+    m = p.copy()
+    m[LW] *= (p[LW, 2] + 1.4) / p[LW, 2]
+    f = p.copy()
+    f[LW, 2] += 0.9
+    out = akc.correct(f, measured=m, variance=kf_var()).pose
+    np.testing.assert_allclose(out[LS], p[LS], atol=1e-9)
+    np.testing.assert_allclose(out[LE], p[LE], atol=1e-6)
+    assert abs(np.linalg.norm(out[LE] - out[LW]) - dims.LLA) < 1e-9
+    np.testing.assert_allclose(out[RW], p[RW], atol=1e-9)  # the other arm untouched

@@ -39,7 +39,10 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   mismatch of a segment near the image plane is shared with the x, y instead of becoming a depth error several
   times as large. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y) that the filter knows worse than the shoulder and the elbow
-  is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist follows.
+  is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist follows. Nor is a
+  wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
+  measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
+  silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
 * A joint the detector lost altogether whose depth the filter extrapolates (variance above ``R``, moved by more
@@ -289,9 +292,17 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                                              self._nis_floor, self._lu[side], self._lf[side], self._r_axes,
                                              self._len_var, g2)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
+            # A wrist whose measured depth the innovation test rejects (and that no replacement resolved): the
+            # filter and the measurement disagree about it, and it is no anchor for the joints the camera sees.
+            w_bad = False
+            if m is not None:
+                z = m[o_w + 2]
+                d, q = z - wz, self._r_z - var[o_w + 2]
+                w_bad = z == z and d * d > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
         else:
             sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
             vs = self._cur_var = None
+            w_bad = False
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
         no_prior = self._no_prior = set()
@@ -414,9 +425,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         fit_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self._cons
         ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te) or (kn_s and not te)
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
-        # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out.
+        # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
+        # is a wrist whose measured depth was rejected (``w_bad``: a filter that followed a depth read past the
+        # silhouette half-way, or one the measurement contradicts: either is wrong about it).
         w_lost = (vs is not None and m is not None and not _isfinite(m[offsets[2]] + m[offsets[2] + 1])
-                  and vs[8] > vs[2] and vs[8] > vs[5])
+                  and vs[8] > vs[2] and vs[8] > vs[5]) or w_bad
         if w_lost:
             ts, te = True, False
         if ts:
