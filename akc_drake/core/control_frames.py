@@ -16,7 +16,10 @@ frame:
    hand vector ``p_i - p_p`` (MediaPipe Hands' knuckle line when given, :func:`hands_knuckle_vector`, its
    index/pinky swaps held off, :func:`hands_swapped`) is rebuilt from its image-plane part and the hand's learnt width
    (:func:`~akc_drake.core.frames.reconstruct_hand_vector`: the knuckles'
-   depths are the noisiest inputs of eq. 17); a frame whose hand vector is unreliable is kept on the side of
+   depths are the noisiest inputs of eq. 17), the sign of its depth part, when the forearm does not decide it,
+   from a two-state filter over frames (:func:`depth_sign_step`: continuity of the roll about the forearm, Hands'
+   measured depth, an anatomical prior on the forearm's rotation, :func:`neutral_hand_direction`); a frame whose
+   hand vector is unreliable is kept on the side of
    the previous one (:func:`~akc_drake.core.frames.resolve_wrist_flip`), then expressed in the torso frame and
    mapped to the robot (:func:`~akc_drake.core.frames.map_to_robot`).
 3. **Speed gate**: a side whose wrist/hand/hip landmarks would have moved faster than ``max_landmark_speed``
@@ -203,12 +206,14 @@ def roll_cosines(h_C, dz: float, forearm_C, reference_C) -> tuple[float, float] 
 
 
 #: The hand's depth sign as a two-hypothesis filter (:func:`depth_sign_step`): the hand's roll rate about the forearm
-#: between frames (rad/s, one sigma: a roll that jumps to the mirror candidate is that unlikely) and the chance per
-#: frame that the branch was left anyway (a wrong previous frame); the measured depth's chance of the right sign,
-#: reached from MEASURED_SIGN_SHARE of the hand's width (Hands' z on the demo, 9 runs: 0.57 under 2 mm, 0.61 2-5 mm,
-#: 0.73 5-10 mm, 0.87 10-20 mm, 0.94 20-30 mm); the concentration of the anatomical prior on the roll (von Mises).
-ROLL_RATE_SIGMA, BRANCH_RESET_S, MEASURED_SIGN_P, MEASURED_SIGN_SHARE, NEUTRAL_KAPPA = 3.0, 2.0, 0.9, 0.25, 1.0
-BRANCH_SWITCH_P = 0.02
+#: between frames (rad/s, one sigma); the time constant (s) of the filter's reset to the anatomical prior (how long a
+#: branch is kept on continuity alone); the measured depth's chance of the right sign, from none at the first share
+#: of the hand's width in MEASURED_SIGN_SHARE to MEASURED_SIGN_P at the second (Hands' z on the demo's recordings,
+#: 9 runs: right 0.57 under 2 mm, 0.61 2-5 mm, 0.73 5-10 mm, 0.87 10-20 mm, 0.94 20-30 mm; below ~5 mm its errors
+#: persist over frames, so they would add up frame after frame); the prior's concentration on the roll (von Mises,
+#: per unit of :func:`neutral_hand_direction`'s length); the belief after a frame whose forearm decided the sign.
+ROLL_RATE_SIGMA, BRANCH_RESET_S, MEASURED_SIGN_P, MEASURED_SIGN_SHARE, NEUTRAL_KAPPA = 3.0, 2.0, 0.9, (0.07, 0.25), 1.0
+FOREARM_SIGN_BELIEF = 0.98
 
 
 def depth_sign_step(belief: float, h_C, dz: float, forearm_C, roll_previous_C, neutral_C, width_m: float,
@@ -218,14 +223,18 @@ def depth_sign_step(belief: float, h_C, dz: float, forearm_C, roll_previous_C, n
     (:func:`~akc_drake.core.frames.forearm_depth_sign`).
 
     A hidden Markov model with two states. Transition: the candidate whose roll about the forearm continues the
-    previous frame's (:func:`roll_cosines` to ``roll_previous_C``) keeps the previous frame's
-    belief; the other takes it with the odds of the roll it would need in ``dt`` (Gaussian roll rate,
-    :data:`ROLL_RATE_SIGMA`), at least :data:`BRANCH_SWITCH_P` (half and half when the previous frame is as near to
-    both, e.g. it had the hand in the image plane; not the camera-z sign). Each frame then weighs in the measured
-    depth's sign (up to :data:`MEASURED_SIGN_P`) and the anatomical prior (:func:`neutral_hand_direction`,
-    ``exp(NEUTRAL_KAPPA |n| cos)``). Neither overrides a clear continuity in one frame (a real turn is followed),
-    but a branch that both keep contradicting is left within a few frames (with continuity alone, a hand put on the
-    mirror once stayed there for a whole rest phase).
+    previous frame's (:func:`roll_cosines` to ``roll_previous_C``, the previous wrist frame's hand direction: not the
+    camera-z sign, which is arbitrary once the hand has crossed the image plane or the forearm has turned out of the
+    ray) keeps the previous belief, the other gets it with the odds of the roll it would need in ``dt`` (Gaussian
+    roll rate, :data:`ROLL_RATE_SIGMA`; half and half when the previous frame is as near to both); mixed with the
+    anatomical prior (:func:`neutral_hand_direction`, von Mises ``exp(NEUTRAL_KAPPA |n| cos)``) at the rate
+    ``dt / BRANCH_RESET_S``, which is all there is on a first frame. Observation: the measured depth's sign (up to
+    :data:`MEASURED_SIGN_P`). So the prior decides only what neither the forearm, nor continuity, nor the measurement
+    does (a first frame with Hands' z ~0), and a branch that the measurement and the prior keep contradicting is left
+    within a second or two (before: continuity alone, so a hand put on the mirror once stayed there for a whole
+    phase); a real turn is followed by continuity. The belief returned is that the roll is right: the chosen sign's
+    probability, plus the other's when the two candidates are within the roll noise of each other (a forearm along
+    the ray, where the sign barely moves the frame).
 
     Args:
         belief: the probability that the previous frame's branch was right (NaN: no previous frame).
@@ -249,7 +258,8 @@ def depth_sign_step(belief: float, h_C, dz: float, forearm_C, roll_previous_C, n
         p_plus = (1.0 - eps) * (p_cont if a_p <= a_m else 1.0 - p_cont) + eps * prior
     log_odds = math.log(max(p_plus, 1e-12) / max(1.0 - p_plus, 1e-12))
     hz = float(h_C[2])
-    q = 0.5 + (MEASURED_SIGN_P - 0.5) * min(abs(hz) / (MEASURED_SIGN_SHARE * width_m), 1.0)
+    lo, hi = MEASURED_SIGN_SHARE
+    q = 0.5 + (MEASURED_SIGN_P - 0.5) * min(max((abs(hz) / width_m - lo) / (hi - lo), 0.0), 1.0)
     log_odds += math.copysign(math.log(q / (1.0 - q)), hz)
     post = 1.0 / (1.0 + math.exp(-min(max(log_odds, -50.0), 50.0)))
     post = max(post, 1.0 - post)
@@ -392,7 +402,7 @@ class ControlFrameTracker:
             dz = max(math.sqrt(max(width**2 - float(h[0] ** 2 + h[1] ** 2), 0.0)), 1e-9)
             sign = forearm_depth_sign(h, dz, forearm)
             if sign:
-                state[i_belief] = 1.0 - BRANCH_SWITCH_P
+                state[i_belief] = FOREARM_SIGN_BELIEF
             else:
                 sign, state[i_belief] = depth_sign_step(state[i_belief], h, dz, forearm, roll_previous, neutral, width,
                                                         dt)
