@@ -89,16 +89,16 @@ from akc_drake.core.akc_plus_evidence import (
     known_depths,
     unreachable_replacements,
 )
-from akc_drake.core.akc_plus_lengths import project_arm, project_forearm
+from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm
 from akc_drake.core.akc_plus_search import CandidateSearch
-from akc_drake.core.arm_geometry import arm_inputs, ray_check
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import follow as _follow
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
-from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
+from akc_drake.core.arm_geometry import ray_check
+from akc_drake.core.skeleton import NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
 _hypot = math.hypot
@@ -113,8 +113,7 @@ def _as_f64(x):
 
 
 _FLAT = 3 * NUM_LANDMARKS
-_LHIP_Z = 3 * INDEX["left_hip"] + 2
-_RHIP_Z = 3 * INDEX["right_hip"] + 2
+_SHAPE = (NUM_LANDMARKS, 3)
 
 #: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, per
 #: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
@@ -136,7 +135,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
 
     # Slots: this object's attributes are read tens of times a frame on the hot path.
     __slots__ = ("config", "_arm_index", "_axes", "_chi2_gate", "_cos_min", "_cur_var", "_dims", "_f0", "_fits",
-                 "_gate2", "_hip_z", "_inv_t2", "_inv_torso2", "_inv_w2", "_inv_wrist2", "_len_var", "_lf", "_lost",
+                 "_gate2", "_inv_t2", "_inv_torso2", "_inv_w2", "_inv_wrist2", "_len_var", "_lf", "_lost",
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
@@ -160,7 +159,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
         self._inv_torso2 = 1.0 / config.sigma_torso_m**2 if config.sigma_torso_m > 0 else 0.0
-        self._hip_z = None
         self._no_prior: set = set()
         self._fits: set = set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
@@ -266,13 +264,28 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
     def _arm(self, v, m, side):
         """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
         prev = self._prev[side]
-        o_s, o_e, _ = offsets = self._offsets[side]
-        joints = arm_inputs(v, offsets, prev)
-        if joints is None:
+        o_s, o_e, o_w = offsets = self._offsets[side]
+        # (``arm_inputs`` inline, its operations in the same order: this runs for every arm.)
+        wx, wy, wz = v[o_w], v[o_w + 1], v[o_w + 2]
+        if not _isfinite(wx + wy + wz):
             return None
+        ex, ey, ez = v[o_e], v[o_e + 1], v[o_e + 2]
+        if not _isfinite(ex + ey):
+            if prev is None:
+                return None
+            ex, ey = prev[3], prev[4]
+        if not _isfinite(ez):
+            ez = prev[5] if prev is not None else wz
+        sx, sy, sz = v[o_s], v[o_s + 1], v[o_s + 2]
+        if not _isfinite(sx + sy):
+            if prev is None:
+                return None
+            sx, sy = prev[0], prev[1]
+        if not _isfinite(sz):
+            sz = prev[2] if prev is not None else ez
         var = self._var
         if var is not None:
-            f = list(joints)
+            f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2)
             o_w = offsets[2]
@@ -286,11 +299,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 if (d0 * d0 > g2 * (rz - var[o_s + 2]) or d1 * d1 > g2 * (rz - var[o_e + 2])
                         or d2 * d2 > g2 * (rz - var[o_w + 2])):
                     ray_check(m, offsets, f, vs, var, self._r_axes[0], rz, self._gate2, self._chi2_gate)
-                if f[2] != joints[2] or f[5] != joints[5] or f[8] != joints[8]:
+                if f[2] != sz or f[5] != ez or f[8] != wz:
                     # A measured point that replaced the filter's must be within the arm's reach of its neighbours.
-                    unreachable_replacements(f, vs, joints, m, offsets, self._sub_index[side], var, self._nis,
-                                             self._nis_floor, self._lu[side], self._lf[side], self._r_axes,
-                                             self._len_var, g2)
+                    unreachable_replacements(f, vs, (sx, sy, sz, ex, ey, ez, wx, wy, wz), m, offsets,
+                                             self._sub_index[side], var, self._nis, self._nis_floor, self._lu[side],
+                                             self._lf[side], self._r_axes, self._len_var, g2)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
             # A wrist whose measured depth the innovation test rejects (and that no replacement resolved): the
             # filter and the measurement disagree about it, and it is no anchor for the joints the camera sees.
@@ -300,7 +313,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 d, q = z - wz, self._r_z - var[o_w + 2]
                 w_bad = z == z and d * d > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
         else:
-            sx, sy, sz, ex, ey, ez, wx, wy, wz = joints
             vs = self._cur_var = None
             w_bad = False
         lf, lu = self._lf[side], self._lu[side]
@@ -414,16 +426,15 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             if arm is not None:
                 return arm
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
-        ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         w = (wx, wy, wz)
         s = e = None
-        geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
-        te = me and geo_f  # elbow seen and at the forearm length from the wrist
+        te = me and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol  # elbow seen and at l_f from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one: e.g.
         # an occluding upper arm's depth at the shoulder's pixel). A shoulder lost altogether (no x, y) is kept
         # where held (eq. 8 needs its 2D position; a wrong elbow is likelier than a wrong held shoulder).
-        fit_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self._cons
-        ts = (ms and not (te and not fit_u)) or (not sxy and prev is not None and not te) or (kn_s and not te)
+        # (The upper arm's fit to l_u within consistency_m is computed only where it decides.)
+        ts = ((ms and not (te and not abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self._cons))
+              or (not sxy and prev is not None and not te) or (kn_s and not te))
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
         # is a wrist whose measured depth was rejected (``w_bad``: a filter that followed a depth read past the
@@ -444,13 +455,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
                 if pair is not None:
                     # (The circle exists for both candidates or for neither: it depends on s and w alone.)
-                    q = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *pair[0])
-                    if q is not None:
-                        q2 = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, *pair[1])
+                    qq = circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, pair[0], pair[1])  # (``_circle_point`` x 2)
+                    if qq is not None:
+                        q, q2 = qq
                         # (Both off the elbow's image position: whichever is chosen is discarded below.)
                         xy_tol = self._xy_tol
                         if not (_hypot(q[0] - ex, q[1] - ey) > xy_tol and _hypot(q2[0] - ex, q2[1] - ey) > xy_tol):
-                            e = self._choose_elbow((q, q2), ex, ey, ez, pe, ke, s, w, lu, lf)
+                            e = self._choose_elbow(qq, ex, ey, ez, pe, ke, s, w, lu, lf)
             if e is None or _hypot(e[0] - ex, e[1] - ey) > self._xy_tol:
                 # ... unless that moves the elbow off its image position (the filtered wrist lags, is off, or
                 # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen,
@@ -475,6 +486,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
+        ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         if te:
             s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,
                                           self._other_shoulder(side))
@@ -500,27 +512,25 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         Raises:
             ValueError: if ``pose`` or ``measured`` does not have shape (12, 3).
         """
-        a = _as_f64(pose)
-        if a.shape != (NUM_LANDMARKS, 3):
+        a = pose if type(pose) is np.ndarray and pose.dtype == _F64 else _as_f64(pose)  # (inline)
+        if a.shape != _SHAPE:
             raise ValueError(f"pose must have shape ({NUM_LANDMARKS}, 3), got {a.shape}")
         v = a.reshape(_FLAT).tolist()  # (reshape: about 0.1 us less than ravel)
         m = None
         if measured is not None:
-            b = _as_f64(measured)
-            if b.shape != (NUM_LANDMARKS, 3):
+            b = measured if type(measured) is np.ndarray and measured.dtype == _F64 else _as_f64(measured)  # (inline)
+            if b.shape != _SHAPE:
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.reshape(_FLAT).tolist()
         self._var = None
         if variance is not None:
-            c = _as_f64(variance)
-            if c.shape != (NUM_LANDMARKS, 3):
+            c = variance if type(variance) is np.ndarray and variance.dtype == _F64 else _as_f64(variance)  # (inline)
+            if c.shape != _SHAPE:
                 raise ValueError(f"variance must have shape ({NUM_LANDMARKS}, 3), got {c.shape}")
             self._var = c.reshape(_FLAT).tolist()
         self._v = v
         self._axes = None  # (see ``_penalty``)
         self._v0 = v[:]
-        hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z])
-        self._hip_z = hz if _isfinite(hz) else None
         chosen = [-1, -1]
         held = [True, True]
         fallback = [False, False]
@@ -541,5 +551,4 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             # (Nine item stores: about a third of the time of three slice assignments.)
             v[o_s], v[o_s + 1], v[o_s + 2], v[o_e], v[o_e + 1], v[o_e + 2], v[o_w], v[o_w + 1], v[o_w + 2] = out
         # (``np.fromiter`` over the 36 floats: about 0.2 µs less than ``np.array`` of the list.)
-        return AKCResult(np.fromiter(v, _F64, 3 * NUM_LANDMARKS).reshape(NUM_LANDMARKS, 3), chosen, fallback, held,
-                         [_NAN, _NAN])
+        return AKCResult(np.fromiter(v, _F64, _FLAT).reshape(_SHAPE), chosen, fallback, held, [_NAN, _NAN])

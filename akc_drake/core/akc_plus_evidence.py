@@ -156,6 +156,30 @@ def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, n
 
 
 
+def _stretched(m, oa, ob, length, r_axes, length_var, g2):
+    """Whether the measured joints at flat offsets ``oa``, ``ob`` are farther apart than ``length`` reaches."""
+    dx, dy, dz = m[ob] - m[oa], m[ob + 1] - m[oa + 1], m[ob + 2] - m[oa + 2]
+    d2 = dx * dx + dy * dy + dz * dz
+    if not d2 > 0.0:  # (NaN: a joint not measured)
+        return False
+    r = d2**0.5 - length
+    if r <= 0.0:
+        return False
+    rx, ry, rz = r_axes
+    s = 2.0 * (dx * dx * rx + dy * dy * ry + dz * dz * rz) / d2 + length_var
+    return r * r > g2 * s
+
+
+def _restore(k, f, vs, f0, sub_index, var, nis, floor):
+    """Joint ``k`` of the arm back to the filter's point and covariance-matched variances."""
+    i = 3 * k
+    for c in (i, i + 1, i + 2):
+        _, j, _, n = sub_index[c]
+        q = nis[n]
+        f[c] = f0[c]
+        vs[c] = var[j] * (q if q > floor else floor)
+
+
 def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, lu, lf, r_axes, length_var, g2) -> int:
     """Undo a measured point that replaced the filter's (covariance matching, the ray test) off the arm's reach.
 
@@ -186,30 +210,32 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     Returns:
         How many joints were restored.
     """
-    mp = [(m[o], m[o + 1], m[o + 2]) for o in offsets]
-    rep = [f[3 * k + 2] == mp[k][2] and f0[3 * k + 2] != mp[k][2] for k in (0, 1, 2)]
+    o_s, o_e, o_w = offsets
+    z = m[o_s + 2]
+    r0 = f[2] == z and f0[2] != z
+    z = m[o_e + 2]
+    r1 = f[5] == z and f0[5] != z
+    z = m[o_w + 2]
+    r2 = f[8] == z and f0[8] != z
     out = 0
-    rx, ry, rz = r_axes
-    for a, b, length in ((0, 1, lu), (1, 2, lf), (0, 2, lu + lf)):
-        if not (rep[a] or rep[b]):
-            continue
-        pa, pb = mp[a], mp[b]
-        dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
-        d2 = dx * dx + dy * dy + dz * dz
-        if not d2 > 0.0:  # (NaN: a joint not measured)
-            continue
-        r = d2**0.5 - length
-        if r <= 0.0:
-            continue
-        s = 2.0 * (dx * dx * rx + dy * dy * ry + dz * dz * rz) / d2 + length_var
-        if r * r > g2 * s:
-            k = b if rep[b] else a
-            rep[k] = False
-            i = 3 * k
-            for c in (i, i + 1, i + 2):
-                _, j, _, n = sub_index[c]
-                q = nis[n]
-                f[c] = f0[c]
-                vs[c] = var[j] * (q if q > floor else floor)
-            out += 1
+    # The pairs in order (shoulder-elbow, elbow-wrist, shoulder-wrist); the outer joint's replacement undone first.
+    if (r0 or r1) and _stretched(m, o_s, o_e, lu, r_axes, length_var, g2):
+        if r1:
+            r1 = False
+            _restore(1, f, vs, f0, sub_index, var, nis, floor)
+        else:
+            r0 = False
+            _restore(0, f, vs, f0, sub_index, var, nis, floor)
+        out += 1
+    if (r1 or r2) and _stretched(m, o_e, o_w, lf, r_axes, length_var, g2):
+        if r2:
+            r2 = False
+            _restore(2, f, vs, f0, sub_index, var, nis, floor)
+        else:
+            r1 = False
+            _restore(1, f, vs, f0, sub_index, var, nis, floor)
+        out += 1
+    if (r0 or r2) and _stretched(m, o_s, o_w, lu + lf, r_axes, length_var, g2):
+        _restore(2 if r2 else 0, f, vs, f0, sub_index, var, nis, floor)
+        out += 1
     return out
