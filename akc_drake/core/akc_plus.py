@@ -305,16 +305,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                                              self._sub_index[side], var, self._nis, self._nis_floor, self._lu[side],
                                              self._lf[side], self._r_axes, self._len_var, g2)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
-            # A wrist whose measured depth the innovation test rejects (and that no replacement resolved): the
-            # filter and the measurement disagree about it, and it is no anchor for the joints the camera sees.
-            w_bad = False
-            if m is not None:
-                z = m[o_w + 2]
-                d, q = z - wz, self._r_z - var[o_w + 2]
-                w_bad = z == z and d * d > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
         else:
             vs = self._cur_var = None
-            w_bad = False
         lf, lu = self._lf[side], self._lu[side]
         ke, ks = 2 * side, 2 * side + 1
         no_prior = self._no_prior = set()
@@ -439,8 +431,15 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
         # is a wrist whose measured depth was rejected (``w_bad``: a filter that followed a depth read past the
         # silhouette half-way, or one the measurement contradicts: either is wrong about it).
-        w_lost = (vs is not None and m is not None and not _isfinite(m[offsets[2]] + m[offsets[2] + 1])
-                  and vs[8] > vs[2] and vs[8] > vs[5]) or w_bad
+        w_lost = False
+        if vs is not None and m is not None:
+            # (``w_bad``, the innovation test of the wrist's measured depth, NaN passing: run only here, where it
+            # can act; the projection above returns on most frames.)
+            o_w = offsets[2]
+            z, q = m[o_w + 2], self._r_z - self._var[o_w + 2]
+            w_lost = z == z and (z - wz) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
+            if not w_lost and not _isfinite(m[o_w] + m[o_w + 1]):
+                w_lost = vs[8] > vs[2] and vs[8] > vs[5]
         if w_lost:
             ts, te = True, False
         if ts:
