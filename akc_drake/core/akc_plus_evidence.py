@@ -154,8 +154,6 @@ def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, n
     return kn_e, kn_s
 
 
-
-
 def _stretched(m, oa, ob, length, r_axes, length_var, g2):
     """Whether the measured joints at flat offsets ``oa``, ``ob`` are farther apart than ``length`` reaches."""
     dx, dy, dz = m[ob] - m[oa], m[ob + 1] - m[oa + 1], m[ob + 2] - m[oa + 2]

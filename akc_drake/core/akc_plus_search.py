@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from akc_drake.core.arm_geometry import _BACKWARD_FRACTION, torso_axes
+from akc_drake.core.arm_geometry import bends_backwards, torso_axes
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import radial as _radial
@@ -29,8 +29,6 @@ _inf = math.inf
 _isfinite = math.isfinite
 _LHIP_Z = 3 * INDEX["left_hip"] + 2
 _RHIP_Z = 3 * INDEX["right_hip"] + 2
-#: ``bends_backwards``'s threshold per metre of forearm (the same product as there).
-_BACKWARD_LIMIT = -_BACKWARD_FRACTION
 #: The anatomical tests' penalty (a squared standard deviation) for a folded (below elbow_min_deg) or a
 #: hyperextended (m5) elbow: both are tests on noisy positions near their limits (a tight but real fold
 #: whose filtered elbow depth is a few cm off reads below the limit; a nearly straight arm's direction of
@@ -161,10 +159,8 @@ class CandidateSearch:
         return best
 
     def _penalty(self, s, e, w, lu, lf, axes=None):
-        """BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign).
-
-        (:func:`~akc_drake.core.arm_geometry.bends_backwards`'s operations inline, in the same order.)
-        """
+        """BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign:
+        :func:`~akc_drake.core.arm_geometry.bends_backwards`)."""
         ex, ey, ez = e
         ux, uy, uz = s[0] - ex, s[1] - ey, s[2] - ez
         fx, fy, fz = w[0] - ex, w[1] - ey, w[2] - ez
@@ -175,21 +171,7 @@ class CandidateSearch:
             axes = self._axes
             if axes is None:
                 axes = self._axes = torso_axes(self._v0)
-        (ax, ay, az), (bx, by, bz), (cx, cy, cz) = axes
-        ux, uy, uz = ux / lu, uy / lu, uz / lu
-        hd = -(ux * bx + uy * by + uz * bz)  # humerus (shoulder -> elbow) . down
-        hf = -(ux * ax + uy * ay + uz * az)  # . front
-        hl = abs(ux * cx + uy * cy + uz * cz)  # |. lateral|
-        k = hd + hl
-        nx, ny, nz = ax * k - bx * hf, ay * k - by * hf, az * k - bz * hf
-        n = _hypot(nx, ny, nz)
-        if n < 0.3:
-            return 0.0
-        t = fx * ux + fy * uy + fz * uz
-        px, py, pz = fx - t * ux, fy - t * uy, fz - t * uz
-        if (px * nx + py * ny + pz * nz) / n < _BACKWARD_LIMIT * lf:
-            return BACKWARDS
-        return 0.0
+        return BACKWARDS if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes) else 0.0
 
     def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, other, bound=_inf):
         """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``).
