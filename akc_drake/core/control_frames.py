@@ -191,18 +191,28 @@ def neutral_hand_direction(p_s, p_e, p_w, R_torso) -> np.ndarray:
     return w * bent / max(float(np.linalg.norm(bent)), 1e-12) + (1.0 - w) * swing
 
 
-def roll_cosines(h_C, dz: float, forearm_C, reference_C) -> tuple[float, float] | None:
-    """``(cos(h+, r), cos(h-, r))`` of the two candidates ``h+/- = (h_x, h_y, +/-dz)`` to a reference direction ``r``,
-    all three taken across the forearm ``forearm_C`` (their roll about it); None without ``r``."""
+def _across(v, f) -> np.ndarray:
+    """The unit direction of ``v`` across the unit forearm ``f`` (zero when ``v`` is along it)."""
+    v = v - float(v @ f) * f
+    n = float(np.linalg.norm(v))
+    return v / n if n > 1e-9 else np.zeros(3)
+
+
+def roll_candidates(h_C, dz: float, forearm_C) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unit forearm ``f`` and the two candidates ``h+/- = (h_x, h_y, +/-dz)`` taken across it (their roll about
+    it), for :func:`roll_cosines`."""
+    f = np.asarray(forearm_C, dtype=float) / max(float(np.linalg.norm(forearm_C)), 1e-12)
+    return f, _across(np.array([h_C[0], h_C[1], dz]), f), _across(np.array([h_C[0], h_C[1], -dz]), f)
+
+
+def roll_cosines(candidates, reference_C) -> tuple[float, float] | None:
+    """``(cos(h+, r), cos(h-, r))`` of the two :func:`roll_candidates` to a reference direction ``r`` taken across
+    the same forearm; None without ``r``."""
     if reference_C is None or not np.all(np.isfinite(reference_C)):
         return None
-    f = np.asarray(forearm_C, dtype=float) / max(float(np.linalg.norm(forearm_C)), 1e-12)
-    units = []
-    for v in (np.array([h_C[0], h_C[1], dz]), np.array([h_C[0], h_C[1], -dz]), np.asarray(reference_C, dtype=float)):
-        v = v - float(v @ f) * f
-        n = float(np.linalg.norm(v))
-        units.append(v / n if n > 1e-9 else np.zeros(3))
-    return float(units[0] @ units[2]), float(units[1] @ units[2])
+    f, u_plus, u_minus = candidates
+    r = _across(np.asarray(reference_C, dtype=float), f)
+    return float(u_plus @ r), float(u_minus @ r)
 
 
 #: The hand's depth sign as a two-hypothesis filter (:func:`depth_sign_step`): the hand's roll rate about the forearm
@@ -246,9 +256,10 @@ def depth_sign_step(belief: float, h_C, dz: float, forearm_C, roll_previous_C, n
         ``(sign, belief)``: +1 / -1 and the probability that it is right.
     """
     sigma = max(ROLL_RATE_SIGMA * dt, 1e-3)
-    c = roll_cosines(h_C, dz, forearm_C, neutral_C)
+    candidates = roll_candidates(h_C, dz, forearm_C)  # (taken across the forearm once, for the three references)
+    c = roll_cosines(candidates, neutral_C)
     prior = 1.0 / (1.0 + math.exp(-NEUTRAL_KAPPA * float(np.linalg.norm(neutral_C)) * (c[0] - c[1]))) if c else 0.5
-    c = roll_cosines(h_C, dz, forearm_C, roll_previous_C) if math.isfinite(belief) else None
+    c = roll_cosines(candidates, roll_previous_C) if math.isfinite(belief) else None
     p_plus = prior
     if c is not None:  # the previous belief carried to the candidate nearer in roll; a reset to the prior
         a_p, a_m = (math.acos(min(max(x, -1.0), 1.0)) for x in c)
@@ -263,7 +274,7 @@ def depth_sign_step(belief: float, h_C, dz: float, forearm_C, roll_previous_C, n
     log_odds += math.copysign(math.log(q / (1.0 - q)), hz)
     post = 1.0 / (1.0 + math.exp(-min(max(log_odds, -50.0), 50.0)))
     post = max(post, 1.0 - post)
-    c = roll_cosines(h_C, dz, forearm_C, np.array([h_C[0], h_C[1], dz]))  # the two candidates' roll apart
+    c = roll_cosines(candidates, np.array([h_C[0], h_C[1], dz]))  # the two candidates' roll apart
     apart = math.acos(min(max(c[1], -1.0), 1.0)) if c is not None else math.pi
     belief = post + (1.0 - post) * math.exp(-(apart**2) / (2.0 * sigma**2))  # right in roll even if not in sign
     return (1.0 if log_odds >= 0.0 else -1.0), belief
