@@ -343,7 +343,7 @@ def test_meshcat_servers_listen_on_localhost_only(monkeypatch):
         cli.main(["run", "--teleop", "--meshcat", "--motion", "tpose"])
     from akc_drake import teleop
 
-    meshcat, reason = teleop._make_meshcat()
+    meshcat, reason = teleop.make_meshcat()
     assert reason is None and meshcat is _FakeMeshcat.instances[-1]
     assert len(_FakeMeshcat.instances) == 2
     for m in _FakeMeshcat.instances:

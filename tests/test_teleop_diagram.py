@@ -33,7 +33,7 @@ def session(motion):
 @pytest.fixture(scope="module")
 def akc_run(session, motion):
     """1 s of AKC(KF) teleoperation on the replayed rendering, recorded in Meshcat."""
-    meshcat, err = teleop._make_meshcat()
+    meshcat, err = teleop.make_meshcat()
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     run, td = teleop.run_teleop(

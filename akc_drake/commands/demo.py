@@ -79,7 +79,7 @@ def main(args) -> int:
     for flag, path in (("--json", args.json), ("--html", args.html), ("--ros2-bag", getattr(args, "ros2_bag", None))):
         check_output_file(path, flag)
     if args.meshcat:
-        meshcat, err = teleop._make_meshcat()
+        meshcat, err = teleop.make_meshcat()
         if meshcat is None:
             raise UserError(f"--meshcat: Meshcat could not start ({err})")
         print(f"Meshcat: {meshcat.web_url()}", flush=True)

@@ -36,7 +36,7 @@ What is measured (the robot side of the loop, :class:`~akc_drake.systems.teleop_
 * **Realtime factor**: simulated seconds / wall-clock seconds of ``simulate`` (construction excluded).
 """
 
-from akc_drake.teleop.demo import DemoOptions, _make_meshcat, run_demo
+from akc_drake.teleop.demo import DemoOptions, run_demo
 from akc_drake.teleop.metrics import pooled_jitter, run_metrics
 from akc_drake.teleop.report import format_table, plot_errors, plot_paths
 from akc_drake.teleop.scenario import (
@@ -54,6 +54,7 @@ from akc_drake.teleop.scenario import (
     IKStatusCounter,
     TeleopRun,
     calibrate_from_tpose,
+    make_meshcat,
     operator_targets,
     quiet_drake_warnings,
     render_motion,
@@ -76,9 +77,9 @@ __all__ = [
     "DemoOptions",
     "IKStatusCounter",
     "TeleopRun",
-    "_make_meshcat",
     "calibrate_from_tpose",
     "format_table",
+    "make_meshcat",
     "operator_targets",
     "plot_errors",
     "plot_paths",

@@ -28,6 +28,7 @@ from akc_drake.teleop.scenario import (
     SETTLING_S,
     TeleopRun,
     calibrate_from_tpose,
+    make_meshcat,
     quiet_drake_warnings,
     run_teleop,
     truncate_motion,
@@ -126,18 +127,6 @@ class DemoOptions:
         return QUICK_CYCLES if self.quick else FULL_CYCLES
 
 
-def _make_meshcat():
-    """A Meshcat server on localhost (None, with the reason, when it cannot start)."""
-    try:
-        from pydrake.geometry import Meshcat, MeshcatParams
-
-        params = MeshcatParams()
-        params.host = "localhost"
-        return Meshcat(params), None
-    except Exception as e:  # a port range in use, no sockets allowed, ...
-        return None, f"{type(e).__name__}: {e}"
-
-
 def _prepare_out_dir(out: Path) -> Path:
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -178,7 +167,7 @@ def run_demo(opts: DemoOptions, *, log: Callable[[str], None] = print) -> dict:
 
     meshcat, meshcat_error = opts.meshcat, None
     if meshcat is None and opts.record:
-        meshcat, meshcat_error = _make_meshcat()
+        meshcat, meshcat_error = make_meshcat()
         if meshcat is None:
             log(f"warning: Meshcat could not start ({meshcat_error}); no HTML recording will be written")
 

@@ -409,6 +409,19 @@ def _unsmoothed_targets(td, sim, n: int, start: float, period: float, torso_mode
     return out
 
 
+def make_meshcat():
+    """A Meshcat server on localhost (Drake's default would listen on every interface): ``(meshcat, None)``, or
+    ``(None, reason)`` when it cannot start."""
+    try:
+        from pydrake.geometry import Meshcat, MeshcatParams
+
+        params = MeshcatParams()
+        params.host = "localhost"
+        return Meshcat(params), None
+    except Exception as e:  # a port range in use, no sockets allowed, ...
+        return None, f"{type(e).__name__}: {e}"
+
+
 @contextlib.contextmanager
 def quiet_drake_warnings():
     """Silence Drake's per-step warnings (e.g. the IK's "stuck" notices) while the demo counts them itself."""

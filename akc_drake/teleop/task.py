@@ -33,6 +33,7 @@ import numpy as np
 from akc_drake.teleop.scenario import (
     CORRECTORS,
     MAIN_CORRECTOR,
+    make_meshcat,
     quiet_drake_warnings,
     render_motion,
     run_teleop,
@@ -266,13 +267,8 @@ def _recorded_closed_loop_run(*args) -> tuple:
     """:func:`_closed_loop_run` drawn and recorded in a Meshcat of its own: ``(run, diagram, html)`` (html None when
     Meshcat cannot start). The closed loop renders the operator on the simulation's clock, so it cannot be appended
     after the demo's recorded replays (which start later); it gets its own page."""
-    try:
-        from pydrake.geometry import Meshcat, MeshcatParams
-
-        params = MeshcatParams()
-        params.host = "localhost"
-        meshcat = Meshcat(params)
-    except Exception:  # a port range in use, no sockets allowed, ...
+    meshcat, _ = make_meshcat()
+    if meshcat is None:  # a port range in use, no sockets allowed, ...
         return (*_closed_loop_run(*args), None)
     meshcat.StartRecording(set_visualizations_while_recording=False)
     run, td = _closed_loop_run(*args, meshcat)
