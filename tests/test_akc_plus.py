@@ -313,14 +313,20 @@ def test_state_round_trips_with_the_running_nis():
     for _ in range(3):
         akc.correct(f, measured=p, variance=kf_var())
     v = akc.get_state_vector()
-    assert v.shape == (STATE_SIZE,) and v[-18:].max() > 1.0  # the lagging wrist's NIS
+    assert v.shape == (STATE_SIZE,) and v[36:54].max() > 1.0  # the lagging wrist's NIS
+    np.testing.assert_allclose(v[54:57], p[LW] - p[LE], atol=1e-9)  # the left forearm, wrist detected
+    assert v[57] == 0.0
     other = ArmKinematicCorrectorPlus(dims)
     other.set_state_vector(v)
     np.testing.assert_array_equal(other.get_state_vector(), v)
     np.testing.assert_array_equal(other.correct(f, p, kf_var()).pose, akc.correct(f, p, kf_var()).pose)
     bad = v.copy()
-    bad[-1] = -1.0
+    bad[53] = -1.0
     with pytest.raises(ValueError, match="NIS"):
+        other.set_state_vector(bad)
+    bad = v.copy()
+    bad[57] = -1.0
+    with pytest.raises(ValueError, match="blind-frame count"):
         other.set_state_vector(bad)
     with pytest.raises(ValueError, match="variance"):
         akc.correct(p, measured=p, variance=np.zeros((3, 3)))
@@ -399,8 +405,52 @@ def test_a_wrist_lost_altogether_is_no_anchor():
     np.testing.assert_allclose(out[LE], p[LE], atol=1e-9)
     assert abs(np.linalg.norm(out[LW] - out[LE]) - dims.LLA) < 1e-9
     # x, y of the wrist kept where the forearm allows (its depth moves instead): those of the wrist's prior, the
-    # filter's extrapolation fused with our last output (variances 0.09 and sigma_temporal^2 = 0.01).
+    # filter's extrapolation fused with the forearm held at the elbow (its last output, the elbow unmoved;
+    # variances 0.09 and, the first blind frame, sigma_temporal^2 = 0.01).
     np.testing.assert_allclose(out[LW, :2], (0.01 * f[LW, :2] + 0.09 * p[LW, :2]) / 0.1, atol=1e-9)
+
+
+def test_a_rebuilt_shoulder_is_fused_with_a_filter_of_the_same_configuration():
+    # The upper arm near the image plane, the shoulder's depth dropped (not seen; the filter's estimate right
+    # but with a blind sigma of 6 cm: no known depth) and the elbow's image position 1 cm off towards it. Eq. 8
+    # from the elbow puts the shoulder 3.2 cm off in depth (the near-plane segment's leverage); the filter's arm
+    # bends the same way, so the arm nearest it with the exact lengths is the estimate: 2.5 cm.
+    p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.25))
+    akc = settled_corrector(p, dims)
+    f = p.copy()
+    f[LE, 1] -= 0.01
+    m = f.copy()
+    m[LS, 2] = np.nan
+    var = kf_var()
+    var[LS, 2] = 0.06**2
+    out = akc.correct(f, measured=m, variance=var).pose
+    assert 0.02 < out[LS, 2] - p[LS, 2] < 0.027
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_wrist_lost_altogether_moves_with_the_seen_elbow():
+    # The detector loses the wrist (no x, y) for 4 frames while the whole arm translates 2 cm/frame in x (the
+    # elbow and the shoulder seen); the filter's wrist runs the other way, 3 cm/frame (a constant-velocity
+    # extrapolation of a hand that turned), its blind sigma 10 cm/frame. The wrist's prior is the forearm held
+    # at the seen elbow (4 frames: variance 4 sigma_temporal^2 = 0.04) times the filter's (0.16): weight 1/5 on
+    # the filter's 20 cm error, 4 cm; the wrist moved +4 cm with the arm where the filter's moved -12.
+    p, dims = arm_pose()
+    akc = settled_corrector(p, dims)
+    for k in range(1, 5):
+        truth = p.copy()
+        truth[[LS, LE, LW], 0] += 0.02 * k
+        f = truth.copy()
+        f[LW, 0] -= 0.05 * k
+        var = kf_var()
+        var[LW] = (0.1 * k) ** 2
+        m = truth.copy()
+        m[LW] = np.nan
+        out = akc.correct(f, measured=m, variance=var).pose
+    assert np.linalg.norm(f[LW] - truth[LW]) == pytest.approx(0.2)
+    assert np.linalg.norm(out[LW] - truth[LW]) == pytest.approx(0.04, abs=0.005)
+    assert out[LW, 0] - p[LW, 0] == pytest.approx(0.04, abs=0.005)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
 
 
 def test_a_filter_counts_as_following_a_rejected_depth_only_if_it_moved_towards_it():
@@ -422,12 +472,9 @@ def test_a_filter_counts_as_following_a_rejected_depth_only_if_it_moved_towards_
         assert (ks in akc._no_prior) is no_prior
 
 
-def test_a_lost_elbow_that_cannot_close_the_arm_at_its_image_position_moves_in_depth():
-    # Elbow depth dropped (a blind variance), its image position 7 cm off the true one and the wrist 3 cm off:
-    # no elbow at its image x, y closes the arm from the seen shoulder. The correction is shared by the elbow
-    # and the wrist in the filter's metric: both keep their image x, y (to 1 cm: the landmark offsets' variance
-    # lets the 7 cm off elbow move 7 mm towards the shoulder; it moved 2.9 cm in x, y when the wrist alone
-    # followed) and the depths, which the filter knows least, move.
+def _elbow_off_its_image_position(wrist_depth_measured):
+    """Elbow depth dropped (a blind variance), its image position 7 cm off the true one and the wrist 3 cm off:
+    no elbow at its image x, y closes the arm from the seen shoulder. Returns (truth, filtered, output, dims)."""
     p, dims = arm_pose()
     akc = ArmKinematicCorrectorPlus(dims)
     akc.correct(p, measured=p, variance=kf_var())
@@ -436,9 +483,32 @@ def test_a_lost_elbow_that_cannot_close_the_arm_at_its_image_position_moves_in_d
     f[LW] += [-0.031, 0.023, -0.008]
     m = f.copy()
     m[LE, 2] = np.nan
+    if not wrist_depth_measured:
+        m[LW, 2] = np.nan
     var = kf_var()
     var[LE, 2] = 0.25
-    out = akc.correct(f, measured=m, variance=var).pose
+    return p, f, akc.correct(f, measured=m, variance=var).pose, dims
+
+
+def test_a_lost_elbow_goes_on_the_circle_between_the_kept_shoulder_and_the_measured_wrist():
+    # The wrist measured in 3D: the shoulder and the wrist keep their positions exactly and the elbow goes on the
+    # circle between them, off its image position: 1.4 cm from its true centre (its image position is 6.9 cm
+    # off; moving the measured wrist instead carried the 2D error into the depths).
+    p, f, out, dims = _elbow_off_its_image_position(wrist_depth_measured=True)
+    np.testing.assert_allclose(out[LS], f[LS], atol=1e-12)
+    np.testing.assert_allclose(out[LW], f[LW], atol=1e-12)
+    assert np.linalg.norm(f[LE] - p[LE]) > 0.068
+    assert np.linalg.norm(out[LE] - p[LE]) < 0.02
+    assert abs(np.linalg.norm(out[LS] - out[LE]) - dims.LUA) < 1e-9
+    assert abs(np.linalg.norm(out[LE] - out[LW]) - dims.LLA) < 1e-9
+
+
+def test_a_lost_elbow_that_cannot_close_the_arm_at_its_image_position_moves_in_depth():
+    # The wrist's depth not measured this frame: the correction is shared by the elbow and the wrist in the
+    # filter's metric: both keep their image x, y (to 1 cm: the landmark offsets' variance lets the 7 cm off
+    # elbow move 7 mm towards the shoulder; it moved 2.9 cm in x, y when the wrist alone followed) and the
+    # depths, which the filter knows least, move.
+    _, f, out, dims = _elbow_off_its_image_position(wrist_depth_measured=False)
     np.testing.assert_allclose(out[LS], f[LS], atol=1e-12)
     np.testing.assert_allclose(out[LE, :2], f[LE, :2], atol=1e-2)
     np.testing.assert_allclose(out[LW, :2], f[LW, :2], atol=1e-2)

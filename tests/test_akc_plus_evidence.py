@@ -100,17 +100,24 @@ def test_a_dropped_depth_is_known_recently_only_if_the_filter_beats_the_rebuild(
     assert _known(vs, [1.0, 0.0], ms=False)[0] is False
 
 
-def test_a_blind_wrist_is_the_product_of_the_filters_and_the_temporal_prior():
-    f = [0.0] * 6 + [1.0, 2.0, 3.0]
-    vs = [1e-4] * 6 + [0.03, 0.01, NAN]
-    prev = [0.0] * 6 + [0.0, 0.0, 2.0]
-    fuse_blind_wrist(f, vs, prev, 0.01)
-    assert f[6] == pytest.approx(0.25, rel=1e-12)  # weight v_t / (v + v_t) = 1/4 on the filter's
-    assert f[7] == pytest.approx(1.0, rel=1e-12)  # equal variances: the midpoint
-    assert vs[6] == pytest.approx(0.03 * 0.01 / 0.04, rel=1e-12)
-    assert vs[7] == pytest.approx(0.005, rel=1e-12)
+def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_elbow():
+    # The elbow (seen) at (0.1, 0, 2); the forearm last seen as (0, 0.3, 0) from it; a second blind frame: the
+    # held forearm's variance is 2 v_t = 0.02 per axis.
+    f = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
+    vs = [1e-4] * 6 + [0.06, 0.02, NAN]
+    blind = [0.0, 0.3, 0.0, 1.0]
+    fuse_blind_wrist(f, vs, blind, 0.01)
+    assert blind == [0.0, 0.3, 0.0, 2.0]  # this frame counted
+    assert f[6] == pytest.approx((0.02 * 1.0 + 0.06 * 0.1) / 0.08, rel=1e-12)  # weight 1/4 on the filter's
+    assert f[7] == pytest.approx((2.0 + 0.3) / 2, rel=1e-12)  # equal variances: the midpoint
+    assert vs[6] == pytest.approx(0.06 * 0.02 / 0.08, rel=1e-12)
+    assert vs[7] == pytest.approx(0.01, rel=1e-12)
     assert f[8] == 3.0 and vs[8] != vs[8]  # an unknown variance: left as it is
-    assert f[:6] == [0.0] * 6 and vs[:6] == [1e-4] * 6  # shoulder and elbow untouched
+    assert f[:6] == [0.0, 0.0, 2.0, 0.1, 0.0, 2.0] and vs[:6] == [1e-4] * 6  # shoulder and elbow untouched
+    # The longer the wrist is lost, the less the held forearm counts: the tenth blind frame.
+    f2 = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
+    fuse_blind_wrist(f2, [1e-4] * 6 + [0.06, 0.02, NAN], [0.0, 0.3, 0.0, 9.0], 0.01)
+    assert f2[6] == pytest.approx((0.1 * 1.0 + 0.06 * 0.1) / 0.16, rel=1e-12)
 
 
 def test_a_replacement_beyond_the_arms_reach_gets_the_filters_point_and_variances_back():

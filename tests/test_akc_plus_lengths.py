@@ -3,7 +3,7 @@ import random
 
 import pytest
 
-from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm
+from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm, same_configuration
 from akc_drake.core.arm_geometry import circle_point, project_lengths
 
 
@@ -101,3 +101,11 @@ def test_circle_pair_is_circle_point_twice():
             assert got == (want, circle_point(*w, *s, 0.26, 0.29, *p2))
             met += 1
     assert 500 < met < 2000
+
+
+def test_same_configuration_compares_the_side_each_segment_points_to():
+    arm = (0.0, 0.0, 2.0, 0.0, 0.29, 1.9, 0.0, 0.5, 2.05)  # upper arm towards the camera, forearm away
+    assert same_configuration(arm, 2.1, 2.0, 2.2)  # the same signs, other depths
+    assert not same_configuration(arm, 1.9, 2.0, 2.2)  # the upper arm mirrored
+    assert not same_configuration(arm, 2.1, 2.0, 1.9)  # the forearm mirrored
+    assert same_configuration(arm, 2.0, 2.0, 2.2)  # an upper arm in the image plane agrees with either side

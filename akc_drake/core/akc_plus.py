@@ -38,8 +38,13 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   / 2`` per axis: what makes a measured segment's length differ from the calibrated one), so that a length
   mismatch of a segment near the image plane is shared with the x, y instead of becoming a depth error several
   times as large. A shoulder so known is kept when the elbow is rebuilt.
-* A wrist the detector lost altogether (no x, y) that the filter knows worse than the shoulder and the elbow
-  is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist follows. Nor is a
+* A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm
+  as our output last had it, carried by this frame's elbow (a random walk of ``sigma_temporal_m^2`` per blind
+  frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_blind_wrist`): a constant-velocity extrapolation runs on
+  while the hand turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost
+  for 6 frames: the filter 24 cm off in x, the previous fusion with our last output 11.5 cm off and 10 cm in
+  y). Known worse than the shoulder and the elbow, it is no anchor (nothing measured it): the arm is built
+  from the shoulder out and the wrist follows. Nor is a
   wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
   measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
   silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
@@ -57,7 +62,14 @@ detected, radially when not) are scored as Gaussian log-likelihoods::
 
 with ``sigma_f^2`` the filter's covariance-matched depth variance (no prior when the filter's estimate was
 replaced or follows a rejected depth). A seen shoulder is kept and the elbow goes on the circle between it
-and the wrist (the wrist follows when that would move a seen elbow by more than ``xy_tol_m``). The temporal
+and the wrist (the wrist follows when that would move a seen elbow, or a lost elbow of a wrist not measured in
+3D, by more than ``xy_tol_m`` off its image x, y: a wrist measured in 3D keeps its place, the detector's 2D
+elbow is off the joint centre too; with MediaPipe 3-7 cm, and moving the wrist turned that into 10-20 cm of
+depth error). When neither is kept and all three joints' x, y were detected, the candidates choose the
+configuration (the side of the image plane each segment points to): a filter's arm that bends the same way
+and passes the lengths' chi2 test gives the estimate instead, the arm nearest it with the exact lengths (as
+for known depths: eq. 7-8 take the detected x, y as exact, the projection weighs them, the filter's depths
+and the lengths by their variances). The temporal
 term is capped so that persistent evidence can undo a wrong configuration; a mirror switch needs evidence
 over several frames. The anatomical tests (elbow folded below ``elbow_min_deg``, hyperextended by m5's
 signed angle) are a finite penalty of 5 standard deviations squared, no veto (both are tests on noisy
@@ -89,7 +101,7 @@ from akc_drake.core.akc_plus_evidence import (
     known_depths,
     unreachable_replacements,
 )
-from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm
+from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm, same_configuration
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -117,9 +129,11 @@ _SHAPE = (NUM_LANDMARKS, 3)
 
 #: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, per
 #: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
-#: joint and axis the running mean of the normalised innovation squared (18).
-STATE_SIZE = 54
+#: joint and axis the running mean of the normalised innovation squared (18), per side the forearm of the last
+#: output with the wrist detected (NaN if none) and the frames since (8).
+STATE_SIZE = 62
 _NIS = 36
+_BLIND = 54
 
 
 class ArmKinematicCorrectorPlus(CandidateSearch):
@@ -139,7 +153,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var")
+                 "_v", "_v0", "_var", "_blind")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -200,9 +214,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when last seen
         self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
         self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
+        # per side: the forearm (wrist - elbow) of our last output with the wrist detected and the frames since
+        self._blind: list[list | None] = [None, None]
 
     def get_state_vector(self) -> np.ndarray:
-        """``(36,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, and the
+        """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
         filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none)."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
@@ -214,7 +230,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         for k in range(4):
             if self._f0[k] is not None:
                 v[24 + 3 * k : 27 + 3 * k] = self._f0[k]
-        v[_NIS:] = self._nis
+        v[_NIS:_BLIND] = self._nis
+        for side in (0, 1):
+            b = self._blind[side]
+            if b is not None:
+                v[_BLIND + 4 * side : _BLIND + 4 * side + 4] = b
         return v
 
     def set_state_vector(self, v) -> None:
@@ -243,9 +263,17 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         f0 = [tuple(q.tolist()) if np.all(np.isfinite(q)) else None for q in f0]
         self._prev = prev
         self._lost = lost.tolist()
-        nis = a[_NIS:]
+        nis = a[_NIS:_BLIND]
         if not np.all(np.isfinite(nis) & (nis > 0)):
-            raise ValueError(f"AKC+ state vector: NIS means [{_NIS}:] must be > 0, got {nis.tolist()}")
+            raise ValueError(f"AKC+ state vector: NIS means [{_NIS}:{_BLIND}] must be > 0, got {nis.tolist()}")
+        blind: list[list | None] = [None, None]
+        for side in (0, 1):
+            b = a[_BLIND + 4 * side : _BLIND + 4 * side + 4]
+            if np.all(np.isfinite(b)):
+                if b[3] < 0:
+                    raise ValueError(f"AKC+ state vector: blind-frame count [{_BLIND + 4 * side + 3}] must be >= 0")
+                blind[side] = b.tolist()
+        self._blind = blind
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()
@@ -289,9 +317,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2)
             o_w = offsets[2]
-            if m is not None and prev is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
-                # A wrist lost altogether (no x, y): the filter's extrapolation and our last output, fused.
-                fuse_blind_wrist(f, vs, prev, self._v_t)
+            if m is not None and self._blind[side] is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
+                # A wrist lost altogether (no x, y): the filter's extrapolation and the held forearm, fused.
+                fuse_blind_wrist(f, vs, self._blind[side], self._v_t)
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
                 g2, rz, o_w = self._gate2, self._r_z, offsets[2]
@@ -446,11 +474,17 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
             s = (sx, sy, sz)
+            w_seen = False
             if te:
                 e = _circle_point(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
                 if e is not None and _d2(e, ex, ey, ez) > self._xy_tol ** 2:
                     e = None  # the wrist (a lagging filter's) would move the seen elbow: the wrist moves instead
             elif not me and not w_lost:
+                # A wrist measured in 3D (its depth passed the innovation test) and a kept shoulder: the elbow
+                # whose depth was lost goes on the circle between them even off its image x, y (the detector's
+                # 2D elbow is a few cm off the joint centre too; with MediaPipe 3-7 cm: moving the measured wrist
+                # instead to keep them carried that error into the wrist's and the elbow's depths, 10-20 cm).
+                w_seen = vs is not None and m is not None and _isfinite(m[o_w] + m[o_w + 1] + m[o_w + 2])
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
                 if pair is not None:
                     # (The circle exists for both candidates or for neither: it depends on s and w alone.)
@@ -459,9 +493,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                         q, q2 = qq
                         # (Both off the elbow's image position: whichever is chosen is discarded below.)
                         xy_tol = self._xy_tol
-                        if not (_hypot(q[0] - ex, q[1] - ey) > xy_tol and _hypot(q2[0] - ex, q2[1] - ey) > xy_tol):
+                        if w_seen or not (_hypot(q[0] - ex, q[1] - ey) > xy_tol
+                                          and _hypot(q2[0] - ex, q2[1] - ey) > xy_tol):
                             e = self._choose_elbow(qq, ex, ey, ez, pe, ke, s, w, lu, lf)
-            if e is None or _hypot(e[0] - ex, e[1] - ey) > self._xy_tol:
+            if e is None or (not w_seen and _hypot(e[0] - ex, e[1] - ey) > self._xy_tol):
                 # ... unless that moves the elbow off its image position (the filtered wrist lags, is off, or
                 # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen,
                 # else the shoulder's Pythagorean candidate, x, y kept, that best fits the filter, the previous
@@ -492,6 +527,15 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         else:
             s, e = self._rebuild_from_wrist((sx, sy, sz, ex, ey, ez), w, pe, ps, ke, ks, lu, lf, exy, sxy,
                                             self._other_shoulder(side))
+        if (vs is not None and exy and sxy and m is not None and ke not in no_prior and ks not in no_prior
+                and _isfinite(m[offsets[2]] + m[offsets[2] + 1])):
+            # The candidates chose the configuration (which side of the image plane each segment points to);
+            # when the filter's arm has the same one and passes the lengths' chi2 test, the arm nearest it with
+            # the exact lengths (the projection above) is the estimate: the rebuilt depths take eq. 7-8's x, y
+            # as exact, the projection weighs them, the filter's depths and the lengths by their variances.
+            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var)
+            if arm is not None and same_configuration(arm, s[2], e[2], wz):
+                return arm
         return (*s, *e, *w)
 
     def correct(self, pose, measured=None, variance=None) -> AKCResult:
@@ -540,6 +584,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             out = self._arm(v, m, side)  # (the other shoulder for the width term: ``_other_shoulder``, lazily)
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out
+                o_w = offsets[side][2]
+                if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected
+                    self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0]
                 held[side] = False
                 chosen[side] = 0
                 fallback[side] = lost[ke] > 0 and lost[ke + 1] > 0

@@ -87,27 +87,30 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     return p, False
 
 
-def fuse_blind_wrist(f, vs, prev, v_t):
-    """A wrist the detector lost altogether: the filter's extrapolation fused with our last output.
+def fuse_blind_wrist(f, vs, blind, v_t):
+    """A wrist the detector lost altogether: the filter's extrapolation fused with the forearm held at the elbow.
 
-    Both are Gaussian priors of the wrist: the filter's (its covariance-matched variances ``vs[6:9]``) and the
-    temporal one the candidate costs use (our last output, variance ``v_t`` per axis: how far a joint may move
-    between two frames). Their product, per axis, replaces the filter's wrist and its variances: a constant-
-    velocity extrapolation that runs on while the hand stopped or turned is pulled back towards where the arm
-    was, by the weight of its own growing variance (a soft hold: the filter's wrist still counts, by
-    ``v_t / (v + v_t)``).
+    Two Gaussian priors of the wrist: the filter's (its covariance-matched variances ``vs[6:9]``), a constant-
+    velocity extrapolation of the wrist alone that runs on while the hand stops or turns, and the forearm as
+    our output last had it with the wrist detected (``blind[:3]``, wrist minus elbow), carried by this frame's
+    elbow (the camera still sees it: the wrist moves with it), a random walk whose variance grows by ``v_t``
+    (how far a joint may move between two frames) per blind frame (``blind[3]``, counted here). Their product,
+    per axis, replaces the filter's wrist and its variances. Fused once from the last detection, not frame by
+    frame: the filter's successive extrapolations are one piece of evidence, not independent ones.
 
     Args:
         f: the arm's nine coordinates (changed in place); vs: their nine variances (changed in place).
-        prev: our last output of the arm (nine floats).
-        v_t: the temporal prior's variance per axis.
+        blind: ``[dx, dy, dz, n]`` (changed in place: ``n`` counts this frame).
+        v_t: the temporal prior's variance per axis and frame.
     """
+    n = blind[3] = blind[3] + 1.0
+    vh = v_t * n
     for i in (6, 7, 8):
         v = vs[i]
         if v == v:  # (a variance the filter does not know: NaN, left as it is)
-            s = v + v_t
-            f[i] = (v_t * f[i] + v * prev[i]) / s
-            vs[i] = v * v_t / s
+            s = v + vh
+            f[i] = (vh * f[i] + v * (f[i - 3] + blind[i - 6])) / s
+            vs[i] = v * vh / s
 
 
 def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, no_prior, lost, recent):

@@ -231,3 +231,11 @@ def circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, p, p2):
             qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
     f = h / q
     return r, (cx + qx * f, cy + qy * f, cz + qz * f)
+
+
+def same_configuration(arm, sz, ez, wz):
+    """Whether ``arm`` (nine floats) bends as the arm with depths ``sz``, ``ez``, ``wz`` (x, y alike): each segment
+    points to the same side of the image plane (the sign of its depth difference; a segment in the plane, a
+    zero difference, agrees with either side). The mirror candidates of eq. 7-8 differ in exactly this.
+    """
+    return (arm[2] - arm[5]) * (sz - ez) >= 0.0 and (arm[5] - arm[8]) * (ez - wz) >= 0.0
