@@ -404,10 +404,12 @@ def test_a_wrist_lost_altogether_is_no_anchor():
     np.testing.assert_allclose(out[LS], p[LS], atol=1e-9)
     np.testing.assert_allclose(out[LE], p[LE], atol=1e-9)
     assert abs(np.linalg.norm(out[LW] - out[LE]) - dims.LLA) < 1e-9
-    # x, y of the wrist kept where the forearm allows (its depth moves instead): those of the wrist's prior, the
-    # filter's extrapolation fused with the forearm held at the elbow (its last output, the elbow unmoved;
-    # variances 0.09 and, the first blind frame, sigma_temporal^2 = 0.01).
-    np.testing.assert_allclose(out[LW, :2], (0.01 * f[LW, :2] + 0.09 * p[LW, :2]) / 0.1, atol=1e-9)
+    # The wrist's prior: the filter's extrapolation fused with the forearm held at the elbow (its last output,
+    # the elbow unmoved; variances 0.09 and, the first blind frame, sigma_temporal^2 = 0.01), moved onto the
+    # forearm's length in its own metric (equal variances on the three axes: radially from the elbow).
+    prior = (0.01 * f[LW] + 0.09 * p[LW]) / 0.1
+    want = p[LE] + (prior - p[LE]) * dims.LLA / np.linalg.norm(prior - p[LE])
+    np.testing.assert_allclose(out[LW], want, atol=1e-9)
 
 
 def test_a_rebuilt_shoulder_is_fused_with_a_filter_of_the_same_configuration():

@@ -3,7 +3,13 @@ import random
 
 import pytest
 
-from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm, same_configuration
+from akc_drake.core.akc_plus_lengths import (
+    circle_pair,
+    project_arm,
+    project_forearm,
+    same_configuration,
+    sphere_point,
+)
 from akc_drake.core.arm_geometry import circle_point, project_lengths
 
 
@@ -109,3 +115,34 @@ def test_same_configuration_compares_the_side_each_segment_points_to():
     assert not same_configuration(arm, 1.9, 2.0, 2.2)  # the upper arm mirrored
     assert not same_configuration(arm, 2.1, 2.0, 1.9)  # the forearm mirrored
     assert same_configuration(arm, 2.0, 2.0, 2.2)  # an upper arm in the image plane agrees with either side
+
+
+def test_sphere_point_is_the_nearest_point_at_the_radius_in_the_metric():
+    rng = random.Random(3)
+    for _ in range(200):
+        c = [rng.uniform(-1.0, 1.0) for _ in range(3)]
+        p = [ci + rng.uniform(-0.5, 0.5) for ci in c]  # inside and outside the sphere
+        v = [10 ** rng.uniform(-4.0, -1.0) for _ in range(3)]
+        q = sphere_point(*c, *p, *v, 0.28)
+        assert math.dist(q, c) == pytest.approx(0.28, abs=1e-12)
+        # Stationary (KKT): the metric gradient (p - q) / v is parallel to the radius q - c ...
+        g = [(p[i] - q[i]) / v[i] for i in range(3)]
+        u = [q[i] - c[i] for i in range(3)]
+        cross = (g[1] * u[2] - g[2] * u[1], g[2] * u[0] - g[0] * u[2], g[0] * u[1] - g[1] * u[0])
+        assert math.hypot(*cross) <= 1e-7 * math.hypot(*g) * 0.28 + 1e-12
+        # ... and a minimum: no point of a 2-degree ring about it on the sphere is nearer.
+        cost = sum((q[i] - p[i]) ** 2 / v[i] for i in range(3))
+        for k in range(12):
+            a = 2 * math.pi * k / 12
+            d = [u[0] + 0.01 * math.cos(a), u[1] + 0.01 * math.sin(a), u[2]]
+            n = math.hypot(*d)
+            other = [c[i] + d[i] * 0.28 / n for i in range(3)]
+            assert sum((other[i] - p[i]) ** 2 / v[i] for i in range(3)) >= cost - 1e-12
+
+
+def test_sphere_point_with_equal_variances_is_radial():
+    q = sphere_point(0.0, 0.0, 2.0, 0.3, 0.4, 2.0, 0.01, 0.01, 0.01, 0.25)
+    assert q == pytest.approx((0.15, 0.2, 2.0), abs=1e-12)
+    # an anisotropic metric moves the surer axes less: depth sigma 10x the image's
+    q = sphere_point(0.0, 0.0, 2.0, 0.3, 0.0, 2.2, 1e-4, 1e-4, 1e-2, 0.25)
+    assert abs(q[0] - 0.3) < abs(0.3 * 0.25 / math.hypot(0.3, 0.2) - 0.3)

@@ -44,7 +44,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   while the hand turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost
   for 6 frames: the filter 24 cm off in x, the previous fusion with our last output 11.5 cm off and 10 cm in
   y). Known worse than the shoulder and the elbow, it is no anchor (nothing measured it): the arm is built
-  from the shoulder out and the wrist follows. Nor is a
+  from the shoulder out and the wrist goes to its nearest point at the forearm's length in its own metric
+  (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`; its x, y are no better known than its depth). Nor is a
   wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
   measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
   silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
@@ -101,7 +102,13 @@ from akc_drake.core.akc_plus_evidence import (
     known_depths,
     unreachable_replacements,
 )
-from akc_drake.core.akc_plus_lengths import circle_pair, project_arm, project_forearm, same_configuration
+from akc_drake.core.akc_plus_lengths import (
+    circle_pair,
+    project_arm,
+    project_forearm,
+    same_configuration,
+    sphere_point,
+)
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -517,7 +524,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), vs[3:], lu, lf, self._off_var)
                     if arm is not None:
                         return arm
-                w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
+                if w_lost and vs is not None:
+                    # A wrist that is no anchor: its nearest point at l_f from the elbow in its own metric (its
+                    # x, y are no better known than its depth: no detection, or a depth the test rejected).
+                    w = sphere_point(e[0], e[1], e[2], wx, wy, wz, vs[6], vs[7], vs[8], lf)
+                else:
+                    w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None

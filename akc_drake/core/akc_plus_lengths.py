@@ -239,3 +239,43 @@ def same_configuration(arm, sz, ez, wz):
     zero difference, agrees with either side). The mirror candidates of eq. 7-8 differ in exactly this.
     """
     return (arm[2] - arm[5]) * (sz - ez) >= 0.0 and (arm[5] - arm[8]) * (ez - wz) >= 0.0
+
+
+def sphere_point(cx, cy, cz, px, py, pz, vx, vy, vz, r):
+    """The point at distance ``r`` from ``c`` nearest ``p`` in the metric of variances ``(vx, vy, vz)``.
+
+    The minimiser of ``sum (q_i - p_i)^2 / v_i`` with ``|q - c| = r`` is ``q_i - c_i = (p_i - c_i) / (1 + lam v_i)``
+    for the multiplier ``lam`` that solves ``|q - c| = r`` (a secular equation, decreasing in ``lam`` above
+    ``-1 / max v``): Newton steps on ``1 / |q - c| - 1 / r`` (nearly linear in ``lam``), kept above the pole, then
+    the exact length by scaling. Equal variances give the radial point.
+
+    Args:
+        cx, cy, cz: the sphere's centre (e.g. the elbow); px, py, pz: the point (e.g. the filter's wrist).
+        vx, vy, vz: the point's variances (> 0).
+        r: the radius (e.g. the forearm's length).
+
+    Returns:
+        The point (x, y, z); the radial one when ``p`` is at ``c`` or a variance is not positive.
+    """
+    dx, dy, dz = px - cx, py - cy, pz - cz
+    n = _hypot(dx, dy, dz)
+    if not (n >= _MIN_SEGMENT_M and vx > 0.0 and vy > 0.0 and vz > 0.0):
+        if not n >= _MIN_SEGMENT_M:
+            return (cx, cy, cz + r)
+        return (cx + dx * r / n, cy + dy * r / n, cz + dz * r / n)
+    pole = -1.0 / max(vx, vy, vz)
+    lam = 0.0
+    qx, qy, qz = dx, dy, dz
+    for _ in range(20):
+        ax, ay, az = 1.0 + lam * vx, 1.0 + lam * vy, 1.0 + lam * vz
+        qx, qy, qz = dx / ax, dy / ay, dz / az
+        n = _hypot(qx, qy, qz)
+        phi = 1.0 / n - 1.0 / r
+        if abs(phi) * r < 1e-12:
+            break
+        # d|q|/dlam = -(sum q_i^2 v_i / a_i) / |q|; dphi/dlam = -(d|q|/dlam) / |q|^2
+        dphi = (qx * qx * vx / ax + qy * qy * vy / ay + qz * qz * vz / az) / (n * n * n)
+        step = lam - phi / dphi
+        lam = step if step > pole else 0.5 * (lam + pole)
+    n = _hypot(qx, qy, qz)
+    return (cx + qx * r / n, cy + qy * r / n, cz + qz * r / n)
