@@ -266,7 +266,7 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
         builder.Connect(estimated, akc.GetInputPort("landmarks_C"))
         if cfg.corrector == "AKC+":
             builder.Connect(accepted, akc.GetInputPort("landmarks_C_measured"))
-            # The filter's posterior variance, once its system exposes it (AKC+ runs without it otherwise).
+            # The filter's posterior variance: AKC+'s statistical tests (without it, its no-covariance rules).
             filt = systems.get("filter")
             if filt is not None and filt.HasOutputPort("landmarks_C_variance"):
                 builder.Connect(filt.GetOutputPort("landmarks_C_variance"), akc.GetInputPort("landmarks_C_variance"))

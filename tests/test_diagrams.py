@@ -63,6 +63,30 @@ def test_replay_gives_the_same_corrected_pose(akc_run):
     np.testing.assert_array_equal(log2.truth, log.truth)
 
 
+def test_akc_plus_reads_the_filters_variance_in_the_diagram():
+    # The filter system's posterior variance reaches AKC+ (its statistical tests; without it, its no-covariance
+    # rules): the port is connected, and the diagram's corrected pose is the core corrector's on the core
+    # filter's estimate (equal to the logged one) and variance for the logged measurement.
+    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+
+    cfg = PipelineConfig(motion="II", cycles=1, camera=SMALL, filter="KF", corrector="AKC+")
+    built = diagrams.build_mocap_diagram(cfg)
+    akc, kf = built.systems["corrector"], built.systems["filter"]
+    conn = built.diagram.connection_map()
+    assert conn[(akc, akc.GetInputPort("landmarks_C_variance").get_index())] == (
+        kf, kf.GetOutputPort("landmarks_C_variance").get_index())
+    log, _ = built.simulate(11)
+    core_kf = type(kf.filter)(config=kf.filter.config)
+    core_akc = ArmKinematicCorrectorPlus(built.dims)
+    for k in range(11):
+        est = core_kf.step(log.accepted[k], kf.period_s)
+        np.testing.assert_allclose(est, log.estimated[k], rtol=0, atol=1e-12)
+        want = core_akc.correct(est, log.accepted[k], core_kf.position_variance).pose
+        np.testing.assert_allclose(log.corrected[k], want, rtol=0, atol=1e-12)
+    L = segment_lengths(log.corrected)
+    assert np.isfinite(L["LUA"]).sum() >= 9
+
+
 def test_coik_corrector_meets_lengths_on_success():
     cfg = PipelineConfig(motion="II", cycles=1, camera=SMALL, filter="KF", corrector="COIK")
     dims = BodyDimensions.paper_participant()

@@ -74,6 +74,30 @@ def test_system_matches_core_filter_and_cloned_context_replays(mode):
     )
 
 
+@pytest.mark.parametrize("mode", ["KF", "EKF"])
+def test_variance_output_is_the_core_filters_posterior_variance(mode):
+    # AKC+ reads it to test what the camera sees: NaN before the first update and for axes never measured,
+    # then the core filter's position_variance, growing while a depth is dropped.
+    z = measurements(12)
+    z[6:, 3, 2] = np.nan
+    system = LandmarkKalmanFilter(mode, dims=DIMS, period_s=0.1)
+    core = ConstantVelocityKF() if mode == "KF" else ExtendedKalmanFilterCV(DIMS)
+    context = system.CreateDefaultContext()
+    port = system.GetOutputPort("landmarks_C_variance")
+    assert port.size() == 36 and np.isnan(port.Eval(context)).all()
+    dropped = []
+    for k in range(len(z)):
+        step_system(system, context, z[k])
+        core.step(z[k], 0.1)
+        var = port.Eval(context)
+        np.testing.assert_array_equal(var, np.asarray(core.position_variance).reshape(-1))
+        dropped.append(var.reshape(NUM_LANDMARKS, 3)[3, 2])
+    if mode == "KF":  # (the EKF's bone constraints inform a dropped depth)
+        assert np.all(np.diff(dropped[6:]) > 0)  # the dropped depth's variance grows every frame
+    assert dropped[-1] > dropped[5]
+    assert np.nanmax(var) > 0 and np.nanmin(var) > 0
+
+
 def test_outputs_before_first_update_and_unconnected_input_predicts():
     system = LandmarkKalmanFilter("KF")
     context = system.CreateDefaultContext()

@@ -76,7 +76,7 @@ over several frames. The anatomical tests (elbow folded below ``elbow_min_deg``,
 signed angle) are a finite penalty of 5 standard deviations squared, no veto (both are tests on noisy
 positions near their limits).
 
-**Without the covariance** (the diagram until the filter system exposes it): the rules of the previous
+**Without the covariance** (``variance=None``; the system's variance input unconnected): the rules of the previous
 revision: seen = within ``consistency_m`` of the filter and ``jump_m`` of our last output (unless persisting
 ``gate_frames`` frames and fitting the arm); ``sigma_f`` grows with the blind frames and the filter's travel
 since last seen; seen joints move only as the exact lengths require (circle / wrist follows).

@@ -28,20 +28,24 @@ class LandmarkKalmanFilter(LeafSystem):
         output_ports:
         - landmarks_C_estimated
         - tracking_status
+        - landmarks_C_variance
 
     ``landmarks_C`` and ``landmarks_C_estimated`` are the ``(12, 3)`` camera-frame landmarks flattened
     row-major (36; NaN in the input where missing, NaN in the output only for axes never measured or, with
     ``nan_when_lost``, LOST). ``tracking_status`` is 12 codes of :mod:`akc_drake.core.kalman`:
     0 UNINITIALISED, 1 TRACKING, 2 PREDICTING, 3 LOST. An unconnected input counts as "nothing measured"
     (prediction only). Tracking loss and left/right swaps: :mod:`akc_drake.core.landmark_tracking`.
+    ``landmarks_C_variance`` is the filter's posterior variance of each coordinate of the estimate (36, m^2,
+    the core filter's ``position_variance``; NaN for axes never measured), which AKC+ reads to test what the
+    camera sees (:class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`).
 
-    State (discrete, four groups): the whole core filter state
+    State (discrete, five groups): the whole core filter state
     (:meth:`~akc_drake.core.kalman.ConstantVelocityKF.get_state_vector`, so a context can be cloned
-    and a simulation replayed), the last estimate (36), the last status (12) and the count of
-    consecutive swapped frames (1). A periodic discrete update at the camera period, offset by
-    ``timing.stage_offset("filter")``, loads the filter state into the core filter (created once),
-    steps it by one camera period with the input and writes the groups back; the outputs are state,
-    so the system has no direct feedthrough.
+    and a simulation replayed), the last estimate (36), the last status (12), the count of
+    consecutive swapped frames (1) and the last posterior variance (36). A periodic discrete update at the
+    camera period, offset by ``timing.stage_offset("filter")``, loads the filter state into the core filter
+    (created once), steps it by one camera period with the input and writes the groups back; the outputs are
+    state, so the system has no direct feedthrough.
 
     Args:
         mode: ``"KF"`` or ``"EKF"`` (needs ``dims``); see :func:`~akc_drake.core.landmark_tracking.make_filter`.
@@ -72,8 +76,10 @@ class LandmarkKalmanFilter(LeafSystem):
         self._x_estimate = self.DeclareDiscreteState(BasicVector(np.full(3 * _J, np.nan)))
         self._x_status = self.DeclareDiscreteState(BasicVector(np.full(_J, float(UNINITIALISED))))
         self._x_swaps = self.DeclareDiscreteState(BasicVector([0.0]))
+        self._x_variance = self.DeclareDiscreteState(BasicVector(np.full(3 * _J, np.nan)))
         self.DeclareStateOutputPort("landmarks_C_estimated", self._x_estimate)
         self.DeclareStateOutputPort("tracking_status", self._x_status)
+        self.DeclareStateOutputPort("landmarks_C_variance", self._x_variance)
         self.DeclarePeriodicDiscreteUpdateEvent(
             period_sec=self._period, offset_sec=timing.stage_offset("filter", stage_offset_s), update=self._update
         )
@@ -104,6 +110,9 @@ class LandmarkKalmanFilter(LeafSystem):
         discrete_state.get_mutable_vector(self._x_filter).SetFromVector(self._filter.get_state_vector())
         discrete_state.get_mutable_vector(self._x_estimate).SetFromVector(estimate.reshape(-1))
         discrete_state.get_mutable_vector(self._x_status).SetFromVector(status.astype(np.float64))
+        discrete_state.get_mutable_vector(self._x_variance).SetFromVector(
+            np.asarray(self._filter.position_variance, dtype=np.float64).reshape(-1)
+        )
 
 
 def AddLandmarkKalmanFilter(builder: DiagramBuilder, landmarks_C: OutputPort | None = None, *, mode: str = "KF",
