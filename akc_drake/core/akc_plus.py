@@ -438,7 +438,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         if vs is not None and not (me and ms):
             kn_e, kn_s = known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, (sx, sy, ex, ey, wx, wy), self._r_z,
                                       self._len_var, no_prior, self._lost, self.config.recent_frames)
-        if vs is not None and kn_e and kn_s:
+        projected = vs is not None and kn_e and kn_s  # (the projection of the filter's arm, tried)
+        if projected:
             # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its
             # covariance), the arm nearest it in that metric with the exact lengths (the joints move least
             # where the filter is surest, and mostly in depth).
@@ -539,12 +540,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         else:
             s, e = self._rebuild_from_wrist((sx, sy, sz, ex, ey, ez), w, pe, ps, ke, ks, lu, lf, exy, sxy,
                                             self._other_shoulder(side))
-        if (vs is not None and exy and sxy and m is not None and ke not in no_prior and ks not in no_prior
-                and _isfinite(m[offsets[2]] + m[offsets[2] + 1])):
+        if (vs is not None and not projected and exy and sxy and m is not None and ke not in no_prior
+                and ks not in no_prior and _isfinite(m[offsets[2]] + m[offsets[2] + 1])):
             # The candidates chose the configuration (which side of the image plane each segment points to);
             # when the filter's arm has the same one and passes the lengths' chi2 test, the arm nearest it with
             # the exact lengths (the projection above) is the estimate: the rebuilt depths take eq. 7-8's x, y
             # as exact, the projection weighs them, the filter's depths and the lengths by their variances.
+            # (Not when the projection above was tried: the same arm, the same variances, again no arm.)
             arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var)
             if arm is not None and same_configuration(arm, s[2], e[2], wz):
                 return arm
