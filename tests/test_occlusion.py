@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from akc_drake.core.occlusion import occlusion_filter
+from akc_drake.core.occlusion import PAPER_RULES, occlusion_filter
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PROXIMAL_DISTAL_PAIRS
 
 W = 640  # 5 % of the width = 32 px
@@ -60,7 +60,7 @@ def test_proximal_depth_dropped_within_5_percent_of_width_of_a_distal_joint():
 def test_proximal_depth_kept_outside_the_radius():
     points, pixels, vis = scene()
     le, lw = INDEX["left_elbow"], INDEX["left_wrist"]
-    pixels[le] = pixels[lw] + [20.0, 26.0]  # 32.8 px > 32 px
+    pixels[le] = pixels[lw] + [-20.0, 26.0]  # 32.8 px > 32 px (and 55 px from the right elbow, 70 from its wrist)
     accepted, info = occlusion_filter(points, pixels, vis, W)
     np.testing.assert_array_equal(accepted, points)
     assert not info.depth_dropped.any()
@@ -82,13 +82,28 @@ def test_shoulder_depth_dropped_behind_the_hand_and_both_sides_independent():
     assert np.isnan(accepted[[rs, ls], 2]).all()
 
 
-def test_joint_of_the_other_arm_does_not_count():
+def test_hand_of_the_other_arm_hides_a_shoulder_or_an_elbow_in_ours_not_in_the_papers():
     points, pixels, vis = scene()
     le, rw = INDEX["left_elbow"], INDEX["right_wrist"]
     pixels[le] = pixels[rw] + [1.0, 1.0]
     accepted, info = occlusion_filter(points, pixels, vis, W)
+    assert np.flatnonzero(info.depth_dropped).tolist() == [le]
+    assert np.isnan(accepted[le, 2]) and np.array_equal(accepted[le, :2], points[le, :2])
+    # the other arm's distal joint is the occluder: the right wrist keeps its depth
+    np.testing.assert_array_equal(np.delete(accepted, le, axis=0), np.delete(points, le, axis=0))
+    # a hand across the chest: the right index near the left shoulder
+    points, pixels, vis = scene()
+    ls, ri = INDEX["left_shoulder"], INDEX["right_index"]
+    pixels[ls] = pixels[ri] + [-12.0, 9.0]  # 15 px
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    assert np.flatnonzero(info.depth_dropped).tolist() == [ls]
+    # the paper's pairs are on one arm only
+    accepted, info = occlusion_filter(points, pixels, vis, W, **PAPER_RULES)
     np.testing.assert_array_equal(accepted, points)
     assert not info.depth_dropped.any()
+    # no pair makes an arm's distal joint the proximal of the other's
+    assert (("left_wrist", "right_shoulder") not in PROXIMAL_DISTAL_PAIRS
+            and ("right_elbow", "left_elbow") not in PROXIMAL_DISTAL_PAIRS)
 
 
 def test_distal_joint_is_never_dropped_and_rejected_distal_cannot_occlude():
