@@ -350,17 +350,29 @@ def test_dropped_shoulder_the_filter_knows_better_than_a_rebuild_is_kept():
     assert abs(out[LS, 2] - p[LS, 2]) < 0.01
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
-    # The same frame with a filter that is no surer than the rebuild (blind for long): rebuilt, not kept.
-    akc2 = ArmKinematicCorrectorPlus(dims)
+    # The same frame with a filter that is no surer than the rebuild (blind for long) and without the shoulder
+    # held on the torso: rebuilt, not kept.
+    akc2 = ArmKinematicCorrectorPlus(dims, NO_HELD_SHOULDER)
     akc2.correct(p, measured=p, variance=kf_var())
     var[LS, 2] = 0.5**2
     out2 = akc2.correct(filt, measured=meas, variance=var).pose
     assert abs(out2[LS, 2] - p[LS, 2]) > 0.03
+    # With it (the default), one frame after the depth was seen: held at its offset from the hips' depth, 1 cm
+    # against the filter's 50 cm, so the shoulder stays (the arm is projected: both depths known).
+    akc3 = ArmKinematicCorrectorPlus(dims)
+    akc3.correct(p, measured=p, variance=kf_var())
+    out3 = akc3.correct(filt, measured=meas, variance=var).pose
+    assert abs(out3[LS, 2] - p[LS, 2]) < 0.005
+    assert np.linalg.norm(out3[LS] - out3[LE]) == pytest.approx(dims.LUA, abs=1e-12)
 
 
-def settled_corrector(p, dims):
+#: AKC+ without the shoulder held on the torso (the tests of what happens to a dropped shoulder without it).
+NO_HELD_SHOULDER = AKCPlusConfig(sigma_shoulder_m=0.0)
+
+
+def settled_corrector(p, dims, config=None):
     """A corrector that has seen the pose ``p`` measured exactly for five frames (its state settled on it)."""
-    akc = ArmKinematicCorrectorPlus(dims)
+    akc = ArmKinematicCorrectorPlus(dims, config)
     for _ in range(5):
         akc.correct(p, measured=p, variance=kf_var())
     return akc
@@ -416,9 +428,10 @@ def test_a_rebuilt_shoulder_is_fused_with_a_filter_of_the_same_configuration():
     # The upper arm near the image plane, the shoulder's depth dropped (not seen; the filter's estimate right
     # but with a blind sigma of 6 cm: no known depth) and the elbow's image position 1 cm off towards it. Eq. 8
     # from the elbow puts the shoulder 3.2 cm off in depth (the near-plane segment's leverage); the filter's arm
-    # bends the same way, so the arm nearest it with the exact lengths is the estimate: 2.5 cm.
+    # bends the same way, so the arm nearest it with the exact lengths is the estimate: 2.5 cm. (Without the
+    # shoulder held on the torso, which would keep it within 0.3 cm: see the held-shoulder tests.)
     p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.25))
-    akc = settled_corrector(p, dims)
+    akc = settled_corrector(p, dims, NO_HELD_SHOULDER)
     f = p.copy()
     f[LE, 1] -= 0.01
     m = f.copy()
@@ -429,6 +442,69 @@ def test_a_rebuilt_shoulder_is_fused_with_a_filter_of_the_same_configuration():
     assert 0.02 < out[LS, 2] - p[LS, 2] < 0.027
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_dropped_shoulder_is_held_on_the_torso_and_moves_with_the_hips():
+    # The shoulder's depth dropped for 30 frames (a hand across the chest) while the operator steps 1 cm/frame
+    # towards the camera (hips, elbow and wrist seen). The filter holds the shoulder where it was with a variance
+    # that grows as a constant-velocity model's (sigma 5 cm + 5 cm/frame); the seen elbow is 2 cm deep of the
+    # truth and 1 cm towards the shoulder in the image: eq. 8 from it puts the shoulder 4-5.5 cm off. The held
+    # shoulder (its last offset from the hips' depth, a random walk of 1 cm/frame) follows the hips.
+    p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.25))
+    hips = [INDEX["left_hip"], INDEX["right_hip"]]
+    results = {}
+    for name, config in (("held", None), ("not held", NO_HELD_SHOULDER)):
+        akc = settled_corrector(p, dims, config)
+        errs = []
+        for k in range(1, 31):
+            truth = p.copy()
+            truth[:, 2] -= 0.01 * k
+            f = truth.copy()
+            f[LS, 2] = p[LS, 2]  # the filter holds the dropped shoulder
+            f[LE, 2] += 0.02
+            f[LE, :2] += 0.01 * (p[LS, :2] - p[LE, :2]) / np.linalg.norm(p[LS, :2] - p[LE, :2])
+            var = kf_var()
+            var[LS, 2] = (0.05 + 0.05 * k) ** 2
+            m = f.copy()
+            m[LS, 2] = np.nan
+            out = akc.correct(f, measured=m, variance=var).pose
+            np.testing.assert_array_equal(out[hips], f[hips])
+            assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+            errs.append(abs(out[LS, 2] - truth[LS, 2]))
+        results[name] = np.array(errs)
+    # eq. 8 from the elbow: 4-5.5 cm off in every frame; held: 0.4 cm after a frame, 1.3 cm after five, and
+    # never worse (its prior's sigma grows as sqrt(n) cm: after 30 frames 5.5 cm, the rebuild's weight rises)
+    assert results["not held"].min() > 0.04
+    assert results["held"][0] < 0.005 and results["held"][4] < 0.015
+    assert np.all(results["held"] < results["not held"])
+    # the state carries the held offset and its frame count
+    v = akc.get_state_vector()
+    assert v.shape == (STATE_SIZE,)
+
+
+def test_held_shoulder_state_round_trips_and_is_validated():
+    p, dims = arm_pose()
+    akc = settled_corrector(p, dims)
+    m = p.copy()
+    m[LS, 2] = np.nan
+    akc.correct(p, measured=m, variance=kf_var())
+    v = akc.get_state_vector()
+    held = v[-4:]
+    # the left shoulder: 2.0 - 2.02 (its depth minus the hips'), one blind frame; the right: seen, none yet
+    np.testing.assert_allclose(held, [-0.02, 1.0, -0.02, 0.0], atol=1e-12)
+    other = ArmKinematicCorrectorPlus(dims)
+    other.set_state_vector(v)
+    np.testing.assert_array_equal(other.get_state_vector(), v)
+    f = p.copy()
+    f[LS, 2] += 0.3
+    var = kf_var()
+    var[LS, 2] = 1.0
+    np.testing.assert_array_equal(akc.correct(f, measured=m, variance=var).pose,
+                                  other.correct(f, measured=m, variance=var).pose)
+    bad = v.copy()
+    bad[-3] = -1.0
+    with pytest.raises(ValueError, match="held-shoulder frame count"):
+        other.set_state_vector(bad)
 
 
 def test_a_wrist_lost_altogether_moves_with_the_seen_elbow():

@@ -3,6 +3,7 @@ import pytest
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     fuse_blind_wrist,
+    fuse_held_shoulder,
     hold_blind,
     known_depths,
     unreachable_replacements,
@@ -118,6 +119,26 @@ def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_
     f2 = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
     fuse_blind_wrist(f2, [1e-4] * 6 + [0.06, 0.02, NAN], [0.0, 0.3, 0.0, 9.0], 0.01)
     assert f2[6] == pytest.approx((0.1 * 1.0 + 0.06 * 0.1) / 0.16, rel=1e-12)
+
+
+def test_a_dropped_shoulder_is_the_product_of_the_filter_and_the_shoulder_held_on_the_hips():
+    # The filter holds the shoulder at depth 2.10 with variance 0.03 (a constant-velocity filter blind for long);
+    # it was last seen 0.05 m in front of the hips, which are at 2.00 now; the third blind frame: the held
+    # offset's variance is 3 v_s = 3e-4. Weight 0.0003 / 0.0303 on the filter's depth.
+    f = [0.1, 0.2, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
+    vs = [1e-4, 1e-4, 0.03] + [1e-3] * 6
+    held = [-0.05, 2.0]
+    fuse_held_shoulder(f, vs, held, 2.0, 1e-4)
+    assert held == [-0.05, 3.0]
+    assert f[2] == pytest.approx((3e-4 * 2.10 + 0.03 * 1.95) / 0.0303, rel=1e-12)
+    assert abs(f[2] - 1.95) < 0.002
+    assert vs[2] == pytest.approx(0.03 * 3e-4 / 0.0303, rel=1e-12)
+    assert f[:2] == [0.1, 0.2] and f[3:] == [0.1, 0.5, 2.0, 0.1, 0.8, 1.9]  # only the shoulder's depth
+    assert vs[:2] == [1e-4, 1e-4] and vs[3:] == [1e-3] * 6
+    # The hips stepped 0.2 m towards the camera: the held shoulder goes with them.
+    f2 = [0.1, 0.2, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
+    fuse_held_shoulder(f2, [1e-4, 1e-4, 0.03] + [1e-3] * 6, [-0.05, 2.0], 1.8, 1e-4)
+    assert abs(f2[2] - 1.75) < 0.005
 
 
 def test_a_replacement_beyond_the_arms_reach_gets_the_filters_point_and_variances_back():

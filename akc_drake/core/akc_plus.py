@@ -49,6 +49,13 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
   measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
   silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
+* A shoulder whose depth the occlusion filter dropped (x, y detected): its depth is the filter's fused with the
+  shoulder held on the torso, our outputs' depth offset from the hips' while it was seen (a running mean, weight
+  ``shoulder_alpha``) carried by this frame's hips' depth, a random walk of ``sigma_shoulder_m^2`` per blind frame
+  (:func:`~akc_drake.core.akc_plus_evidence.fuse_held_shoulder`): a constant-velocity filter that holds the
+  landmark claims a variance that grows without bound, and the arm rebuilt from the elbow then carried the
+  elbow's depth error into a shoulder the filter held well (the bench's Motion I, bvhtools_a1's left shoulder
+  behind the right hand).
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
 * A joint the detector lost altogether whose depth the filter extrapolates (variance above ``R``, moved by more
@@ -98,6 +105,7 @@ from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     fuse_blind_wrist,
+    fuse_held_shoulder,
     hold_blind,
     known_depths,
     unreachable_replacements,
@@ -117,7 +125,7 @@ from akc_drake.core.arm_geometry import follow as _follow
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
 from akc_drake.core.arm_geometry import ray_check
-from akc_drake.core.skeleton import NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
+from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _sqrt = math.sqrt
 _hypot = math.hypot
@@ -137,10 +145,14 @@ _SHAPE = (NUM_LANDMARKS, 3)
 #: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, per
 #: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
 #: joint and axis the running mean of the normalised innovation squared (18), per side the forearm of the last
-#: output with the wrist detected (NaN if none) and the frames since (8).
-STATE_SIZE = 62
+#: output with the wrist detected (NaN if none) and the frames since (8), per side the shoulder's depth
+#: offset from the hips' in the last output with its depth measured (NaN if none) and the frames since (4).
+STATE_SIZE = 66
 _NIS = 36
 _BLIND = 54
+_HELD = 62
+_LHIP_Z = 3 * INDEX["left_hip"] + 2
+_RHIP_Z = 3 * INDEX["right_hip"] + 2
 
 
 class ArmKinematicCorrectorPlus(CandidateSearch):
@@ -160,7 +172,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var", "_blind")
+                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -176,6 +188,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
         self._inv_t2 = 1.0 / config.sigma_temporal_m**2
         self._v_t = config.sigma_temporal_m**2
+        self._v_s = config.sigma_shoulder_m**2
+        self._a_s = config.shoulder_alpha
         self._t_cap = config.temporal_cap**2
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
@@ -223,10 +237,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
         # per side: the forearm (wrist - elbow) of our last output with the wrist detected and the frames since
         self._blind: list[list | None] = [None, None]
+        # per side: the shoulder's depth minus the hips' in our outputs with its depth measured (a running mean,
+        # weight ``shoulder_alpha``), and the frames since the last
+        self._held_sh: list[list | None] = [None, None]
 
     def get_state_vector(self) -> np.ndarray:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
-        filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none)."""
+        filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
+        NIS means, per side the held forearm and its blind frames, the held shoulder offset and its frames."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -242,6 +260,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             b = self._blind[side]
             if b is not None:
                 v[_BLIND + 4 * side : _BLIND + 4 * side + 4] = b
+            h = self._held_sh[side]
+            if h is not None:
+                v[_HELD + 2 * side : _HELD + 2 * side + 2] = h
         return v
 
     def set_state_vector(self, v) -> None:
@@ -280,7 +301,16 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 if b[3] < 0:
                     raise ValueError(f"AKC+ state vector: blind-frame count [{_BLIND + 4 * side + 3}] must be >= 0")
                 blind[side] = b.tolist()
+        held: list[list | None] = [None, None]
+        for side in (0, 1):
+            h = a[_HELD + 2 * side : _HELD + 2 * side + 2]
+            if np.all(np.isfinite(h)):
+                if h[1] < 0:
+                    k = _HELD + 2 * side + 1
+                    raise ValueError(f"AKC+ state vector: held-shoulder frame count [{k}] must be >= 0")
+                held[side] = h.tolist()
         self._blind = blind
+        self._held_sh = held
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()
@@ -327,6 +357,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             if m is not None and self._blind[side] is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
                 # A wrist lost altogether (no x, y): the filter's extrapolation and the held forearm, fused.
                 fuse_blind_wrist(f, vs, self._blind[side], self._v_t)
+            if m is not None and m[o_s + 2] != m[o_s + 2] and _isfinite(m[o_s] + m[o_s + 1]):
+                # A shoulder whose depth was dropped (x, y detected): the filter's depth and the shoulder held
+                # on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left as it is).
+                h = self._held_sh[side]
+                v0 = self._v0
+                hz = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z])
+                if h is not None and _isfinite(hz) and vs[2] == vs[2]:
+                    fuse_held_shoulder(f, vs, h, hz, self._v_s)
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
                 g2, rz, o_w = self._gate2, self._r_z, offsets[2]
@@ -592,6 +630,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         held = [True, True]
         fallback = [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
+        # The held shoulders' offset from the hips' depth (``fuse_held_shoulder``): with the covariance only.
+        hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z]) if self._v_s and m is not None and self._var is not None else _NAN
+        hold = _isfinite(hz)
+        held_sh = self._held_sh
         for side in (0, 1):
             ke = 2 * side
             lost_e, lost_s = lost[ke], lost[ke + 1]
@@ -601,6 +643,17 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 o_w = offsets[side][2]
                 if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected
                     self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0]
+                if hold:
+                    z = m[offsets[side][0] + 2]
+                    if z == z:
+                        # The shoulder's depth measured: its offset from the hips', a running mean (the depths read
+                        # as an occluder approaches, just before the occlusion filter drops them, are its own).
+                        h = held_sh[side]
+                        if h is None:
+                            held_sh[side] = [out[2] - hz, 0.0]
+                        else:
+                            h[0] += self._a_s * (out[2] - hz - h[0])
+                            h[1] = 0.0
                 held[side] = False
                 chosen[side] = 0
                 fallback[side] = lost[ke] > 0 and lost[ke + 1] > 0

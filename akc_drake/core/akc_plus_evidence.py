@@ -113,6 +113,32 @@ def fuse_blind_wrist(f, vs, blind, v_t):
             vs[i] = v * vh / s
 
 
+def fuse_held_shoulder(f, vs, held, hz, v_s):
+    """A shoulder whose depth the occlusion filter dropped (x, y detected): the filter's depth fused with the
+    shoulder held on the torso.
+
+    Two Gaussian priors of the shoulder's depth: the filter's (``f[2]``, variance ``vs[2]``: a constant-velocity
+    filter that holds the landmark reports a variance that grows without bound, so eq. 8 from the elbow would
+    replace a shoulder it holds well with one that carries the elbow's depth error, several cm), and our outputs'
+    depth offset from the hips' while the shoulder's depth was measured (``held[0]``, a running mean),
+    carried by this frame's hips' depth ``hz`` (the shoulder sits on the torso), a random walk whose variance
+    grows by ``v_s`` per blind frame (``held[1]``, counted here). Their product replaces the filter's depth and
+    its variance; fused once from the last measurement, as :func:`fuse_blind_wrist`.
+
+    Args:
+        f: the arm's nine coordinates (``f[2]`` changed in place); vs: their nine variances (``vs[2]`` too).
+        held: ``[dz, n]`` (changed in place: ``n`` counts this frame).
+        hz: this frame's hips' depth (finite).
+        v_s: the held shoulder's variance per frame.
+    """
+    n = held[1] = held[1] + 1.0
+    vh = v_s * n
+    v = vs[2]
+    s = v + vh
+    f[2] = (vh * f[2] + v * (hz + held[0])) / s
+    vs[2] = v * vh / s
+
+
 def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, no_prior, lost, recent):
     """Whether the elbow's and the shoulder's depths are known (see :mod:`akc_drake.core.akc_plus`).
 
