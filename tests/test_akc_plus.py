@@ -505,6 +505,15 @@ def test_held_shoulder_state_round_trips_and_is_validated():
     bad[-3] = -1.0
     with pytest.raises(ValueError, match="held-shoulder frame count"):
         other.set_state_vector(bad)
+    # With the hold off, a restored held offset is not used: the same output as without it in the state.
+    off = ArmKinematicCorrectorPlus(dims, NO_HELD_SHOULDER)
+    off_clean = ArmKinematicCorrectorPlus(dims, NO_HELD_SHOULDER)
+    off.set_state_vector(v)
+    clean = v.copy()
+    clean[-4:] = np.nan
+    off_clean.set_state_vector(clean)
+    np.testing.assert_array_equal(off.correct(f, measured=m, variance=var).pose,
+                                  off_clean.correct(f, measured=m, variance=var).pose)
 
 
 def test_a_wrist_lost_altogether_moves_with_the_seen_elbow():

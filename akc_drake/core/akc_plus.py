@@ -146,7 +146,8 @@ _SHAPE = (NUM_LANDMARKS, 3)
 #: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
 #: joint and axis the running mean of the normalised innovation squared (18), per side the forearm of the last
 #: output with the wrist detected (NaN if none) and the frames since (8), per side the shoulder's depth
-#: offset from the hips' in the last output with its depth measured (NaN if none) and the frames since (4).
+#: offset from the hips' in our outputs with its depth measured (a running mean; NaN if none) and the frames
+#: since the last (4).
 STATE_SIZE = 66
 _NIS = 36
 _BLIND = 54
@@ -172,7 +173,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s")
+                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hz")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -220,6 +221,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._var = None
         self._v = None
         self._v0 = None
+        self._hz = _NAN
         self._axes = None
         self._cur_var = None
         self.reset()
@@ -359,10 +361,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 fuse_blind_wrist(f, vs, self._blind[side], self._v_t)
             if m is not None and m[o_s + 2] != m[o_s + 2] and _isfinite(m[o_s] + m[o_s + 1]):
                 # A shoulder whose depth was dropped (x, y detected): the filter's depth and the shoulder held
-                # on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left as it is).
-                h = self._held_sh[side]
-                v0 = self._v0
-                hz = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z])
+                # on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left as it is; ``_hz``
+                # NaN: the hold off or the hips unknown).
+                h, hz = self._held_sh[side], self._hz
                 if h is not None and _isfinite(hz) and vs[2] == vs[2]:
                     fuse_held_shoulder(f, vs, h, hz, self._v_s)
             if m is not None:
@@ -630,8 +631,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         held = [True, True]
         fallback = [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
-        # The held shoulders' offset from the hips' depth (``fuse_held_shoulder``): with the covariance only.
-        hz = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z]) if self._v_s and m is not None and self._var is not None else _NAN
+        # The hips' depth for the held shoulders (``fuse_held_shoulder`` in ``_arm``, the running mean below): with
+        # the covariance and ``sigma_shoulder_m`` > 0 only (NaN otherwise).
+        hz = self._hz = (0.5 * (v[_LHIP_Z] + v[_RHIP_Z]) if self._v_s and m is not None and self._var is not None
+                         else _NAN)
         hold = _isfinite(hz)
         held_sh = self._held_sh
         for side in (0, 1):
