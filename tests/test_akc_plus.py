@@ -687,3 +687,63 @@ def test_a_wrist_whose_measured_depth_is_rejected_is_no_anchor_for_the_seen_join
     np.testing.assert_allclose(out[LE], p[LE], atol=1e-6)
     assert abs(np.linalg.norm(out[LE] - out[LW]) - dims.LLA) < 1e-9
     np.testing.assert_allclose(out[RW], p[RW], atol=1e-9)  # the other arm untouched
+
+
+def test_a_wrist_read_in_front_of_a_seen_elbow_that_fits_the_shoulder_takes_the_correction():
+    # The forearm points towards the camera and the wrist's depth is read 15 cm in front (the hand over it), the
+    # filter following: the forearm is 14 cm too long, the seen shoulder and elbow fit the upper arm. The nearer
+    # end of a too-long segment is the likelier error (a depth camera reads occluders in front, rarely behind):
+    # the elbow stays and the wrist goes back to the forearm's length (before: the elbow moved 3-6 cm with it).
+    p, dims = arm_pose(elbow_dir_l=(0.3, 0.9, -0.2), wrist_dir_l=(0.1, -0.3, -0.95))
+    akc = settled_corrector(p, dims)
+    f = p.copy()
+    f[LW, 2] -= 0.15
+    assert np.linalg.norm(f[LE] - f[LW]) > dims.LLA + 0.1
+    out = akc.correct(f, measured=f.copy(), variance=kf_var()).pose
+    np.testing.assert_allclose(out[[LS, LE]], p[[LS, LE]], atol=1e-9)
+    np.testing.assert_allclose(out[LW], p[LW], atol=5e-4)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_shoulder_behind_its_foreshortened_upper_arm_does_not_count_as_seen():
+    # The upper arm points at the camera (18 degrees off the line of sight, the elbow 9 cm from the shoulder in
+    # the image): the shoulder's pixel shows the arm's surface, here 6 cm in front, the filter following. Not
+    # seen (arm_radius_m), the shoulder is rebuilt from the seen elbow and wrist; counted as seen (the rule off),
+    # the kept shoulder pulls the seen elbow 2.7 cm off.
+    p, dims = arm_pose(elbow_dir_l=(0.1, 0.3, -0.95), wrist_dir_l=(0.2, -0.9, -0.3))
+    assert np.linalg.norm(p[LS, :2] - p[LE, :2]) < 0.10
+    f = p.copy()
+    f[LS, 2] -= 0.06
+    errs = {}
+    for name, config in (("rule", None), ("off", AKCPlusConfig(arm_radius_m=0.0))):
+        akc = settled_corrector(p, dims, config)
+        out = akc.correct(f, measured=f.copy(), variance=kf_var()).pose
+        errs[name] = np.abs(out[[LS, LE]] - p[[LS, LE]]).max()
+        assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert errs["rule"] < 1e-6
+    assert errs["off"] > 0.02
+    # the same shoulder reading on an upper arm across the image (the elbow 15 cm away): the rule does not act
+    q, dims = arm_pose(elbow_dir_l=(0.3, 0.5, -0.8))
+    assert np.linalg.norm(q[LS, :2] - q[LE, :2]) > 0.15
+    g = q.copy()
+    g[LS, 2] -= 0.06
+    outs = [settled_corrector(q, dims, c).correct(g, measured=g.copy(), variance=kf_var()).pose
+            for c in (None, AKCPlusConfig(arm_radius_m=0.0))]
+    np.testing.assert_array_equal(outs[0], outs[1])
+
+
+def test_a_rebuilt_shoulder_is_weighed_against_the_held_torso_depth():
+    # An operator leaning back: the shoulders 25 cm behind the hips' depth. The rebuilt shoulder's torso term is
+    # the hips' depth plus our outputs' running-mean offset (the shoulder held on the torso), with the held
+    # shoulder's variance; without the hold (sigma_shoulder_m = 0), the hips' depth with sigma_torso_m.
+    p, dims = arm_pose(elbow_dir_l=(0.1, 0.3, -0.95), wrist_dir_l=(0.2, -0.9, -0.3))
+    p[[INDEX["left_hip"], INDEX["right_hip"]], 2] = 1.75
+    f = p.copy()
+    f[LS, 2] -= 0.06  # read on the upper arm: not seen, rebuilt (as above)
+    for config, target, inv_var in ((None, 2.0, 1.0 / 0.01**2),
+                                    (NO_HELD_SHOULDER, 1.75, 1.0 / AKCPlusConfig().sigma_torso_m**2)):
+        akc = settled_corrector(p, dims, config)
+        out = akc.correct(f, measured=f.copy(), variance=kf_var()).pose
+        assert akc._tz == pytest.approx(target, abs=1e-12)
+        assert akc._inv_tz2 == pytest.approx(inv_var, rel=1e-12)
+        np.testing.assert_allclose(out[LS], p[LS], atol=1e-6)

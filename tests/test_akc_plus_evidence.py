@@ -6,6 +6,7 @@ from akc_drake.core.akc_plus_evidence import (
     fuse_held_shoulder,
     hold_blind,
     known_depths,
+    nearer_wrist_misfit,
     unreachable_replacements,
 )
 
@@ -169,3 +170,20 @@ def test_a_replacement_beyond_the_arms_reach_gets_the_filters_point_and_variance
     m[6:] = f[6:]
     assert unreachable_replacements(f, vs, f0, m, (0, 3, 6), SUB, var, nis, 0.01, 0.3, 0.28, (R_XY, R_XY, R_Z),
                                     1e-4, 9.0) == 0
+
+
+def test_the_nearer_wrist_of_a_too_long_forearm_is_the_odd_one():
+    # shoulder at the origin, elbow 0.30 m below it (lu = 0.30), wrist 0.40 m from the elbow along -z (towards the
+    # camera): a forearm 0.10 m too long (lf = 0.30) whose wrist is its nearer end
+    s, e = (0.0, 0.0, 2.0), (0.0, 0.30, 2.0)
+    f = (*s, *e, 0.0, 0.30, 1.60)
+    assert nearer_wrist_misfit(f, 0.30, 0.30, 0.05)
+    # the same length with the wrist behind the elbow: the elbow's depth is as likely wrong
+    assert not nearer_wrist_misfit((*s, *e, 0.0, 0.30, 2.40), 0.30, 0.30, 0.05)
+    # a forearm within its length, or shorter: nothing to take
+    assert not nearer_wrist_misfit((*s, *e, 0.0, 0.30, 1.705), 0.30, 0.30, 0.05)
+    assert not nearer_wrist_misfit((*s, *e, 0.0, 0.30, 1.75), 0.30, 0.30, 0.05)
+    assert nearer_wrist_misfit((*s, *e, 0.0, 0.30, 1.695), 0.30, 0.30, 0.05)
+    # an upper arm 6 cm off its length: the elbow does not fit its shoulder (one against one)
+    assert not nearer_wrist_misfit(f, 0.36, 0.30, 0.05)
+    assert nearer_wrist_misfit(f, 0.34, 0.30, 0.05)

@@ -58,6 +58,20 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   behind the right hand).
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
+* A seen forearm too long for the lengths' test, its wrist the nearer end, and a seen elbow that fits its
+  shoulder (seen or held on the torso): the wrist's depth takes the correction and the elbow stays. A depth
+  camera reads a joint in front of where it is (an occluder: the hand over the wrist) far more often than
+  behind it (a silhouette's edge, which the gates catch); shared by their variances, the seen elbow took 3-6 cm
+  of the wrist's error (MediaPipe on the skinned body, bvhtools_a1: the wrist read 6-12 cm in front).
+* A shoulder whose upper arm points towards the camera (the elbow in front, its distance in x, y ``d_xy``) reads
+  the arm's surface ``r / sin(theta)`` in front of the joint, where the depth offset expects ``r``: with the
+  excess ``r (l_u / d_xy - 1)`` above ``consistency_m`` (``arm_radius_m`` = r) it does not count as seen
+  (MediaPipe and the simulated detector, bvhtools_a3: the shoulder read 6-9 cm in front; kept, it moved the
+  seen elbow 4-5 cm).
+* A rebuilt shoulder's candidates are weighed against the torso: the held shoulder's depth (the hips' carrying
+  our outputs' running-mean offset, with its random walk's variance) when known, else the hips' depth with
+  ``sigma_torso_m`` (20 cm). A shoulder read on its own upper arm 24 cm in front is equidistant from both of
+  eq. 8's candidates: the hips' depth alone chose the one 50 cm in front of the truth (bvhtools_a1, MediaPipe).
 * A joint the detector lost altogether whose depth the filter extrapolates (variance above ``R``, moved by more
   than ``depth_sigma_m`` since last seen) is held at our last output in depth (a zero-velocity hold); a
   filter that holds it, or whose constraints inform it (an EKF), is followed.
@@ -108,6 +122,7 @@ from akc_drake.core.akc_plus_evidence import (
     fuse_held_shoulder,
     hold_blind,
     known_depths,
+    nearer_wrist_misfit,
     unreachable_replacements,
 )
 from akc_drake.core.akc_plus_lengths import (
@@ -173,7 +188,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hz")
+                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hz", "_tz", "_inv_tz2", "_fs_r", "_fs_k2")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -216,12 +231,15 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._nis_a, self._nis_floor, self._tol = config.nis_alpha, config.nis_floor, config.length_tol_m
         self._cons, self._xy_tol = config.consistency_m, config.xy_tol_m
         self._occ_r2 = config.occlusion_radius_m**2
+        # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
+        self._fs_r, self._fs_k2 = config.arm_radius_m, (config.arm_radius_m + config.consistency_m) ** 2
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = None
         self._v = None
         self._v0 = None
-        self._hz = _NAN
+        self._hz = self._tz = _NAN
+        self._inv_tz2 = 0.0
         self._axes = None
         self._cur_var = None
         self.reset()
@@ -351,6 +369,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         if not _isfinite(sz):
             sz = prev[2] if prev is not None else ez
         var = self._var
+        s_held = False  # the shoulder's depth held on the torso this frame (``fuse_held_shoulder``)
         if var is not None:
             f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
@@ -366,6 +385,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 h, hz = self._held_sh[side], self._hz
                 if h is not None and _isfinite(hz) and vs[2] == vs[2]:
                     fuse_held_shoulder(f, vs, h, hz, self._v_s)
+                    s_held = True
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
                 g2, rz, o_w = self._gate2, self._r_z, offsets[2]
@@ -437,9 +457,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     if held:
                         no_prior.add(ks)
         # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
-        # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface.
-        if ms and (sx - ex) ** 2 + (sy - ey) ** 2 < self._occ_r2:
-            ms = False
+        # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface; so may
+        # one whose upper arm points towards the camera (the elbow in front, foreshortened: ``arm_radius_m``).
+        if ms:
+            d2 = (sx - ex) ** 2 + (sy - ey) ** 2
+            if d2 < self._occ_r2 or (ez < sz and d2 * self._fs_k2 < (self._fs_r * lu) ** 2):
+                ms = False
         if vs is not None:
             # A depth that another rule (proximity) rejects but the filter followed (``*_nis``): the filter's
             # estimate and (small) variance are no independent evidence; its prior is left out.
@@ -515,6 +538,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             w_lost = z == z and (z - wz) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
             if not w_lost and not _isfinite(m[o_w] + m[o_w + 1]):
                 w_lost = vs[8] > vs[2] and vs[8] > vs[5]
+            if not w_lost and me and (ms or s_held) and z == z and _isfinite(m[o_w] + m[o_w + 1]):
+                # Two against one: the wrist the nearer end of a too-long forearm, the elbow fitting its shoulder.
+                w_lost = nearer_wrist_misfit((sx, sy, sz, ex, ey, ez, wx, wy, wz), lu, lf, self._cons)
         if w_lost:
             ts, te = True, False
         if ts:
@@ -572,6 +598,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
+        self._set_torso(side, v)
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         if te:
             s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,

@@ -42,6 +42,13 @@ class AKCPlusConfig:
         gate_frames: ... unless it has been so for this many frames and fits the arm's lengths.
         occlusion_radius_m: a shoulder this close (x, y, metres) to its elbow does not count as seen (its
             depth may be the upper arm's surface; 8 cm ~ 25 px at 2 m).
+        arm_radius_m: the upper arm's radius (a 30 cm circumference). An upper arm pointing towards the camera at
+            angle theta from the line of sight covers its shoulder's pixel: the depth read there is the arm's
+            surface, ``r / sin(theta)`` in front of the joint where one facing the camera reads ``r`` (which the
+            depth offset removes). A shoulder whose excess bias, ``r (l_u / d_xy - 1)`` with ``d_xy`` the elbow's
+            distance in x, y and the elbow in front, exceeds ``consistency_m`` does not count as seen (0 turns
+            the rule off). With MediaPipe on the skinned body (bvhtools_a3: the arm 20 degrees off the line of
+            sight) the shoulder read 6 cm in front and the kept shoulder moved the seen elbow 4-5 cm.
         depth_sigma_m, image_sigma_m: the measurement's standard deviations in depth and in x, y (the
             filter's R: ``KFConfig.sigma_z``, ``sigma_x``); without the filter's covariance they also stand
             for it.
@@ -75,6 +82,7 @@ class AKCPlusConfig:
     xy_tol_m: float = 0.03
     jump_m: float = 0.15
     occlusion_radius_m: float = 0.08
+    arm_radius_m: float = 0.05
     gate_frames: float = 10.0
     depth_sigma_m: float = 0.05
     image_sigma_m: float = 0.01

@@ -10,6 +10,8 @@ arm's coordinates) is passed in.
 
 from __future__ import annotations
 
+import math
+
 from akc_drake.core.arm_geometry import rebuild_variance
 
 _NAN = float("nan")
@@ -266,3 +268,22 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
         _restore(2 if r2 else 0, f, vs, f0, sub_index, var, nis, floor)
         out += 1
     return out
+
+
+def nearer_wrist_misfit(f, lu, lf, cons):
+    """Whether a seen wrist's depth, not the seen elbow's, carries a too-long forearm (two against one).
+
+    The forearm ``|e - w|`` longer than ``lf`` with the wrist its nearer end (``wz < ez``), and the upper arm within
+    ``cons`` of ``lu`` (the elbow fits its shoulder). A depth camera reads a joint in front of where it is (an
+    occluder: the hand, the fingers) far more often than behind it (the silhouette's edge, which the gates catch):
+    the wrist's depth is the likelier error; it takes the correction and the elbow stays (shared by their variances,
+    the seen elbow took 3-6 cm of the wrist's error: MediaPipe on the skinned body, bvhtools_a1, the wrist read
+    6-12 cm in front).
+
+    Args:
+        f: the arm's nine coordinates (shoulder, elbow, wrist); lu, lf: the calibrated lengths; cons: the upper
+            arm's tolerance (``consistency_m``).
+    """
+    sx, sy, sz, ex, ey, ez, wx, wy, wz = f
+    return (wz < ez and math.hypot(ex - wx, ey - wy, ez - wz) > lf
+            and abs(math.hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons)

@@ -173,6 +173,20 @@ class CandidateSearch:
                 axes = self._axes = torso_axes(self._v0)
         return BACKWARDS if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes) else 0.0
 
+    def _set_torso(self, side, v):
+        """The torso term of ``side``'s shoulder candidates (``_tz``, ``_inv_tz2``), set before a rebuild.
+
+        The held shoulder's depth (the hips' depth ``_hz`` carrying our outputs' running-mean offset, with the hold's
+        variance as ``fuse_held_shoulder``'s) when known, else the hips' depth of the pose ``v`` with
+        ``sigma_torso_m``. A shoulder read on its own upper arm 24 cm in front is equidistant from eq. 8's two
+        candidates, and the hips' 20 cm let the one 50 cm in front win (MediaPipe, bvhtools_a1).
+        """
+        h, hz = self._held_sh[side], self._hz
+        if h is not None and hz == hz:
+            self._tz, self._inv_tz2 = hz + h[0], 1.0 / (self._v_s * (h[1] + 1.0))
+        else:
+            self._tz, self._inv_tz2 = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z]), self._inv_torso2
+
     def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, other, bound=_inf):
         """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``).
 
@@ -189,13 +203,12 @@ class CandidateSearch:
         if other is not None and self._inv_w2:
             dw = _hypot(c[0] - other[0], c[1] - other[1], c[2] - other[2]) - self._ls
             j += dw * dw * self._inv_w2
-        v0 = self._v0  # (the pose as given: the hips' depth, computed only when a shoulder is rebuilt)
-        hz = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z])
-        if _isfinite(hz):
-            # The shoulders sit on the torso: near the hips' depth (both arms' mirror candidates together
-            # would otherwise keep the shoulder width).
-            dz = c[2] - hz
-            j += dz * dz * self._inv_torso2
+        tz = self._tz  # (set by ``_arm`` before a rebuild: the held shoulder's depth, else the hips')
+        if tz == tz:
+            # The shoulders sit on the torso (both arms' mirror candidates together would otherwise keep the
+            # shoulder width; one read on its own upper arm, 24 cm in front, is equidistant from both).
+            dz = c[2] - tz
+            j += dz * dz * self._inv_tz2
         if j >= bound:
             return j
         return j + self._penalty(c, e, w, lu, lf)
