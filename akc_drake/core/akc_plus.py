@@ -598,7 +598,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
-        self._set_torso(side, v)
+        self._set_torso(side)
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         if te:
             s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,

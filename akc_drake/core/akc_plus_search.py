@@ -173,11 +173,11 @@ class CandidateSearch:
                 axes = self._axes = torso_axes(self._v0)
         return BACKWARDS if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes) else 0.0
 
-    def _set_torso(self, side, v):
+    def _set_torso(self, side):
         """The torso term of ``side``'s shoulder candidates (``_tz``, ``_inv_tz2``), set before a rebuild.
 
         The held shoulder's depth (the hips' depth ``_hz`` carrying our outputs' running-mean offset, with the hold's
-        variance as ``fuse_held_shoulder``'s) when known, else the hips' depth of the pose ``v`` with
+        variance as ``fuse_held_shoulder``'s) when known, else the hips' depth of the pose as given with
         ``sigma_torso_m``. A shoulder read on its own upper arm 24 cm in front is equidistant from eq. 8's two
         candidates, and the hips' 20 cm let the one 50 cm in front win (MediaPipe, bvhtools_a1).
         """
@@ -185,7 +185,8 @@ class CandidateSearch:
         if h is not None and hz == hz:
             self._tz, self._inv_tz2 = hz + h[0], 1.0 / (self._v_s * (h[1] + 1.0))
         else:
-            self._tz, self._inv_tz2 = 0.5 * (v[_LHIP_Z] + v[_RHIP_Z]), self._inv_torso2
+            v0 = self._v0
+            self._tz, self._inv_tz2 = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z]), self._inv_torso2
 
     def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, other, bound=_inf):
         """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``).
