@@ -128,9 +128,9 @@ def test_a_dropped_shoulder_is_the_product_of_the_filter_and_the_shoulder_held_o
     # offset's variance is 3 v_s = 3e-4. Weight 0.0003 / 0.0303 on the filter's depth.
     f = [0.1, 0.2, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
     vs = [1e-4, 1e-4, 0.03] + [1e-3] * 6
-    held = [-0.05, 2.0]
-    fuse_held_shoulder(f, vs, held, 2.0, 1e-4)
-    assert held == [-0.05, 3.0]
+    held = [0.15, -0.5, -0.05, 2.0]
+    fuse_held_shoulder(f, vs, held, (0.0, 0.7, 2.0), 1e-4)
+    assert held == [0.15, -0.5, -0.05, 3.0]
     assert f[2] == pytest.approx((3e-4 * 2.10 + 0.03 * 1.95) / 0.0303, rel=1e-12)
     assert abs(f[2] - 1.95) < 0.002
     assert vs[2] == pytest.approx(0.03 * 3e-4 / 0.0303, rel=1e-12)
@@ -138,8 +138,52 @@ def test_a_dropped_shoulder_is_the_product_of_the_filter_and_the_shoulder_held_o
     assert vs[:2] == [1e-4, 1e-4] and vs[3:] == [1e-3] * 6
     # The hips stepped 0.2 m towards the camera: the held shoulder goes with them.
     f2 = [0.1, 0.2, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
-    fuse_held_shoulder(f2, [1e-4, 1e-4, 0.03] + [1e-3] * 6, [-0.05, 2.0], 1.8, 1e-4)
+    fuse_held_shoulder(f2, [1e-4, 1e-4, 0.03] + [1e-3] * 6, [0.15, -0.5, -0.05, 2.0], (0.0, 0.7, 1.8), 1e-4)
     assert abs(f2[2] - 1.75) < 0.005
+
+
+def test_a_shoulder_lost_altogether_is_held_on_the_hips_in_x_and_y_too():
+    # No x, y either: the filter extrapolated the shoulder 0.3 m off in x (variance 0.04) and holds y well
+    # (variance 1e-4, as small as the held offset's after one frame); the hips' centre (0.02, 0.65, 2.0) carries
+    # the held offset (0.15, -0.5, -0.05): (0.17, 0.15, 1.95). First blind frame: v_h = 1e-4.
+    f = [0.47, 0.16, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
+    vs = [0.04, 1e-4, 0.03] + [1e-3] * 6
+    held = [0.15, -0.5, -0.05, 0.0]
+    fuse_held_shoulder(f, vs, held, (0.02, 0.65, 2.0), 1e-4, lost_xy=True)
+    assert held[3] == 1.0
+    assert f[0] == pytest.approx((1e-4 * 0.47 + 0.04 * 0.17) / 0.0401, rel=1e-12)  # 0.17075: 7.5 mm off the hold
+    assert f[1] == pytest.approx(0.5 * (0.16 + 0.15), rel=1e-12)  # equal variances: the midpoint
+    assert f[2] == pytest.approx((1e-4 * 2.10 + 0.03 * 1.95) / 0.0301, rel=1e-12)
+    assert vs[:3] == pytest.approx([0.04 * 1e-4 / 0.0401, 0.5e-4, 0.03 * 1e-4 / 0.0301], rel=1e-12)
+    assert f[3:] == [0.1, 0.5, 2.0, 0.1, 0.8, 1.9] and vs[3:] == [1e-3] * 6
+    # An axis whose variance the filter does not know (NaN) is left as it is.
+    g, vg = [0.47, 0.16, 2.10] + [0.0] * 6, [NAN, 1e-4, 0.03] + [1e-3] * 6
+    fuse_held_shoulder(g, vg, [0.15, -0.5, -0.05, 0.0], (0.02, 0.65, 2.0), 1e-4, lost_xy=True)
+    assert g[0] == 0.47 and vg[0] != vg[0] and g[1] == pytest.approx(0.155, rel=1e-12)
+
+
+def test_a_shoulder_held_on_the_torso_tells_that_an_elbow_and_wrist_on_the_wall_are_unreachable():
+    # The shoulder's depth dropped, held on the torso at (0, 0, 2.0). The elbow and the wrist both read the wall
+    # 1.5 m behind (a landmark past the silhouette) and replaced the filter's (2.3, 2.4): they agree with each
+    # other, and only the held shoulder shows neither is reachable. Restored: the elbow (pair shoulder-elbow),
+    # then the wrist (pair shoulder-wrist); the held shoulder itself is never restored, and the caller's
+    # measurement is not changed. Without the hold, nothing is.
+    lu, lf = 0.3, 0.28
+    m = [NAN, NAN, NAN, 0.0, 0.3, 3.5, 0.0, 0.58, 3.6] + [NAN] * 27
+    f0 = [0.0, 0.0, 2.4, 0.0, 0.3, 2.3, 0.0, 0.58, 2.4]
+    sub_index = [(i, i, 1e-4 if i % 3 < 2 else 2.5e-3, i) for i in range(9)]
+    var = [1e-4, 1e-4, 0.04] * 3 + [0.0] * 27
+    for held in (True, False):
+        f = [0.0, 0.0, 2.0, 0.0, 0.3, 3.5, 0.0, 0.58, 3.6]
+        vs = [1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 2.5e-3, 1e-4, 1e-4, 2.5e-3]
+        m_before = list(m)
+        n = unreachable_replacements(f, vs, f0, m, (0, 3, 6), sub_index, var, [1.0] * 9, 0.01, lu, lf,
+                                     (1e-4, 1e-4, 2.5e-3), 1e-4, 9.0, s_held=held)
+        assert m == m_before and f[:3] == [0.0, 0.0, 2.0]
+        if held:
+            assert n == 2 and f[3:] == f0[3:] and vs[5] == pytest.approx(0.04) and vs[8] == pytest.approx(0.04)
+        else:
+            assert n == 0 and f[5] == 3.5 and f[8] == 3.6
 
 
 def test_a_replacement_beyond_the_arms_reach_gets_the_filters_point_and_variances_back():

@@ -49,13 +49,14 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
   measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
   silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
-* A shoulder whose depth the occlusion filter dropped (x, y detected): its depth is the filter's fused with the
-  shoulder held on the torso, our outputs' depth offset from the hips' while it was seen (a running mean, weight
-  ``shoulder_alpha``) carried by this frame's hips' depth, a random walk of ``sigma_shoulder_m^2`` per blind frame
-  (:func:`~akc_drake.core.akc_plus_evidence.fuse_held_shoulder`): a constant-velocity filter that holds the
-  landmark claims a variance that grows without bound, and the arm rebuilt from the elbow then carried the
-  elbow's depth error into a shoulder the filter held well (the bench's Motion I, bvhtools_a1's left shoulder
-  behind the right hand).
+* A shoulder whose depth the occlusion filter dropped, or that the detector lost altogether: its depth (then its
+  x, y too) is the filter's fused with the shoulder held on the torso, our outputs' offset from the hips' centre
+  while it was seen (a running mean, weight ``shoulder_alpha``, both hips' depths measured) carried by this
+  frame's hips, a random walk of ``sigma_shoulder_m^2`` per blind frame (:func:`~akc_drake.core.akc_plus_evidence.
+  fuse_held_shoulder`): a constant-velocity filter that holds the landmark claims a variance that grows without
+  bound, and the arm rebuilt from the elbow then carried the elbow's depth error into a shoulder the filter held
+  well (the bench's Motion I, bvhtools_a1's left shoulder behind the right hand); one that extrapolates a lost
+  shoulder ran 30 cm off in x.
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
 * A seen forearm too long for the lengths' test, its wrist the nearer end, and a seen elbow that fits its
@@ -91,11 +92,10 @@ depth error). When neither is kept and all three joints' x, y were detected, the
 configuration (the side of the image plane each segment points to): a filter's arm that bends the same way
 and passes the lengths' chi2 test gives the estimate instead, the arm nearest it with the exact lengths (as
 for known depths: eq. 7-8 take the detected x, y as exact, the projection weighs them, the filter's depths
-and the lengths by their variances). The temporal
-term is capped so that persistent evidence can undo a wrong configuration; a mirror switch needs evidence
-over several frames. The anatomical tests (elbow folded below ``elbow_min_deg``, hyperextended by m5's
-signed angle) are a finite penalty of 5 standard deviations squared, no veto (both are tests on noisy
-positions near their limits).
+and the lengths by their variances). The temporal term is capped so that persistent evidence can undo a wrong
+configuration; a mirror switch needs evidence over several frames. The anatomical tests (elbow folded below
+``elbow_min_deg``, hyperextended by m5's signed angle) are a finite penalty of 5 standard deviations squared, no
+veto (both are tests on noisy positions near their limits).
 
 **Without the covariance** (``variance=None``; the system's variance input unconnected): the rules of the previous
 revision: seen = within ``consistency_m`` of the filter and ``jump_m`` of our last output (unless persisting
@@ -142,8 +142,7 @@ from akc_drake.core.arm_geometry import radial as _radial
 from akc_drake.core.arm_geometry import ray_check
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
-_sqrt = math.sqrt
-_hypot = math.hypot
+_hypot, _inf = math.hypot, math.inf
 _isfinite = math.isfinite
 _NAN = float("nan")
 _F64 = np.dtype(np.float64)
@@ -154,21 +153,19 @@ def _as_f64(x):
     return x if type(x) is np.ndarray and x.dtype == _F64 else np.asarray(x, dtype=np.float64)
 
 
-_FLAT = 3 * NUM_LANDMARKS
-_SHAPE = (NUM_LANDMARKS, 3)
+_FLAT, _SHAPE = 3 * NUM_LANDMARKS, (NUM_LANDMARKS, 3)
 
 #: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, per
 #: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
 #: joint and axis the running mean of the normalised innovation squared (18), per side the forearm of the last
-#: output with the wrist detected (NaN if none) and the frames since (8), per side the shoulder's depth
-#: offset from the hips' in our outputs with its depth measured (a running mean; NaN if none) and the frames
-#: since the last (4).
-STATE_SIZE = 66
+#: output with the wrist detected (NaN if none) and the frames since (8), per side the shoulder's offset from
+#: the hips' centre in our outputs with its depth measured (x, y, z, a running mean; NaN if none) and the frames
+#: since the last (8).
+STATE_SIZE = 70
 _NIS = 36
 _BLIND = 54
 _HELD = 62
-_LHIP_Z = 3 * INDEX["left_hip"] + 2
-_RHIP_Z = 3 * INDEX["right_hip"] + 2
+_LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
 
 
 class ArmKinematicCorrectorPlus(CandidateSearch):
@@ -188,7 +185,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hz", "_tz", "_inv_tz2", "_fs_r", "_fs_k2")
+                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hz", "_hips", "_tz", "_inv_tz2", "_fs_r",
+                 "_fs_k2")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -235,13 +233,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._fs_r, self._fs_k2 = config.arm_radius_m, (config.arm_radius_m + config.consistency_m) ** 2
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
-        self._var = None
-        self._v = None
-        self._v0 = None
+        self._var = self._v = self._v0 = self._axes = self._cur_var = None
         self._hz = self._tz = _NAN
-        self._inv_tz2 = 0.0
-        self._axes = None
-        self._cur_var = None
+        self._inv_tz2, self._hips = 0.0, (_NAN, _NAN, _NAN)
         self.reset()
 
     @property
@@ -257,8 +251,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
         # per side: the forearm (wrist - elbow) of our last output with the wrist detected and the frames since
         self._blind: list[list | None] = [None, None]
-        # per side: the shoulder's depth minus the hips' in our outputs with its depth measured (a running mean,
-        # weight ``shoulder_alpha``), and the frames since the last
+        # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
+        # mean, weight ``shoulder_alpha``), and the frames since the last
         self._held_sh: list[list | None] = [None, None]
 
     def get_state_vector(self) -> np.ndarray:
@@ -282,7 +276,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 v[_BLIND + 4 * side : _BLIND + 4 * side + 4] = b
             h = self._held_sh[side]
             if h is not None:
-                v[_HELD + 2 * side : _HELD + 2 * side + 2] = h
+                v[_HELD + 4 * side : _HELD + 4 * side + 4] = h
         return v
 
     def set_state_vector(self, v) -> None:
@@ -323,10 +317,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 blind[side] = b.tolist()
         held: list[list | None] = [None, None]
         for side in (0, 1):
-            h = a[_HELD + 2 * side : _HELD + 2 * side + 2]
+            h = a[_HELD + 4 * side : _HELD + 4 * side + 4]
             if np.all(np.isfinite(h)):
-                if h[1] < 0:
-                    k = _HELD + 2 * side + 1
+                if h[3] < 0:
+                    k = _HELD + 4 * side + 3
                     raise ValueError(f"AKC+ state vector: held-shoulder frame count [{k}] must be >= 0")
                 held[side] = h.tolist()
         self._blind = blind
@@ -378,13 +372,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             if m is not None and self._blind[side] is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
                 # A wrist lost altogether (no x, y): the filter's extrapolation and the held forearm, fused.
                 fuse_blind_wrist(f, vs, self._blind[side], self._v_t)
-            if m is not None and m[o_s + 2] != m[o_s + 2] and _isfinite(m[o_s] + m[o_s + 1]):
-                # A shoulder whose depth was dropped (x, y detected): the filter's depth and the shoulder held
-                # on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left as it is; ``_hz``
-                # NaN: the hold off or the hips unknown).
-                h, hz = self._held_sh[side], self._hz
-                if h is not None and _isfinite(hz) and vs[2] == vs[2]:
-                    fuse_held_shoulder(f, vs, h, hz, self._v_s)
+            if m is not None and m[o_s + 2] != m[o_s + 2]:
+                # A shoulder whose depth was dropped, or lost altogether (no x, y either): the filter's estimate
+                # and the shoulder held on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left
+                # as it is; ``_hz`` NaN: the hold off or the hips' depths not measured).
+                h = self._held_sh[side]
+                if h is not None and _isfinite(self._hz) and vs[2] == vs[2]:
+                    fuse_held_shoulder(f, vs, h, self._hips, self._v_s, not _isfinite(m[o_s] + m[o_s + 1]))
                     s_held = True
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
@@ -397,7 +391,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     # A measured point that replaced the filter's must be within the arm's reach of its neighbours.
                     unreachable_replacements(f, vs, (sx, sy, sz, ex, ey, ez, wx, wy, wz), m, offsets,
                                              self._sub_index[side], var, self._nis, self._nis_floor, self._lu[side],
-                                             self._lf[side], self._r_axes, self._len_var, g2)
+                                             self._lf[side], self._r_axes, self._len_var, g2, s_held)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             vs = self._cur_var = None
@@ -518,12 +512,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
         w = (wx, wy, wz)
         s = e = None
-        te = me and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol  # elbow seen and at l_f from the wrist
-        # A seen shoulder is trusted unless a seen elbow that fits the wrist contradicts it (two against one: e.g.
-        # an occluding upper arm's depth at the shoulder's pixel). A shoulder lost altogether (no x, y) is kept
-        # where held (eq. 8 needs its 2D position; a wrong elbow is likelier than a wrong held shoulder).
-        # (The upper arm's fit to l_u within consistency_m is computed only where it decides.)
-        ts = ((ms and not (te and not abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= self._cons))
+        df = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) if me else _inf
+        te = df <= tol  # elbow seen and at l_f from the wrist
+        # A seen shoulder is trusted unless a seen elbow that fits the wrist, better than the shoulder fits it,
+        # contradicts it (two against one: e.g. an occluding upper arm's depth at the shoulder's pixel; MediaPipe's
+        # 2D elbow 5 cm short of the joint leaves both segments short, and eq. 8 put the shoulder 20-28 cm in
+        # front). A shoulder lost altogether (no x, y) is kept where held (eq. 8 needs its 2D position; a wrong
+        # elbow is likelier than a wrong held shoulder). (The upper arm's fit is computed only where it decides.)
+        ts = ((ms and not (te and self._cons < abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) > df))
               or (not sxy and prev is not None and not te) or (kn_s and not te))
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
@@ -660,9 +656,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         prevs, lost, offsets = self._prev, self._lost, self._offsets
         # The hips' depth for the held shoulders (``fuse_held_shoulder`` in ``_arm``, the running mean below): with
         # the covariance and ``sigma_shoulder_m`` > 0 only (NaN otherwise).
-        hz = self._hz = (0.5 * (v[_LHIP_Z] + v[_RHIP_Z]) if self._v_s and m is not None and self._var is not None
-                         else _NAN)
+        # Only with both hips' depths measured this frame: a filter extrapolating a hip that a hand hides carries
+        # the velocity it had, 38 cm in ten frames, into the held offsets (bvhtools_test 60-120 s, simulated).
+        hz = self._hz = (0.5 * (v[_LHIP + 2] + v[_RHIP + 2]) if self._v_s and m is not None and self._var is not None
+                         and _isfinite(m[_LHIP + 2] + m[_RHIP + 2]) else _NAN)
         hold = _isfinite(hz)
+        if hold:
+            hips = self._hips = (0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]), hz)
         held_sh = self._held_sh
         for side in (0, 1):
             ke = 2 * side
@@ -678,12 +678,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     if z == z:
                         # The shoulder's depth measured: its offset from the hips', a running mean (the depths read
                         # as an occluder approaches, just before the occlusion filter drops them, are its own).
-                        h = held_sh[side]
+                        h, a_s = held_sh[side], self._a_s
                         if h is None:
-                            held_sh[side] = [out[2] - hz, 0.0]
+                            held_sh[side] = [out[0] - hips[0], out[1] - hips[1], out[2] - hz, 0.0]
                         else:
-                            h[0] += self._a_s * (out[2] - hz - h[0])
-                            h[1] = 0.0
+                            h[0] += a_s * (out[0] - hips[0] - h[0])
+                            h[1] += a_s * (out[1] - hips[1] - h[1])
+                            h[2] += a_s * (out[2] - hz - h[2])
+                            h[3] = 0.0
                 held[side] = False
                 chosen[side] = 0
                 fallback[side] = lost[ke] > 0 and lost[ke + 1] > 0

@@ -24,9 +24,10 @@ class AKCPlusConfig:
         sigma_temporal_m: how far a joint may move between two frames (10 Hz: 1 m/s -> 0.1 m).
         sigma_width_m: standard deviation of the shoulder-width term (0 turns it off).
         sigma_torso_m: standard deviation of a shoulder's depth about the hips' (torso lean; 0 turns it off).
-        sigma_shoulder_m: how far a shoulder's depth may move relative to the hips' between two frames (a torso
+        sigma_shoulder_m: how far a shoulder may move relative to the hips between two frames, per axis (a torso
             turning at 0.3 m/s at the shoulder, 30 Hz): the random walk of a shoulder whose depth the occlusion
-            filter dropped, held at its seen offset from the hips (with the covariance; 0 turns it off).
+            filter dropped (or that the detector lost altogether: then x, y too), held at its seen offset from the
+            hips' centre, learnt in frames with both hips' depths measured (with the covariance; 0 turns it off).
         shoulder_alpha: weight of the newest frame in the running mean of that offset (0.2: a time constant of 5
             frames, as ``nis_alpha``): the depths read in the last frames before an occlusion are partly the
             occluder's (the bench's Motion I: 3-7 cm in front over the 2-3 frames before the forearm covers the

@@ -115,30 +115,36 @@ def fuse_blind_wrist(f, vs, blind, v_t):
             vs[i] = v * vh / s
 
 
-def fuse_held_shoulder(f, vs, held, hz, v_s):
-    """A shoulder whose depth the occlusion filter dropped (x, y detected): the filter's depth fused with the
-    shoulder held on the torso.
+def fuse_held_shoulder(f, vs, held, hips, v_s, lost_xy=False):
+    """A shoulder whose depth the occlusion filter dropped, or that the detector lost altogether: the filter's
+    estimate fused with the shoulder held on the torso.
 
-    Two Gaussian priors of the shoulder's depth: the filter's (``f[2]``, variance ``vs[2]``: a constant-velocity
+    Two Gaussian priors of the shoulder: the filter's (``f[0:3]``, variances ``vs[0:3]``: a constant-velocity
     filter that holds the landmark reports a variance that grows without bound, so eq. 8 from the elbow would
-    replace a shoulder it holds well with one that carries the elbow's depth error, several cm), and our outputs'
-    depth offset from the hips' while the shoulder's depth was measured (``held[0]``, a running mean),
-    carried by this frame's hips' depth ``hz`` (the shoulder sits on the torso), a random walk whose variance
-    grows by ``v_s`` per blind frame (``held[1]``, counted here). Their product replaces the filter's depth and
-    its variance; fused once from the last measurement, as :func:`fuse_blind_wrist`.
+    replace a shoulder it holds well with one that carries the elbow's depth error, several cm; and one that
+    extrapolates a lost landmark carries the velocity of its last, often disturbed, measurements: 30 cm in x
+    after ten frames), and our outputs' offset from the hips' centre while the shoulder's depth was measured
+    (``held[:3]``, a running mean), carried by this frame's hips' centre ``hips`` (the shoulder sits on the
+    torso), a random walk whose variance grows by ``v_s`` per blind frame (``held[3]``, counted here). Their
+    product replaces the filter's depth and its variance, and with ``lost_xy`` (no x, y detected either) its x and
+    y too; fused once from the last measurement, as :func:`fuse_blind_wrist`. An axis whose variance the filter
+    does not know (NaN) is left as it is.
 
     Args:
-        f: the arm's nine coordinates (``f[2]`` changed in place); vs: their nine variances (``vs[2]`` too).
-        held: ``[dz, n]`` (changed in place: ``n`` counts this frame).
-        hz: this frame's hips' depth (finite).
+        f: the arm's nine coordinates (the shoulder's changed in place); vs: their nine variances (likewise).
+        held: ``[dx, dy, dz, n]`` (changed in place: ``n`` counts this frame).
+        hips: this frame's hips' centre ``(x, y, z)`` (finite).
         v_s: the held shoulder's variance per frame.
+        lost_xy: fuse x and y as well as the depth.
     """
-    n = held[1] = held[1] + 1.0
+    n = held[3] = held[3] + 1.0
     vh = v_s * n
-    v = vs[2]
-    s = v + vh
-    f[2] = (vh * f[2] + v * (hz + held[0])) / s
-    vs[2] = v * vh / s
+    for i in (0, 1, 2) if lost_xy else (2,):
+        v = vs[i]
+        if v == v:
+            s = v + vh
+            f[i] = (vh * f[i] + v * (hips[i] + held[i])) / s
+            vs[i] = v * vh / s
 
 
 def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, no_prior, lost, recent):
@@ -209,7 +215,8 @@ def _restore(k, f, vs, f0, sub_index, var, nis, floor):
         vs[c] = var[j] * (q if q > floor else floor)
 
 
-def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, lu, lf, r_axes, length_var, g2) -> int:
+def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, lu, lf, r_axes, length_var, g2,
+                             s_held=False) -> int:
     """Undo a measured point that replaced the filter's (covariance matching, the ray test) off the arm's reach.
 
     Both replacement rules weigh the measurement against the filter alone. A depth read off the joint (the
@@ -225,7 +232,10 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     covariance-matched variances (:func:`arm_variances`' before the replacement). Only a stretch is tested: a
     pair nearer than its length is a foreshortened depth error either way, and a real measurement's (the
     design half: testing both ways undid the ray test's fixes of the `ours` EKF's seen joints, worst increase
-    +0.25 -> +0.55 cm with the simulated detector).
+    +0.25 -> +0.55 cm with the simulated detector). A shoulder held on the torso (``s_held``: its depth dropped,
+    :func:`fuse_held_shoulder`) counts as measured at its held point: an elbow and a wrist both read on the wall
+    behind them agree with each other, and only the torso tells that neither is reachable from the shoulder
+    (MediaPipe, bvhtools_test2 60-131 s: the arm rebuilt from them put the shoulder 1.5 m behind).
 
     Args:
         f, vs: the arm's nine coordinates and variances after the replacements (changed in place).
@@ -235,13 +245,19 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
         lu, lf: the calibrated upper and lower arm lengths; r_axes: the measurement's x, y, z variances;
         length_var: the lengths' variance.
         g2: the gate squared.
+        s_held: the shoulder (``f[0:3]``) is held on the torso; it is never restored.
 
     Returns:
         How many joints were restored.
     """
     o_s, o_e, o_w = offsets
-    z = m[o_s + 2]
-    r0 = f[2] == z and f0[2] != z
+    if s_held:
+        m = m[:]  # (a copy: the caller's measurement stays as measured)
+        m[o_s], m[o_s + 1], m[o_s + 2] = f[0], f[1], f[2]
+        r0 = False
+    else:
+        z = m[o_s + 2]
+        r0 = f[2] == z and f0[2] != z
     z = m[o_e + 2]
     r1 = f[5] == z and f0[5] != z
     z = m[o_w + 2]

@@ -183,7 +183,7 @@ class CandidateSearch:
         """
         h, hz = self._held_sh[side], self._hz
         if h is not None and hz == hz:
-            self._tz, self._inv_tz2 = hz + h[0], 1.0 / (self._v_s * (h[1] + 1.0))
+            self._tz, self._inv_tz2 = hz + h[2], 1.0 / (self._v_s * (h[3] + 1.0))
         else:
             v0 = self._v0
             self._tz, self._inv_tz2 = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z]), self._inv_torso2
