@@ -39,6 +39,39 @@ def test_find_clips_from_files_and_from_a_manifest(tmp_path):
         find_clips(tmp_path)
 
 
+def test_the_held_out_windows_are_the_unused_parts_of_the_sets_takes(tmp_path):
+    # data/mocap_windows lists parts of the takes that data/mocap's clips window (the files `make mocap-data`
+    # fetches): every file is one of the set's, no window overlaps a set clip's window of the same take, and a
+    # clip on the Blender rig carries the same name map as the set's clip of that take.
+    repo = Path(__file__).resolve().parents[1]
+    windows = json.loads((repo / "data" / "mocap_windows" / "mocap_sources.json").read_text())["clips"]
+    manifest = json.loads((repo / "akc_drake" / "data" / "mocap_sources.json").read_text())
+    sources = {c["file"]: c for c in manifest["clips"]}
+    used: dict[str, list] = {}
+    for c in manifest["clips"]:
+        if c.get("window_s"):
+            used.setdefault(c["file"], []).append(c["window_s"])
+    assert len({w["name"] for w in windows}) == len(windows) == 4
+    for w in windows:
+        f = Path(w["file"])
+        assert f.parent == Path("../mocap") and f.name in sources
+        a, b = w["window_s"]
+        assert 0 <= a < b
+        assert all(b <= u0 or a >= u1 for u0, u1 in used[f.name])
+        assert w.get("names") == sources[f.name].get("names")
+    # Found through the folder's manifest: the files resolve next to it, or the error names the fix.
+    d = tmp_path / "mocap_windows"
+    d.mkdir()
+    shutil.copy(repo / "data" / "mocap_windows" / "mocap_sources.json", d)
+    with pytest.raises(UserError, match="make mocap-data"):
+        find_clips(d)
+    (tmp_path / "mocap").mkdir()
+    for name in {Path(w["file"]).name for w in windows}:
+        shutil.copy(DATA / "upper_body.bvh", tmp_path / "mocap" / name)
+    assert [Path(c["path"]).resolve() for c in find_clips(d)] == [
+        (tmp_path / "mocap" / Path(w["file"]).name).resolve() for w in windows]
+
+
 def _result():
     clip = {"name": "ub", "path": str(DATA / "upper_body.bvh"), "skeleton": None, "window_s": None, "names": None}
     dims = BodyDimensions.paper_participant().as_dict()
