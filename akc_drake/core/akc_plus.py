@@ -166,6 +166,7 @@ _NIS = 36
 _BLIND = 54
 _HELD = 62
 _LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
+_NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
 
 
 class ArmKinematicCorrectorPlus(CandidateSearch):
@@ -185,7 +186,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hz", "_hips", "_tz", "_inv_tz2", "_fs_r",
+                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hips", "_tz", "_inv_tz2", "_fs_r",
                  "_fs_k2")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
@@ -234,8 +235,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = self._v = self._v0 = self._axes = self._cur_var = None
-        self._hz = self._tz = _NAN
-        self._inv_tz2, self._hips = 0.0, (_NAN, _NAN, _NAN)
+        self._tz, self._inv_tz2, self._hips = _NAN, 0.0, _NO_HIPS
         self.reset()
 
     @property
@@ -363,7 +363,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         if not _isfinite(sz):
             sz = prev[2] if prev is not None else ez
         var = self._var
-        s_held = False  # the shoulder's depth held on the torso this frame (``fuse_held_shoulder``)
+        s_held = False  # the shoulder held on the torso this frame (``fuse_held_shoulder``)
         if var is not None:
             f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
@@ -375,9 +375,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             if m is not None and m[o_s + 2] != m[o_s + 2]:
                 # A shoulder whose depth was dropped, or lost altogether (no x, y either): the filter's estimate
                 # and the shoulder held on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left
-                # as it is; ``_hz`` NaN: the hold off or the hips' depths not measured).
+                # as it is; ``_hips`` NaN: the hold off or the hips' depths not measured).
                 h = self._held_sh[side]
-                if h is not None and _isfinite(self._hz) and vs[2] == vs[2]:
+                if h is not None and _isfinite(self._hips[2]) and vs[2] == vs[2]:
                     fuse_held_shoulder(f, vs, h, self._hips, self._v_s, not _isfinite(m[o_s] + m[o_s + 1]))
                     s_held = True
             if m is not None:
@@ -654,15 +654,15 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         held = [True, True]
         fallback = [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
-        # The hips' depth for the held shoulders (``fuse_held_shoulder`` in ``_arm``, the running mean below): with
-        # the covariance and ``sigma_shoulder_m`` > 0 only (NaN otherwise).
-        # Only with both hips' depths measured this frame: a filter extrapolating a hip that a hand hides carries
-        # the velocity it had, 38 cm in ten frames, into the held offsets (bvhtools_test 60-120 s, simulated).
-        hz = self._hz = (0.5 * (v[_LHIP + 2] + v[_RHIP + 2]) if self._v_s and m is not None and self._var is not None
-                         and _isfinite(m[_LHIP + 2] + m[_RHIP + 2]) else _NAN)
-        hold = _isfinite(hz)
-        if hold:
-            hips = self._hips = (0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]), hz)
+        # The hips' centre for the held shoulders (``fuse_held_shoulder`` in ``_arm``, the running mean below): with
+        # the covariance and ``sigma_shoulder_m`` > 0 only (NaN otherwise), and only with both hips' depths
+        # measured this frame: a filter extrapolating a hip that a hand hides carries the velocity it had, 38 cm in
+        # ten frames, into the held offsets (bvhtools_test 60-120 s, simulated).
+        hold = (self._v_s and m is not None and self._var is not None and _isfinite(m[_LHIP + 2] + m[_RHIP + 2])
+                and _isfinite(v[_LHIP + 2] + v[_RHIP + 2]))
+        hips = self._hips = ((0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]),
+                              0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else _NO_HIPS)
+        hz = hips[2]
         held_sh = self._held_sh
         for side in (0, 1):
             ke = 2 * side

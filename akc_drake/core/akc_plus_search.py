@@ -176,12 +176,12 @@ class CandidateSearch:
     def _set_torso(self, side):
         """The torso term of ``side``'s shoulder candidates (``_tz``, ``_inv_tz2``), set before a rebuild.
 
-        The held shoulder's depth (the hips' depth ``_hz`` carrying our outputs' running-mean offset, with the hold's
-        variance as ``fuse_held_shoulder``'s) when known, else the hips' depth of the pose as given with
+        The held shoulder's depth (the hips' depth ``_hips[2]`` carrying our outputs' running-mean offset, with the
+        hold's variance as ``fuse_held_shoulder``'s) when known, else the hips' depth of the pose as given with
         ``sigma_torso_m``. A shoulder read on its own upper arm 24 cm in front is equidistant from eq. 8's two
         candidates, and the hips' 20 cm let the one 50 cm in front win (MediaPipe, bvhtools_a1).
         """
-        h, hz = self._held_sh[side], self._hz
+        h, hz = self._held_sh[side], self._hips[2]
         if h is not None and hz == hz:
             self._tz, self._inv_tz2 = hz + h[2], 1.0 / (self._v_s * (h[3] + 1.0))
         else:
