@@ -316,6 +316,8 @@ def test_state_round_trips_with_the_running_nis():
     assert v.shape == (STATE_SIZE,) and v[36:54].max() > 1.0  # the lagging wrist's NIS
     np.testing.assert_allclose(v[54:57], p[LW] - p[LE], atol=1e-9)  # the left forearm, wrist detected
     assert v[57] == 0.0
+    np.testing.assert_allclose(v[62:65], p[LE] - p[LS], atol=1e-9)  # the left upper arm, elbow detected
+    assert v[65] == 0.0
     other = ArmKinematicCorrectorPlus(dims)
     other.set_state_vector(v)
     np.testing.assert_array_equal(other.get_state_vector(), v)
@@ -327,6 +329,10 @@ def test_state_round_trips_with_the_running_nis():
     bad = v.copy()
     bad[57] = -1.0
     with pytest.raises(ValueError, match="blind-frame count"):
+        other.set_state_vector(bad)
+    bad = v.copy()
+    bad[65] = -1.0
+    with pytest.raises(ValueError, match="blind-elbow frame count"):
         other.set_state_vector(bad)
     with pytest.raises(ValueError, match="variance"):
         akc.correct(p, measured=p, variance=np.zeros((3, 3)))
@@ -617,6 +623,36 @@ def test_a_wrist_lost_altogether_moves_with_the_seen_elbow():
     assert np.linalg.norm(out[LW] - truth[LW]) == pytest.approx(0.04, abs=0.005)
     assert out[LW, 0] - p[LW, 0] == pytest.approx(0.04, abs=0.005)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_an_elbow_lost_altogether_moves_with_the_seen_shoulder():
+    # The detector loses the (right) elbow and the wrist (no x, y) for 4 frames while the whole arm translates
+    # (2, 0, -3) cm/frame (the shoulder seen); the filter's elbow and wrist run off (-3, 4, -5) cm/frame, their blind
+    # sigma 10 cm/frame. The elbow's prior is the upper arm held at the seen shoulder (4 frames: variance 0.04) times
+    # the filter's (0.16), the wrist's the forearm held at that elbow: both stay near the arm (1.6 and 6.4 cm off).
+    # Held on the filter's x, y instead (the depth alone held at our last output, as before), the elbow was 13 cm
+    # off and the wrist 23.
+    p, dims = arm_pose()
+    akc = settled_corrector(p, dims)
+    for k in range(1, 5):
+        truth = p.copy()
+        truth[[RS, RE, RW]] += np.array([0.02, 0.0, -0.03]) * k
+        f = truth.copy()
+        f[[RE, RW]] += np.array([-0.03, 0.04, -0.05]) * k
+        var = kf_var()
+        var[[RE, RW]] = (0.1 * k) ** 2
+        m = truth.copy()
+        m[[RE, RW]] = np.nan
+        out = akc.correct(f, measured=m, variance=var).pose
+    assert np.linalg.norm(f[RE] - truth[RE]) == pytest.approx(np.linalg.norm([0.12, 0.16, 0.2]))
+    assert np.linalg.norm(out[RE] - truth[RE]) < 0.03
+    assert np.linalg.norm(out[RW] - truth[RW]) < 0.08
+    # The fused elbow is the elbow's prior in the candidate choice (not also held at our last output's depth, which
+    # would leave the filter's prior out as an extrapolation).
+    assert 2 not in akc._no_prior  # (the right elbow's key: the right arm is corrected last)
+    np.testing.assert_allclose(out[RS], truth[RS], atol=1e-9)  # the seen shoulder kept
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+    assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
 
 
 def test_a_filter_counts_as_following_a_rejected_depth_only_if_it_moved_towards_it():

@@ -2,7 +2,7 @@ import pytest
 
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
-    fuse_blind_wrist,
+    fuse_blind,
     fuse_held_shoulder,
     hold_blind,
     known_depths,
@@ -108,7 +108,7 @@ def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_
     f = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
     vs = [1e-4] * 6 + [0.06, 0.02, NAN]
     blind = [0.0, 0.3, 0.0, 1.0]
-    fuse_blind_wrist(f, vs, blind, 0.01)
+    fuse_blind(f, vs, blind, 0.01, 6)
     assert blind == [0.0, 0.3, 0.0, 2.0]  # this frame counted
     assert f[6] == pytest.approx((0.02 * 1.0 + 0.06 * 0.1) / 0.08, rel=1e-12)  # weight 1/4 on the filter's
     assert f[7] == pytest.approx((2.0 + 0.3) / 2, rel=1e-12)  # equal variances: the midpoint
@@ -118,8 +118,23 @@ def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_
     assert f[:6] == [0.0, 0.0, 2.0, 0.1, 0.0, 2.0] and vs[:6] == [1e-4] * 6  # shoulder and elbow untouched
     # The longer the wrist is lost, the less the held forearm counts: the tenth blind frame.
     f2 = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
-    fuse_blind_wrist(f2, [1e-4] * 6 + [0.06, 0.02, NAN], [0.0, 0.3, 0.0, 9.0], 0.01)
+    fuse_blind(f2, [1e-4] * 6 + [0.06, 0.02, NAN], [0.0, 0.3, 0.0, 9.0], 0.01, 6)
     assert f2[6] == pytest.approx((0.1 * 1.0 + 0.06 * 0.1) / 0.16, rel=1e-12)
+
+
+def test_a_blind_elbow_is_the_product_of_the_filter_and_the_upper_arm_held_at_the_shoulder():
+    # The shoulder at (0.2, 0, 2); the upper arm last seen as (0.1, 0.3, -0.1) from it; the first blind frame:
+    # the held upper arm's variance is v_t = 0.01 per axis. The wrist (base 6) is not this call's.
+    f = [0.2, 0.0, 2.0, 0.5, 0.4, 1.6, 1.0, 2.0, 3.0]
+    vs = [1e-4] * 3 + [0.03, 0.01, NAN] + [0.5] * 3
+    blind = [0.1, 0.3, -0.1, 0.0]
+    fuse_blind(f, vs, blind, 0.01, 3)
+    assert blind == [0.1, 0.3, -0.1, 1.0]
+    assert f[3] == pytest.approx((0.01 * 0.5 + 0.03 * 0.3) / 0.04, rel=1e-12)  # 0.35: weight 1/4 on the filter's
+    assert f[4] == pytest.approx(0.35, rel=1e-12)  # equal variances: the midpoint of 0.4 and 0.3
+    assert vs[3] == pytest.approx(0.0075, rel=1e-12) and vs[4] == pytest.approx(0.005, rel=1e-12)
+    assert f[5] == 1.6 and vs[5] != vs[5]  # an unknown variance: left as it is
+    assert f[:3] == [0.2, 0.0, 2.0] and f[6:] == [1.0, 2.0, 3.0] and vs[6:] == [0.5] * 3
 
 
 def test_a_dropped_shoulder_is_the_product_of_the_filter_and_the_shoulder_held_on_the_hips():

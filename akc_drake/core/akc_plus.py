@@ -40,7 +40,7 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   times as large. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm
   as our output last had it, carried by this frame's elbow (a random walk of ``sigma_temporal_m^2`` per blind
-  frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_blind_wrist`): a constant-velocity extrapolation runs on
+  frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_blind`): a constant-velocity extrapolation runs on
   while the hand turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost
   for 6 frames: the filter 24 cm off in x, the previous fusion with our last output 11.5 cm off and 10 cm in
   y). Known worse than the shoulder and the elbow, it is no anchor (nothing measured it): the arm is built
@@ -49,6 +49,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
   measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
   silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
+* An elbow lost altogether likewise: the filter's extrapolation times the upper arm held at this frame's shoulder,
+  and a wrist lost with it moves with that elbow (MediaPipe lost bvhtools_a2's left arm for 20 frames: the filter's
+  elbow ran 25 cm off in depth, and the elbow rebuilt between it and the held wrist 37 cm).
 * A shoulder whose depth the occlusion filter dropped, or that the detector lost altogether: its depth (then its
   x, y too) is the filter's fused with the shoulder held on the torso, our outputs' offset from the hips' centre
   while it was seen (a running mean, weight ``shoulder_alpha``, both hips' depths measured) carried by this
@@ -118,7 +121,7 @@ from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
-    fuse_blind_wrist,
+    fuse_blind,
     fuse_held_shoulder,
     hold_blind,
     known_depths,
@@ -158,13 +161,11 @@ _FLAT, _SHAPE = 3 * NUM_LANDMARKS, (NUM_LANDMARKS, 3)
 #: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, per
 #: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
 #: joint and axis the running mean of the normalised innovation squared (18), per side the forearm of the last
-#: output with the wrist detected (NaN if none) and the frames since (8), per side the shoulder's offset from
-#: the hips' centre in our outputs with its depth measured (x, y, z, a running mean; NaN if none) and the frames
-#: since the last (8).
-STATE_SIZE = 70
-_NIS = 36
-_BLIND = 54
-_HELD = 62
+#: output with the wrist detected (NaN if none) and the frames since (8), per side the upper arm likewise with
+#: the elbow detected (8), per side the shoulder's offset from the hips' centre in our outputs with its depth
+#: measured (x, y, z, a running mean; NaN if none) and the frames since the last (8).
+STATE_SIZE = 78
+_NIS, _BLIND, _BLIND_E, _HELD = 36, 54, 62, 70
 _LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
 _NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
 
@@ -186,8 +187,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                  "_off_var", "_v_t",
                  "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
                  "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var", "_blind", "_held_sh", "_v_s", "_a_s", "_hips", "_tz", "_inv_tz2", "_fs_r",
-                 "_fs_k2")
+                 "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz", "_inv_tz2",
+                 "_fs_r", "_fs_k2")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -251,6 +252,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
         # per side: the forearm (wrist - elbow) of our last output with the wrist detected and the frames since
         self._blind: list[list | None] = [None, None]
+        self._blind_e: list[list | None] = [None, None]  # the upper arm (elbow - shoulder) likewise
         # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
         # mean, weight ``shoulder_alpha``), and the frames since the last
         self._held_sh: list[list | None] = [None, None]
@@ -258,7 +260,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
     def get_state_vector(self) -> np.ndarray:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
         filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
-        NIS means, per side the held forearm and its blind frames, the held shoulder offset and its frames."""
+        NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
+        its frames."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -270,13 +273,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             if self._f0[k] is not None:
                 v[24 + 3 * k : 27 + 3 * k] = self._f0[k]
         v[_NIS:_BLIND] = self._nis
-        for side in (0, 1):
-            b = self._blind[side]
-            if b is not None:
-                v[_BLIND + 4 * side : _BLIND + 4 * side + 4] = b
-            h = self._held_sh[side]
-            if h is not None:
-                v[_HELD + 4 * side : _HELD + 4 * side + 4] = h
+        for base, per_side in ((_BLIND, self._blind), (_BLIND_E, self._blind_e), (_HELD, self._held_sh)):
+            for side in (0, 1):
+                if per_side[side] is not None:
+                    v[base + 4 * side : base + 4 * side + 4] = per_side[side]
         return v
 
     def set_state_vector(self, v) -> None:
@@ -308,23 +308,17 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         nis = a[_NIS:_BLIND]
         if not np.all(np.isfinite(nis) & (nis > 0)):
             raise ValueError(f"AKC+ state vector: NIS means [{_NIS}:{_BLIND}] must be > 0, got {nis.tolist()}")
-        blind: list[list | None] = [None, None]
-        for side in (0, 1):
-            b = a[_BLIND + 4 * side : _BLIND + 4 * side + 4]
-            if np.all(np.isfinite(b)):
-                if b[3] < 0:
-                    raise ValueError(f"AKC+ state vector: blind-frame count [{_BLIND + 4 * side + 3}] must be >= 0")
-                blind[side] = b.tolist()
-        held: list[list | None] = [None, None]
-        for side in (0, 1):
-            h = a[_HELD + 4 * side : _HELD + 4 * side + 4]
-            if np.all(np.isfinite(h)):
-                if h[3] < 0:
-                    k = _HELD + 4 * side + 3
-                    raise ValueError(f"AKC+ state vector: held-shoulder frame count [{k}] must be >= 0")
-                held[side] = h.tolist()
-        self._blind = blind
-        self._held_sh = held
+        blocks = []  # the forearms, the upper arms, the held shoulders: per side 3 floats and a frame count
+        for base, what in ((_BLIND, "blind-frame"), (_BLIND_E, "blind-elbow frame"), (_HELD, "held-shoulder frame")):
+            per_side: list[list | None] = [None, None]
+            for side in (0, 1):
+                b = a[base + 4 * side : base + 4 * side + 4]
+                if np.all(np.isfinite(b)):
+                    if b[3] < 0:
+                        raise ValueError(f"AKC+ state vector: {what} count [{base + 4 * side + 3}] must be >= 0")
+                    per_side[side] = b.tolist()
+            blocks.append(per_side)
+        self._blind, self._blind_e, self._held_sh = blocks
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()
@@ -363,15 +357,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         if not _isfinite(sz):
             sz = prev[2] if prev is not None else ez
         var = self._var
-        s_held = False  # the shoulder held on the torso this frame (``fuse_held_shoulder``)
+        s_held = e_fused = False  # the shoulder held on the torso, the elbow fused with its held upper arm
         if var is not None:
             f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2)
-            o_w = offsets[2]
-            if m is not None and self._blind[side] is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
-                # A wrist lost altogether (no x, y): the filter's extrapolation and the held forearm, fused.
-                fuse_blind_wrist(f, vs, self._blind[side], self._v_t)
             if m is not None and m[o_s + 2] != m[o_s + 2]:
                 # A shoulder whose depth was dropped, or lost altogether (no x, y either): the filter's estimate
                 # and the shoulder held on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left
@@ -380,6 +370,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 if h is not None and _isfinite(self._hips[2]) and vs[2] == vs[2]:
                     fuse_held_shoulder(f, vs, h, self._hips, self._v_s, not _isfinite(m[o_s] + m[o_s + 1]))
                     s_held = True
+            # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
+            # at the joint before it (the shoulder, then the elbow, as fused), fused.
+            o_w = offsets[2]
+            if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
+                fuse_blind(f, vs, self._blind_e[side], self._v_t, 3)
+                e_fused = True
+            if m is not None and self._blind[side] is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
+                fuse_blind(f, vs, self._blind[side], self._v_t, 6)
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
                 g2, rz, o_w = self._gate2, self._r_z, offsets[2]
@@ -442,7 +440,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                     sx, sy, sz = prev[0], prev[1], prev[2]
                     self._no_prior.add(2 * side + 1)
             else:
-                if not exy:
+                if not exy and not e_fused:  # (a fused elbow: its hold is the upper arm's)
                     (ex, ey, ez), held = hold_blind((ex, ey, ez), vs, 3, self._f0[ke], prev, self._r_z)
                     if held:
                         no_prior.add(ke)
@@ -673,6 +671,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 o_w = offsets[side][2]
                 if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected
                     self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0]
+                o_e = offsets[side][1]
+                if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
+                    self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
                 if hold:
                     z = m[offsets[side][0] + 2]
                     if z == z:

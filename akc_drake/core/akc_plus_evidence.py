@@ -2,10 +2,10 @@
 
 The statistical side of :mod:`akc_drake.core.akc_plus` with the filter's covariance: covariance matching of
 the filter's variances by the running normalised innovation squared (:func:`arm_variances`), the hold of a
-joint the detector lost altogether (:func:`hold_blind`; the wrist's soft hold, :func:`fuse_blind_wrist`) and
-the known-depth test of a depth not measured this frame (:func:`known_depths`). Pure functions on plain floats
-and lists (a numpy call costs more than the arithmetic of one arm); the state they update (the running NIS, the
-arm's coordinates) is passed in.
+joint the detector lost altogether (:func:`hold_blind`; the elbow's and the wrist's soft hold,
+:func:`fuse_blind`) and the known-depth test of a depth not measured this frame (:func:`known_depths`). Pure
+functions on plain floats and lists (a numpy call costs more than the arithmetic of one arm); the state they
+update (the running NIS, the arm's coordinates) is passed in.
 """
 
 from __future__ import annotations
@@ -89,29 +89,32 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     return p, False
 
 
-def fuse_blind_wrist(f, vs, blind, v_t):
-    """A wrist the detector lost altogether: the filter's extrapolation fused with the forearm held at the elbow.
+def fuse_blind(f, vs, blind, v_t, base):
+    """A joint the detector lost altogether: the filter's extrapolation fused with its segment held at the joint
+    before it (the wrist's forearm at the elbow, ``base`` 6; the elbow's upper arm at the shoulder, ``base`` 3).
 
-    Two Gaussian priors of the wrist: the filter's (its covariance-matched variances ``vs[6:9]``), a constant-
-    velocity extrapolation of the wrist alone that runs on while the hand stops or turns, and the forearm as
-    our output last had it with the wrist detected (``blind[:3]``, wrist minus elbow), carried by this frame's
-    elbow (the camera still sees it: the wrist moves with it), a random walk whose variance grows by ``v_t``
-    (how far a joint may move between two frames) per blind frame (``blind[3]``, counted here). Their product,
-    per axis, replaces the filter's wrist and its variances. Fused once from the last detection, not frame by
-    frame: the filter's successive extrapolations are one piece of evidence, not independent ones.
+    Two Gaussian priors of the joint: the filter's (its covariance-matched variances ``vs[base:base + 3]``), a
+    constant-velocity extrapolation of the joint alone that runs on while the limb stops or turns, and the
+    segment as our output last had it with the joint detected (``blind[:3]``, joint minus the joint before it),
+    carried by this frame's joint before it (seen, or itself fused first: the limb moves with it), a random
+    walk whose variance grows by ``v_t`` (how far a joint may move between two frames) per blind frame
+    (``blind[3]``, counted here). Their product, per axis, replaces the filter's joint and its variances. Fused
+    once from the last detection, not frame by frame: the filter's successive extrapolations are one piece of
+    evidence, not independent ones.
 
     Args:
         f: the arm's nine coordinates (changed in place); vs: their nine variances (changed in place).
         blind: ``[dx, dy, dz, n]`` (changed in place: ``n`` counts this frame).
         v_t: the temporal prior's variance per axis and frame.
+        base: the joint's offset in the arm (3 the elbow, 6 the wrist).
     """
     n = blind[3] = blind[3] + 1.0
     vh = v_t * n
-    for i in (6, 7, 8):
+    for i in (base, base + 1, base + 2):
         v = vs[i]
         if v == v:  # (a variance the filter does not know: NaN, left as it is)
             s = v + vh
-            f[i] = (vh * f[i] + v * (f[i - 3] + blind[i - 6])) / s
+            f[i] = (vh * f[i] + v * (f[i - 3] + blind[i - base])) / s
             vs[i] = v * vh / s
 
 
@@ -127,7 +130,7 @@ def fuse_held_shoulder(f, vs, held, hips, v_s, lost_xy=False):
     (``held[:3]``, a running mean), carried by this frame's hips' centre ``hips`` (the shoulder sits on the
     torso), a random walk whose variance grows by ``v_s`` per blind frame (``held[3]``, counted here). Their
     product replaces the filter's depth and its variance, and with ``lost_xy`` (no x, y detected either) its x and
-    y too; fused once from the last measurement, as :func:`fuse_blind_wrist`. An axis whose variance the filter
+    y too; fused once from the last measurement, as :func:`fuse_blind`. An axis whose variance the filter
     does not know (NaN) is left as it is.
 
     Args:
@@ -251,17 +254,19 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
         How many joints were restored.
     """
     o_s, o_e, o_w = offsets
+    z = m[o_e + 2]
+    r1 = f[5] == z and f0[5] != z
+    z = m[o_w + 2]
+    r2 = f[8] == z and f0[8] != z
     if s_held:
+        if not (r1 or r2):
+            return 0  # (nothing replaced: nothing to undo; a held shoulder is never restored)
         m = m[:]  # (a copy: the caller's measurement stays as measured)
         m[o_s], m[o_s + 1], m[o_s + 2] = f[0], f[1], f[2]
         r0 = False
     else:
         z = m[o_s + 2]
         r0 = f[2] == z and f0[2] != z
-    z = m[o_e + 2]
-    r1 = f[5] == z and f0[5] != z
-    z = m[o_w + 2]
-    r2 = f[8] == z and f0[8] != z
     out = 0
     # The pairs in order (shoulder-elbow, elbow-wrist, shoulder-wrist); the outer joint's replacement undone first.
     if (r0 or r1) and _stretched(m, o_s, o_e, lu, r_axes, length_var, g2):
