@@ -2,8 +2,7 @@ import pytest
 
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
-    fuse_blind,
-    fuse_held_shoulder,
+    fuse_held,
     hold_blind,
     known_depths,
     nearer_wrist_misfit,
@@ -108,7 +107,7 @@ def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_
     f = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
     vs = [1e-4] * 6 + [0.06, 0.02, NAN]
     blind = [0.0, 0.3, 0.0, 1.0]
-    fuse_blind(f, vs, blind, 0.01, 6)
+    fuse_held(f, vs, blind, f[3:6], 0.01, 6)
     assert blind == [0.0, 0.3, 0.0, 2.0]  # this frame counted
     assert f[6] == pytest.approx((0.02 * 1.0 + 0.06 * 0.1) / 0.08, rel=1e-12)  # weight 1/4 on the filter's
     assert f[7] == pytest.approx((2.0 + 0.3) / 2, rel=1e-12)  # equal variances: the midpoint
@@ -118,7 +117,7 @@ def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_
     assert f[:6] == [0.0, 0.0, 2.0, 0.1, 0.0, 2.0] and vs[:6] == [1e-4] * 6  # shoulder and elbow untouched
     # The longer the wrist is lost, the less the held forearm counts: the tenth blind frame.
     f2 = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
-    fuse_blind(f2, [1e-4] * 6 + [0.06, 0.02, NAN], [0.0, 0.3, 0.0, 9.0], 0.01, 6)
+    fuse_held(f2, [1e-4] * 6 + [0.06, 0.02, NAN], [0.0, 0.3, 0.0, 9.0], f2[3:6], 0.01, 6)
     assert f2[6] == pytest.approx((0.1 * 1.0 + 0.06 * 0.1) / 0.16, rel=1e-12)
 
 
@@ -128,7 +127,7 @@ def test_a_blind_elbow_is_the_product_of_the_filter_and_the_upper_arm_held_at_th
     f = [0.2, 0.0, 2.0, 0.5, 0.4, 1.6, 1.0, 2.0, 3.0]
     vs = [1e-4] * 3 + [0.03, 0.01, NAN] + [0.5] * 3
     blind = [0.1, 0.3, -0.1, 0.0]
-    fuse_blind(f, vs, blind, 0.01, 3)
+    fuse_held(f, vs, blind, f[0:3], 0.01, 3)
     assert blind == [0.1, 0.3, -0.1, 1.0]
     assert f[3] == pytest.approx((0.01 * 0.5 + 0.03 * 0.3) / 0.04, rel=1e-12)  # 0.35: weight 1/4 on the filter's
     assert f[4] == pytest.approx(0.35, rel=1e-12)  # equal variances: the midpoint of 0.4 and 0.3
@@ -144,7 +143,7 @@ def test_a_dropped_shoulder_is_the_product_of_the_filter_and_the_shoulder_held_o
     f = [0.1, 0.2, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
     vs = [1e-4, 1e-4, 0.03] + [1e-3] * 6
     held = [0.15, -0.5, -0.05, 2.0]
-    fuse_held_shoulder(f, vs, held, (0.0, 0.7, 2.0), 1e-4)
+    fuse_held(f, vs, held, (0.0, 0.7, 2.0), 1e-4, 0, (2,))
     assert held == [0.15, -0.5, -0.05, 3.0]
     assert f[2] == pytest.approx((3e-4 * 2.10 + 0.03 * 1.95) / 0.0303, rel=1e-12)
     assert abs(f[2] - 1.95) < 0.002
@@ -153,7 +152,7 @@ def test_a_dropped_shoulder_is_the_product_of_the_filter_and_the_shoulder_held_o
     assert vs[:2] == [1e-4, 1e-4] and vs[3:] == [1e-3] * 6
     # The hips stepped 0.2 m towards the camera: the held shoulder goes with them.
     f2 = [0.1, 0.2, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
-    fuse_held_shoulder(f2, [1e-4, 1e-4, 0.03] + [1e-3] * 6, [0.15, -0.5, -0.05, 2.0], (0.0, 0.7, 1.8), 1e-4)
+    fuse_held(f2, [1e-4, 1e-4, 0.03] + [1e-3] * 6, [0.15, -0.5, -0.05, 2.0], (0.0, 0.7, 1.8), 1e-4, 0, (2,))
     assert abs(f2[2] - 1.75) < 0.005
 
 
@@ -164,7 +163,7 @@ def test_a_shoulder_lost_altogether_is_held_on_the_hips_in_x_and_y_too():
     f = [0.47, 0.16, 2.10, 0.1, 0.5, 2.0, 0.1, 0.8, 1.9]
     vs = [0.04, 1e-4, 0.03] + [1e-3] * 6
     held = [0.15, -0.5, -0.05, 0.0]
-    fuse_held_shoulder(f, vs, held, (0.02, 0.65, 2.0), 1e-4, lost_xy=True)
+    fuse_held(f, vs, held, (0.02, 0.65, 2.0), 1e-4, 0)
     assert held[3] == 1.0
     assert f[0] == pytest.approx((1e-4 * 0.47 + 0.04 * 0.17) / 0.0401, rel=1e-12)  # 0.17075: 7.5 mm off the hold
     assert f[1] == pytest.approx(0.5 * (0.16 + 0.15), rel=1e-12)  # equal variances: the midpoint
@@ -173,7 +172,7 @@ def test_a_shoulder_lost_altogether_is_held_on_the_hips_in_x_and_y_too():
     assert f[3:] == [0.1, 0.5, 2.0, 0.1, 0.8, 1.9] and vs[3:] == [1e-3] * 6
     # An axis whose variance the filter does not know (NaN) is left as it is.
     g, vg = [0.47, 0.16, 2.10] + [0.0] * 6, [NAN, 1e-4, 0.03] + [1e-3] * 6
-    fuse_held_shoulder(g, vg, [0.15, -0.5, -0.05, 0.0], (0.02, 0.65, 2.0), 1e-4, lost_xy=True)
+    fuse_held(g, vg, [0.15, -0.5, -0.05, 0.0], (0.02, 0.65, 2.0), 1e-4, 0)
     assert g[0] == 0.47 and vg[0] != vg[0] and g[1] == pytest.approx(0.155, rel=1e-12)
 
 

@@ -40,7 +40,7 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   times as large. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm
   as our output last had it, carried by this frame's elbow (a random walk of ``sigma_temporal_m^2`` per blind
-  frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_blind`): a constant-velocity extrapolation runs on
+  frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity extrapolation runs on
   while the hand turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost
   for 6 frames: the filter 24 cm off in x, the previous fusion with our last output 11.5 cm off and 10 cm in
   y). Known worse than the shoulder and the elbow, it is no anchor (nothing measured it): the arm is built
@@ -56,7 +56,7 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   x, y too) is the filter's fused with the shoulder held on the torso, our outputs' offset from the hips' centre
   while it was seen (a running mean, weight ``shoulder_alpha``, both hips' depths measured) carried by this
   frame's hips, a random walk of ``sigma_shoulder_m^2`` per blind frame (:func:`~akc_drake.core.akc_plus_evidence.
-  fuse_held_shoulder`): a constant-velocity filter that holds the landmark claims a variance that grows without
+  fuse_held`): a constant-velocity filter that holds the landmark claims a variance that grows without
   bound, and the arm rebuilt from the elbow then carried the elbow's depth error into a shoulder the filter held
   well (the bench's Motion I, bvhtools_a1's left shoulder behind the right hand); one that extrapolates a lost
   shoulder ran 30 cm off in x.
@@ -121,8 +121,7 @@ from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
-    fuse_blind,
-    fuse_held_shoulder,
+    fuse_held,
     hold_blind,
     known_depths,
     nearer_wrist_misfit,
@@ -168,6 +167,7 @@ STATE_SIZE = 78
 _NIS, _BLIND, _BLIND_E, _HELD = 36, 54, 62, 70
 _LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
 _NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
+_Z, _XYZ = (2,), (0, 1, 2)  # (the held shoulder's axes: its depth dropped; lost altogether)
 
 
 class ArmKinematicCorrectorPlus(CandidateSearch):
@@ -368,19 +368,18 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
                 # as it is; ``_hips`` NaN: the hold off or the hips' depths not measured).
                 h = self._held_sh[side]
                 if h is not None and _isfinite(self._hips[2]) and vs[2] == vs[2]:
-                    fuse_held_shoulder(f, vs, h, self._hips, self._v_s, not _isfinite(m[o_s] + m[o_s + 1]))
+                    fuse_held(f, vs, h, self._hips, self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
                     s_held = True
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
-            o_w = offsets[2]
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
-                fuse_blind(f, vs, self._blind_e[side], self._v_t, 3)
+                fuse_held(f, vs, self._blind_e[side], f[0:3], self._v_t, 3)
                 e_fused = True
             if m is not None and self._blind[side] is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
-                fuse_blind(f, vs, self._blind[side], self._v_t, 6)
+                fuse_held(f, vs, self._blind[side], f[3:6], self._v_t, 6)
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
-                g2, rz, o_w = self._gate2, self._r_z, offsets[2]
+                g2, rz = self._gate2, self._r_z
                 d0, d1, d2 = m[o_s + 2] - f[2], m[o_e + 2] - f[5], m[o_w + 2] - f[8]
                 if (d0 * d0 > g2 * (rz - var[o_s + 2]) or d1 * d1 > g2 * (rz - var[o_e + 2])
                         or d2 * d2 > g2 * (rz - var[o_w + 2])):
@@ -527,7 +526,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         if vs is not None and m is not None:
             # (``w_bad``, the innovation test of the wrist's measured depth, NaN passing: run only here, where it
             # can act; the projection above returns on most frames.)
-            o_w = offsets[2]
             z, q = m[o_w + 2], self._r_z - self._var[o_w + 2]
             w_lost = z == z and (z - wz) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
             if not w_lost and not _isfinite(m[o_w] + m[o_w + 1]):
@@ -652,7 +650,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         held = [True, True]
         fallback = [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
-        # The hips' centre for the held shoulders (``fuse_held_shoulder`` in ``_arm``, the running mean below): with
+        # The hips' centre for the held shoulders (``fuse_held`` in ``_arm``, the running mean below): with
         # the covariance and ``sigma_shoulder_m`` > 0 only (NaN otherwise), and only with both hips' depths
         # measured this frame: a filter extrapolating a hip that a hand hides carries the velocity it had, 38 cm in
         # ten frames, into the held offsets (bvhtools_test 60-120 s, simulated).
@@ -665,17 +663,16 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         for side in (0, 1):
             ke = 2 * side
             lost_e, lost_s = lost[ke], lost[ke + 1]
+            o_s, o_e, o_w = offsets[side]
             out = self._arm(v, m, side)  # (the other shoulder for the width term: ``_other_shoulder``, lazily)
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out
-                o_w = offsets[side][2]
                 if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected
                     self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0]
-                o_e = offsets[side][1]
                 if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
                     self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
                 if hold:
-                    z = m[offsets[side][0] + 2]
+                    z = m[o_s + 2]
                     if z == z:
                         # The shoulder's depth measured: its offset from the hips', a running mean (the depths read
                         # as an occluder approaches, just before the occlusion filter drops them, are its own).
@@ -693,7 +690,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             else:
                 lost[ke], lost[ke + 1] = lost_e, lost_s
                 out = prevs[side] if prevs[side] is not None else (_NAN,) * 9
-            o_s, o_e, o_w = offsets[side]
             # (Nine item stores: about a third of the time of three slice assignments.)
             v[o_s], v[o_s + 1], v[o_s + 2], v[o_e], v[o_e + 1], v[o_e + 2], v[o_w], v[o_w + 1], v[o_w + 2] = out
         # (``np.fromiter`` over the 36 floats: about 0.2 µs less than ``np.array`` of the list.)

@@ -2,8 +2,8 @@
 
 The statistical side of :mod:`akc_drake.core.akc_plus` with the filter's covariance: covariance matching of
 the filter's variances by the running normalised innovation squared (:func:`arm_variances`), the hold of a
-joint the detector lost altogether (:func:`hold_blind`; the elbow's and the wrist's soft hold,
-:func:`fuse_blind`) and the known-depth test of a depth not measured this frame (:func:`known_depths`). Pure
+joint the detector lost altogether (:func:`hold_blind`; the soft hold of a joint on its neighbour or the torso,
+:func:`fuse_held`) and the known-depth test of a depth not measured this frame (:func:`known_depths`). Pure
 functions on plain floats and lists (a numpy call costs more than the arithmetic of one arm); the state they
 update (the running NIS, the arm's coordinates) is passed in.
 """
@@ -89,64 +89,47 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     return p, False
 
 
-def fuse_blind(f, vs, blind, v_t, base):
-    """A joint the detector lost altogether: the filter's extrapolation fused with its segment held at the joint
-    before it (the wrist's forearm at the elbow, ``base`` 6; the elbow's upper arm at the shoulder, ``base`` 3).
+def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2)):
+    """A joint not measured this frame: the filter's estimate fused with the joint held at an offset from an anchor.
 
-    Two Gaussian priors of the joint: the filter's (its covariance-matched variances ``vs[base:base + 3]``), a
-    constant-velocity extrapolation of the joint alone that runs on while the limb stops or turns, and the
-    segment as our output last had it with the joint detected (``blind[:3]``, joint minus the joint before it),
-    carried by this frame's joint before it (seen, or itself fused first: the limb moves with it), a random
-    walk whose variance grows by ``v_t`` (how far a joint may move between two frames) per blind frame
-    (``blind[3]``, counted here). Their product, per axis, replaces the filter's joint and its variances. Fused
-    once from the last detection, not frame by frame: the filter's successive extrapolations are one piece of
-    evidence, not independent ones.
+    Two Gaussian priors of the joint ``f[base:base + 3]``: the filter's (its covariance-matched variances
+    ``vs[base:base + 3]``), and our outputs' offset ``held[:3]`` from ``anchor`` while the joint was measured,
+    carried by this frame's ``anchor``, a random walk whose variance grows by ``v_step`` per blind frame
+    (``held[3]``, counted here). Their product, on each axis of ``axes``, replaces the filter's coordinate and its
+    variance; an axis whose variance the filter does not know (NaN) is left as it is. Fused once from the last
+    measurement, not frame by frame: the filter's successive extrapolations are one piece of evidence, not
+    independent ones. Three holds of AKC+ (:mod:`akc_drake.core.akc_plus`):
+
+    * a wrist the detector lost altogether (``base`` 6): the forearm as our output last had it with the wrist
+      detected, at this frame's elbow (``v_step`` = ``sigma_temporal_m^2``: how far a joint may move between two
+      frames). A constant-velocity extrapolation of the wrist alone runs on while the hand stops or turns; the
+      wrist moves with the elbow the camera still sees;
+    * an elbow the detector lost altogether (``base`` 3): the upper arm likewise, at this frame's shoulder (seen,
+      or itself held first), and the wrist then at the fused elbow;
+    * a shoulder whose depth the occlusion filter dropped (``base`` 0, ``axes`` ``(2,)``), or that the detector
+      lost altogether (all three axes): the shoulder's running-mean offset from the hips' centre, at this frame's
+      hips' centre (the shoulder sits on the torso; ``v_step`` = ``sigma_shoulder_m^2``). A constant-velocity
+      filter that holds the landmark reports a variance that grows without bound, so eq. 8 from the elbow would
+      replace a shoulder it holds well with one that carries the elbow's depth error, several cm; one that
+      extrapolates a lost landmark carries the velocity of its last, often disturbed, measurements: 30 cm in x
+      after ten frames.
 
     Args:
         f: the arm's nine coordinates (changed in place); vs: their nine variances (changed in place).
-        blind: ``[dx, dy, dz, n]`` (changed in place: ``n`` counts this frame).
-        v_t: the temporal prior's variance per axis and frame.
-        base: the joint's offset in the arm (3 the elbow, 6 the wrist).
+        held: ``[dx, dy, dz, n]``, the offset from the anchor and the blind frames (``n`` counts this frame).
+        anchor: this frame's anchor ``(x, y, z)`` (the joint before it, or the hips' centre).
+        v_step: the held joint's variance per axis and blind frame.
+        base: the joint's offset in the arm (0 the shoulder, 3 the elbow, 6 the wrist).
+        axes: the axes fused.
     """
-    n = blind[3] = blind[3] + 1.0
-    vh = v_t * n
-    for i in (base, base + 1, base + 2):
+    n = held[3] = held[3] + 1.0
+    vh = v_step * n
+    for k in axes:
+        i = base + k
         v = vs[i]
         if v == v:  # (a variance the filter does not know: NaN, left as it is)
             s = v + vh
-            f[i] = (vh * f[i] + v * (f[i - 3] + blind[i - base])) / s
-            vs[i] = v * vh / s
-
-
-def fuse_held_shoulder(f, vs, held, hips, v_s, lost_xy=False):
-    """A shoulder whose depth the occlusion filter dropped, or that the detector lost altogether: the filter's
-    estimate fused with the shoulder held on the torso.
-
-    Two Gaussian priors of the shoulder: the filter's (``f[0:3]``, variances ``vs[0:3]``: a constant-velocity
-    filter that holds the landmark reports a variance that grows without bound, so eq. 8 from the elbow would
-    replace a shoulder it holds well with one that carries the elbow's depth error, several cm; and one that
-    extrapolates a lost landmark carries the velocity of its last, often disturbed, measurements: 30 cm in x
-    after ten frames), and our outputs' offset from the hips' centre while the shoulder's depth was measured
-    (``held[:3]``, a running mean), carried by this frame's hips' centre ``hips`` (the shoulder sits on the
-    torso), a random walk whose variance grows by ``v_s`` per blind frame (``held[3]``, counted here). Their
-    product replaces the filter's depth and its variance, and with ``lost_xy`` (no x, y detected either) its x and
-    y too; fused once from the last measurement, as :func:`fuse_blind`. An axis whose variance the filter
-    does not know (NaN) is left as it is.
-
-    Args:
-        f: the arm's nine coordinates (the shoulder's changed in place); vs: their nine variances (likewise).
-        held: ``[dx, dy, dz, n]`` (changed in place: ``n`` counts this frame).
-        hips: this frame's hips' centre ``(x, y, z)`` (finite).
-        v_s: the held shoulder's variance per frame.
-        lost_xy: fuse x and y as well as the depth.
-    """
-    n = held[3] = held[3] + 1.0
-    vh = v_s * n
-    for i in (0, 1, 2) if lost_xy else (2,):
-        v = vs[i]
-        if v == v:
-            s = v + vh
-            f[i] = (vh * f[i] + v * (hips[i] + held[i])) / s
+            f[i] = (vh * f[i] + v * (anchor[k] + held[k])) / s
             vs[i] = v * vh / s
 
 
@@ -236,7 +219,7 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     pair nearer than its length is a foreshortened depth error either way, and a real measurement's (the
     design half: testing both ways undid the ray test's fixes of the `ours` EKF's seen joints, worst increase
     +0.25 -> +0.55 cm with the simulated detector). A shoulder held on the torso (``s_held``: its depth dropped,
-    :func:`fuse_held_shoulder`) counts as measured at its held point: an elbow and a wrist both read on the wall
+    :func:`fuse_held`) counts as measured at its held point: an elbow and a wrist both read on the wall
     behind them agree with each other, and only the torso tells that neither is reachable from the shoulder
     (MediaPipe, bvhtools_test2 60-131 s: the arm rebuilt from them put the shoulder 1.5 m behind).
 

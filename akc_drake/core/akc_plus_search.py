@@ -203,7 +203,7 @@ class CandidateSearch:
         """The torso term of ``side``'s shoulder candidates (``_tz``, ``_inv_tz2``), set before a rebuild.
 
         The held shoulder's depth (the hips' depth ``_hips[2]`` carrying our outputs' running-mean offset, with the
-        hold's variance as ``fuse_held_shoulder``'s) when known, else the hips' depth of the pose as given with
+        hold's variance as ``fuse_held``'s) when known, else the hips' depth of the pose as given with
         ``sigma_torso_m``. A shoulder read on its own upper arm 24 cm in front is equidistant from eq. 8's two
         candidates, and the hips' 20 cm let the one 50 cm in front win (MediaPipe, bvhtools_a1).
         """
