@@ -5,13 +5,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from akc_drake.core.skeleton import ARM_JOINTS, BodyDimensions
+from akc_drake.core.skeleton import ARM_JOINTS, INDEX, BodyDimensions
 from akc_drake.errors import UserError
 from akc_drake.evaluation.motion_set import (
     evaluate_clip,
     find_clips,
     lost_joint_gain,
     motion_dir_tables,
+    paired_errors,
     plot_errors_per_clip,
     pooled,
     worst_regression,
@@ -90,7 +91,13 @@ def _result():
     for j in ARM_JOINTS:
         np.testing.assert_allclose(pool["KF"][j], r["methods"]["KF"]["rmse_cm"][j])
     w = worst_regression([r], "AKC+(KF)", "KF")
-    assert w["clip"] == "ub" and np.isfinite(w["delta_cm"])
+    assert w["clip"] == "ub" and np.isfinite(w["delta_cm"]) and w["paired"]
+    for m in ("AKC(KF)", "AKC+(KF)"):
+        p = r["methods"][m]["paired"]
+        assert p["filter"] == "KF"
+        for j in ARM_JOINTS:  # the paired frames and the corrector's own frames make up its frames
+            np.testing.assert_array_equal(np.add(p["n"][j], p["only_n"][j]), r["methods"][m]["n"][j])
+    assert "paired" not in r["methods"]["KF"]
     g = lost_joint_gain([r], "AKC+(KF)", "KF")
     assert g["pairs"] >= 0
     result = {"protocol": "ours", "methods": methods, "clips": [r], "pooled_rmse_cm": pool,
@@ -99,6 +106,47 @@ def _result():
     assert [t.key for t in tables] == ["clips_x", "clips_y", "clips_z", "pooled"]
     assert tables[-1].ours.shape == (18, 3)
     return result
+
+
+def test_a_corrector_is_compared_with_its_filter_on_the_frames_both_estimate():
+    # The filter has no estimate of the left shoulder's depth in the first two frames (never measured); the
+    # corrector rebuilds it there, 10 cm off, and is 1 cm better than the filter on the other frames.
+    T = 6
+    truth = np.zeros((T, 12, 3))
+    base = truth.copy()
+    base[:] = 0.02
+    base[:2, INDEX["left_shoulder"], 2] = np.nan
+    est = truth.copy()
+    est[:] = 0.01
+    est[:2, INDEX["left_shoulder"], 2] = 0.10
+    p = paired_errors(est, base, truth, "KF")
+    assert p["n"]["left_shoulder"] == [6, 6, 4] and p["only_n"]["left_shoulder"] == [0, 0, 2]
+    np.testing.assert_allclose(p["rmse_cm"]["left_shoulder"], [1.0, 1.0, 1.0])
+    np.testing.assert_allclose(p["filter_rmse_cm"]["left_shoulder"], [2.0, 2.0, 2.0])
+    np.testing.assert_allclose(p["only_rmse_cm"]["left_shoulder"][2], 10.0)
+    assert np.isnan(p["only_rmse_cm"]["left_elbow"][2])
+
+    def clip(paired):
+        own = {k: [1.0, 1.0, 1.0] for k in ARM_JOINTS}
+        own["left_shoulder"] = [1.0, 1.0, float(np.sqrt((4 * 1.0 + 2 * 100.0) / 6))]  # 5.83 over its own frames
+        m = {"rmse_cm": own}
+        if paired:
+            m["paired"] = p
+        kf = {"rmse_cm": {k: [2.0, 2.0, 2.0] for k in ARM_JOINTS}}
+        lost = {k: 0.0 for k in ARM_JOINTS}
+        lost["left_shoulder"] = 2 / 6
+        return {"name": "c", "lost_share": lost, "methods": {"AKC+(KF)": m, "KF": kf}}
+
+    w = worst_regression([clip(True)], "AKC+(KF)", "KF")
+    assert w["paired"] and w["delta_cm"] == pytest.approx(-1.0)
+    w = worst_regression([clip(False)], "AKC+(KF)", "KF")  # a result from before: each method's own frames
+    assert not w["paired"] and w["delta_cm"] == pytest.approx(np.sqrt(204 / 6) - 2.0)
+    assert (w["clip"], w["joint"], w["axis"]) == ("c", "left_shoulder", "z")
+    g = lost_joint_gain([clip(True)], "AKC+(KF)", "KF")
+    assert g["pairs"] == 1 and g["filter_z_cm"] == pytest.approx(2.0) and g["corrected_z_cm"] == pytest.approx(1.0)
+    assert g["only_frames"] == 2 and g["only_z_cm"] == pytest.approx(10.0)
+    g = lost_joint_gain([clip(False)], "AKC+(KF)", "KF")
+    assert g["only_frames"] is None and g["corrected_z_cm"] == pytest.approx(np.sqrt(204 / 6))
 
 
 def test_evaluate_clip_returns_plain_metrics_and_pooling_is_exact():

@@ -183,12 +183,12 @@ def evaluate_clip(item: dict) -> dict:
         ``{"name", "frames", "duration_s", "lost_share": {joint: share}, "render": {"key", "cached",
         "seconds"}, "methods": {method: {"rmse_cm": {joint: [x, y, z]}, "sse_m2": {joint: [..]}, "n":
         {joint: [..]}, "corr": {joint: [..]}, "arm_length_range_cm": {segment: cm}, "corrector_us": mean µs
-        per frame or None}}}``.
+        per frame or None, and for a corrector run with its filter "paired": :func:`paired_errors`}}}``.
     """
     from akc_drake.core import metrics
     from akc_drake.core.skeleton import BodyDimensions
     from akc_drake.evaluation.cache import spec_key
-    from akc_drake.evaluation.methods import MethodRunner
+    from akc_drake.evaluation.methods import MethodRunner, parse_method
     from akc_drake.evaluation.protocol import method_options
 
     clip = item["clip"]
@@ -218,6 +218,7 @@ def evaluate_clip(item: dict) -> dict:
         "render": {"key": spec_key(spec), "cached": bool(hit), "seconds": render_s},
         "methods": {},
     }
+    estimates = {}
     for method in item["methods"]:
         res = runner.run(method)
         est = res.estimates
@@ -239,6 +240,46 @@ def evaluate_clip(item: dict) -> dict:
         tc = res.stage_time_s.get("corrector")
         m_out["corrector_us"] = float(np.mean(tc) * 1e6) if tc is not None else None
         out["methods"][method] = m_out
+        estimates[method] = est
+    for method in item["methods"]:
+        spec = parse_method(method)
+        if spec.corrector != "none" and spec.filter in estimates:
+            out["methods"][method]["paired"] = paired_errors(estimates[method], estimates[spec.filter],
+                                                             session.truth, spec.filter)
+    return out
+
+
+def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_name: str) -> dict:
+    """A corrector's errors against its filter's on the frames where both give an estimate.
+
+    Each method's ``rmse_cm`` is over its own frames. A corrector that gives an estimate where its filter has none
+    (a shoulder whose depth was never measured, rebuilt from the elbow) would be charged for those frames in a
+    comparison of the two: the paired RMSEs compare like with like, and the frames where only the corrector
+    estimates are counted apart, with its RMSE there.
+
+    Args:
+        est: ``(T, 12, 3)`` the corrector's estimates; base: its filter's; truth: the ground truth (NaN where none).
+        base_name: the filter's method name.
+
+    Returns:
+        ``{"filter": base_name, "n": {joint: [x, y, z]}, "rmse_cm": {...}, "filter_rmse_cm": {...},
+        "only_n": {...}, "only_rmse_cm": {...}}`` (NaN where there is no frame).
+    """
+    out: dict = {"filter": base_name, "n": {}, "rmse_cm": {}, "filter_rmse_cm": {}, "only_n": {}, "only_rmse_cm": {}}
+
+    def rmse(e, ok):
+        n = ok.sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (np.sqrt(np.sum(np.where(ok, e, 0.0) ** 2, axis=0) / n) * 100.0).tolist(), n.tolist()
+
+    for joint in ARM_JOINTS:
+        j = INDEX[joint]
+        e, b = est[:, j] - truth[:, j], base[:, j] - truth[:, j]
+        both = np.isfinite(e) & np.isfinite(b)
+        only = np.isfinite(e) & ~np.isfinite(b)
+        out["rmse_cm"][joint], out["n"][joint] = rmse(e, both)
+        out["filter_rmse_cm"][joint], _ = rmse(b, both)
+        out["only_rmse_cm"][joint], out["only_n"][joint] = rmse(e, only)
     return out
 
 
@@ -268,32 +309,60 @@ def pooled(results: list[dict], methods) -> dict:
     return out
 
 
+def _compared(r: dict, corrected: str, filt: str):
+    """``(corrected's, filt's)`` RMSE per joint of one clip: paired (:func:`paired_errors`) where recorded."""
+    p = r["methods"][corrected].get("paired")
+    if p is not None and p["filter"] == filt:
+        return p["rmse_cm"], p["filter_rmse_cm"], True
+    return r["methods"][corrected]["rmse_cm"], r["methods"][filt]["rmse_cm"], False
+
+
 def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
-    """The largest RMSE increase (cm) of ``corrected`` over ``filt`` on any clip, arm joint and axis."""
+    """The largest RMSE increase (cm) of ``corrected`` over ``filt`` on any clip, arm joint and axis.
+
+    On the frames where both estimate (``"paired": True``; a result without paired errors, from before they were
+    recorded, compares each method's RMSE over its own frames).
+    """
     worst = {"delta_cm": -math.inf}
     for r in results:
         if corrected not in r["methods"] or filt not in r["methods"]:
             continue
+        a_all, b_all, paired = _compared(r, corrected, filt)
         for joint in ARM_JOINTS:
-            a = r["methods"][corrected]["rmse_cm"][joint]
-            b = r["methods"][filt]["rmse_cm"][joint]
+            a, b = a_all[joint], b_all[joint]
             for i, ax in enumerate(AXES):
                 dlt = a[i] - b[i]
                 if dlt > worst["delta_cm"]:
-                    worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "axis": ax}
+                    worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "axis": ax, "paired": paired}
     return worst
 
 
 def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
-    """Mean z RMSE of ``filt`` and ``corrected`` over the (clip, joint) pairs the camera loses (cm)."""
+    """Mean z RMSE of ``filt`` and ``corrected`` over the (clip, joint) pairs the camera loses (cm).
+
+    Paired as :func:`worst_regression` is. ``only_frames`` and ``only_z_cm``: over all clips and arm joints, the
+    frames where ``corrected`` gives a depth and ``filt`` none, and the pooled z RMSE of ``corrected`` there (None
+    for results without paired errors).
+    """
     a, b = [], []
+    only_n, only_sse, any_paired = 0, 0.0, False
     for r in results:
+        if corrected not in r["methods"] or filt not in r["methods"]:
+            continue
+        a_all, b_all, paired = _compared(r, corrected, filt)
+        p = r["methods"][corrected].get("paired") if paired else None
+        any_paired |= paired
         for joint in ARM_JOINTS:
-            if r["lost_share"][joint] >= LOST_SHARE and corrected in r["methods"] and filt in r["methods"]:
-                a.append(r["methods"][filt]["rmse_cm"][joint][2])
-                b.append(r["methods"][corrected]["rmse_cm"][joint][2])
+            if r["lost_share"][joint] >= LOST_SHARE:
+                a.append(b_all[joint][2])
+                b.append(a_all[joint][2])
+            if p is not None and p["only_n"][joint][2]:
+                only_n += p["only_n"][joint][2]
+                only_sse += p["only_n"][joint][2] * (p["only_rmse_cm"][joint][2] / 100.0) ** 2
     return {"pairs": len(a), "filter_z_cm": float(np.mean(a)) if a else None,
-            "corrected_z_cm": float(np.mean(b)) if b else None}
+            "corrected_z_cm": float(np.mean(b)) if b else None,
+            "only_frames": only_n if any_paired else None,
+            "only_z_cm": math.sqrt(only_sse / only_n) * 100.0 if only_n else None}
 
 
 def evaluate_motion_dir(
@@ -418,13 +487,17 @@ def motion_dir_tables(result: dict) -> list:
               f"({result['protocol']} protocol{_setup(result)})", rows, list(methods), np.array(vals))
     for name, w in result["worst_regression"].items():
         if "clip" in w:
-            t.notes.append(f"{name}: worst increase over its filter {w['delta_cm']:+.2f} cm "
+            on = " on the frames both estimate" if w.get("paired") else ""
+            t.notes.append(f"{name}: worst increase over its filter{on} {w['delta_cm']:+.2f} cm "
                            f"({w['clip']}, {w['joint']} {w['axis']})")
     for name, g in result["lost_joint_gain"].items():
         if g["pairs"]:
             t.notes.append(f"{name}: z RMSE on the {g['pairs']} (clip, joint) pairs the camera loses "
                            f"(>= {LOST_SHARE:.0%} of frames): filter {g['filter_z_cm']:.2f} -> "
                            f"{g['corrected_z_cm']:.2f} cm")
+        if g.get("only_frames"):
+            t.notes.append(f"{name}: a depth on {g['only_frames']} joint-frames where its filter has none "
+                           f"(z RMSE {g['only_z_cm']:.2f} cm there)")
     tables.append(t)
     return tables
 
