@@ -24,12 +24,20 @@ def arm_pose(elbow_dir_l=(0.3, 0.5, -0.8), wrist_dir_l=(0.2, -0.3, -0.9)) -> tup
         p[w] = p[e] + 0.26 * dw / np.linalg.norm(dw)
     p[INDEX["left_hip"]] = [0.12, 0.5, 2.02]
     p[INDEX["right_hip"]] = [-0.12, 0.5, 2.02]
-    for side in ("left", "right"):
+    for side in ("left", "right"):  # (the knuckles a hand's length, AKCPlusConfig.hand_length_m, from the wrist)
         for k in ("index", "pinky"):
-            p[INDEX[f"{side}_{k}"]] = p[INDEX[f"{side}_wrist"]] + [0.0, 0.05, -0.04]
+            p[INDEX[f"{side}_{k}"]] = p[INDEX[f"{side}_wrist"]] + [0.0, 0.05, -math.sqrt(0.085**2 - 0.05**2)]
     lens = segment_lengths(p[None])
     dims = BodyDimensions(**{k: float(v[0]) for k, v in lens.items()})
     return p, dims
+
+
+def hand_follows(f, p):
+    """The left knuckles moved with ``f``'s left wrist off ``p``'s (the hand read with its wrist: nothing says the hand
+    hides the wrist, :func:`~akc_drake.core.arm_geometry.behind_hand`). Returns ``f``."""
+    for k in ("left_index", "left_pinky"):
+        f[INDEX[k]] = p[INDEX[k]] + f[LW] - p[LW]
+    return f
 
 
 def test_unoccluded_noise_free_arm_is_unchanged():
@@ -305,39 +313,6 @@ def test_blind_extrapolation_is_held_but_a_holding_filter_is_followed():
             np.testing.assert_allclose(out[LE], p[LE], atol=1e-9)
 
 
-def test_state_round_trips_with_the_running_nis():
-    p, dims = arm_pose()
-    f = p.copy()
-    f[LW, 2] += 0.06
-    akc = ArmKinematicCorrectorPlus(dims)
-    for _ in range(3):
-        akc.correct(f, measured=p, variance=kf_var())
-    v = akc.get_state_vector()
-    assert v.shape == (STATE_SIZE,) and v[36:54].max() > 1.0  # the lagging wrist's NIS
-    np.testing.assert_allclose(v[54:57], p[LW] - p[LE], atol=1e-9)  # the left forearm, wrist detected
-    assert v[57] == 0.0
-    np.testing.assert_allclose(v[62:65], p[LE] - p[LS], atol=1e-9)  # the left upper arm, elbow detected
-    assert v[65] == 0.0
-    other = ArmKinematicCorrectorPlus(dims)
-    other.set_state_vector(v)
-    np.testing.assert_array_equal(other.get_state_vector(), v)
-    np.testing.assert_array_equal(other.correct(f, p, kf_var()).pose, akc.correct(f, p, kf_var()).pose)
-    bad = v.copy()
-    bad[53] = -1.0
-    with pytest.raises(ValueError, match="NIS"):
-        other.set_state_vector(bad)
-    bad = v.copy()
-    bad[57] = -1.0
-    with pytest.raises(ValueError, match="blind-frame count"):
-        other.set_state_vector(bad)
-    bad = v.copy()
-    bad[65] = -1.0
-    with pytest.raises(ValueError, match="blind-elbow frame count"):
-        other.set_state_vector(bad)
-    with pytest.raises(ValueError, match="variance"):
-        akc.correct(p, measured=p, variance=np.zeros((3, 3)))
-
-
 def test_dropped_shoulder_the_filter_knows_better_than_a_rebuild_is_kept():
     # The upper arm lies in the image plane and the shoulder's depth is dropped for a frame (the forearm in
     # front of it): the filter's shoulder is right, with a variance (5.2 cm) above the measurement's (5 cm).
@@ -584,21 +559,27 @@ def test_a_seen_shoulder_is_not_outvoted_by_an_elbow_that_fits_the_wrist_worse()
     # towards the shoulder (MediaPipe: 5 cm on bvhtools_test 60-120 s) and the wrist reads 8 cm deep: the upper arm
     # is 6 cm short, the forearm 8 cm off. The elbow "fits" the wrist within length_tol_m, but worse than the
     # shoulder fits the elbow: two against one does not hold, the seen shoulder stays (eq. 8 from that elbow put
-    # it 11 cm off). A 6 cm upper arm against a 5 mm forearm still outvotes the shoulder.
+    # it 11 cm off). A 6 cm upper arm against a 5 mm forearm still outvotes the shoulder, unless the shoulder's
+    # depth agrees with the shoulder held on the torso (two against two; the hips' depths measured).
     p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.05), wrist_dir_l=(0.2, -0.3, -0.9))
     u = (p[LS, :2] - p[LE, :2]) / np.linalg.norm(p[LS, :2] - p[LE, :2])
     moved = {}
-    for dwz in (0.08, 0.0):
+    for dwz, torso in ((0.08, True), (0.0, False), (0.0, True)):
         akc = settled_corrector(p, dims)
         f = p.copy()
         f[LE, :2] += 0.06 * u
         f[LW, 2] += dwz
-        out = akc.correct(f, measured=f, variance=kf_var()).pose
+        hand_follows(f, p)
+        m = f.copy()
+        if not torso:
+            m[[INDEX["left_hip"], INDEX["right_hip"]], 2] = np.nan
+        out = akc.correct(f, measured=m, variance=kf_var()).pose
         assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
         assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
-        moved[dwz] = np.linalg.norm(out[LS] - f[LS])
-    assert moved[0.08] < 1e-9
-    assert moved[0.0] > 0.1
+        moved[dwz, torso] = np.linalg.norm(out[LS] - f[LS])
+    assert moved[0.08, True] < 1e-9
+    assert moved[0.0, False] > 0.1
+    assert moved[0.0, True] < 1e-9
 
 
 def test_a_wrist_lost_altogether_moves_with_the_seen_elbow():
@@ -683,7 +664,7 @@ def _elbow_off_its_image_position(wrist_depth_measured):
     f = p.copy()
     f[LE] += [0.004, 0.069, 0.0]
     f[LW] += [-0.031, 0.023, -0.008]
-    m = f.copy()
+    m = hand_follows(f, p).copy()
     m[LE, 2] = np.nan
     if not wrist_depth_measured:
         m[LW, 2] = np.nan
@@ -813,6 +794,7 @@ def test_a_wrist_read_in_front_of_a_seen_elbow_that_fits_the_shoulder_takes_the_
     akc = settled_corrector(p, dims)
     f = p.copy()
     f[LW, 2] -= 0.15
+    hand_follows(f, p)  # (the hand's own evidence that it hides the wrist: tested below)
     assert np.linalg.norm(f[LE] - f[LW]) > dims.LLA + 0.1
     out = akc.correct(f, measured=f.copy(), variance=kf_var()).pose
     np.testing.assert_allclose(out[[LS, LE]], p[[LS, LE]], atol=1e-9)
@@ -862,3 +844,32 @@ def test_a_rebuilt_shoulder_is_weighed_against_the_held_torso_depth():
         assert akc._tz == pytest.approx(target, abs=1e-12)
         assert akc._inv_tz2 == pytest.approx(inv_var, rel=1e-12)
         np.testing.assert_allclose(out[LS], p[LS], atol=1e-6)
+
+
+def test_a_wrist_its_own_hand_hides_is_put_behind_the_hand():
+    # The forearm points at the camera (the elbow's depth dropped: its pixel is near the wrist's), the hand too:
+    # the depth at the wrist's pixel is the hand's, at the knuckles' depth (8 cm in front), the filter following.
+    # The knuckles are measured where they are: the wrist goes a hand's length behind them (hand_length_m = the
+    # true one here), and the elbow on the circle from the kept shoulder to it. With the rule off, the elbow goes
+    # to the wrist read in front and both are 5+ cm off.
+    p, dims = arm_pose(elbow_dir_l=(0.3, 0.9, -0.2), wrist_dir_l=(0.1, -0.3, -0.95))
+    d = np.array([0.1, -0.3, -0.95])
+    c = p[LW] + 0.085 * d / np.linalg.norm(d)
+    p[INDEX["left_index"]] = c + [0.02, 0.0, 0.0]
+    p[INDEX["left_pinky"]] = c - [0.02, 0.0, 0.0]
+    m = p.copy()
+    m[LW] *= c[2] / p[LW, 2]  # (deprojected at the hand's depth: on the wrist's pixel ray)
+    f = p.copy()
+    f[LW] = m[LW]
+    m[LE, 2] = np.nan
+    var = kf_var()
+    var[LE, 2] = 0.04
+    err = {}
+    for length in (0.085, 0.0):
+        akc = settled_corrector(p, dims, AKCPlusConfig(hand_length_m=length))
+        out = akc.correct(f, measured=m, variance=var).pose
+        assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+        assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+        err[length] = np.linalg.norm(out[[LE, LW]] - p[[LE, LW]], axis=1)
+    assert err[0.085].max() < 0.01
+    assert err[0.0].min() > 0.05

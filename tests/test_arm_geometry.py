@@ -3,6 +3,7 @@ import pytest
 
 from akc_drake.core.arm_geometry import (
     DEFAULT_AXES,
+    behind_hand,
     bends_backwards,
     circle_point,
     elbow_angle_deg,
@@ -172,3 +173,26 @@ def test_ray_check_takes_the_measurement_only_off_the_measured_ray():
     f = [0.18, 0.10, 2.3] + m[3:9]
     ray_check(m2, offs, f, list(var), *args)
     assert f[:3] == [0.18, 0.10, 2.3]
+
+
+def test_behind_hand_puts_a_wrist_its_hand_hides_a_hands_length_behind_the_knuckles():
+    # The forearm points straight at the camera; the wrist's pixel reads the hand at 2.00 m, the knuckles' midpoint
+    # 3 cm aside in the image at 1.98 m: the wrist is sqrt(8.5^2 - 3^2) = 7.953 cm behind the knuckles.
+    k = behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, 2.0, 0.03, 0.0, 1.98, 0.085)
+    assert k * 2.0 == pytest.approx(1.98 + np.sqrt(0.085**2 - 0.03**2), abs=1e-12)
+    # Halfway between the shares 0.5 and 0.8 of the forearm along the ray: half the move.
+    fz = -0.65 / np.sqrt(1 - 0.65**2)  # (forearm (1, 0, fz): share 0.65)
+    k_half = behind_hand(-0.1, 0.0, 2.0 - 0.1 * fz, 0.0, 0.0, 2.0, 0.03, 0.0, 1.98, 0.085)
+    assert (k_half - 1.0) == pytest.approx(0.5 * (k - 1.0), rel=1e-9)
+    # At most a hand's length either way: knuckles read 30 cm in front (a depth off the hand).
+    assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, 2.0, 0.0, 0.0, 1.70, 0.085) * 2.0 == pytest.approx(1.915, abs=1e-12)
+    # Left as it is: a forearm across the image, knuckles more than a hand's length behind the wrist (their depth
+    # failed), anything NaN.
+    assert behind_hand(-0.28, 0.0, 2.0, 0.0, 0.0, 2.0, 0.03, 0.0, 1.98, 0.085) == 1.0
+    assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, 2.0, 0.03, 0.0, 2.09, 0.085) == 1.0
+    nan = float("nan")
+    for args in ((nan, 0.0, 2.3), (0.0, 0.0, nan)):
+        assert behind_hand(*args, 0.0, 0.0, 2.0, 0.03, 0.0, 1.98, 0.085) == 1.0
+    assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, 2.0, 0.03, 0.0, nan, 0.085) == 1.0
+    assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, nan, 0.03, 0.0, 1.98, 0.085) == 1.0
+

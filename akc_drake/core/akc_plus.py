@@ -62,11 +62,21 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   shoulder ran 30 cm off in x.
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
+* A measured wrist its own hand hides: the forearm (the filter's elbow to the measured wrist) toward the camera,
+  the wrist's pixel reads the hand, up to a hand's length in front (the elbow's depth is dropped then, its pixel
+  near the wrist's). The measured knuckles (index and pinky; their midpoint lies ``hand_length_m`` from the
+  wrist) put it on its pixel ray that far behind them, and the filter's wrist is moved by the same step
+  (:func:`~akc_drake.core.arm_geometry.behind_hand`, the teleoperation's rule; the simulated detector read the
+  wrist 10-16 cm in front on bvhtools_a4, MediaPipe 10-14 on cmu_01_01, where the elbow put on the circle to it
+  was as far off).
 * A seen forearm too long for the lengths' test, its wrist the nearer end, and a seen elbow that fits its
   shoulder (seen or held on the torso): the wrist's depth takes the correction and the elbow stays. A depth
   camera reads a joint in front of where it is (an occluder: the hand over the wrist) far more often than
   behind it (a silhouette's edge, which the gates catch); shared by their variances, the seen elbow took 3-6 cm
   of the wrist's error (MediaPipe on the skinned body, bvhtools_a1: the wrist read 6-12 cm in front).
+* A seen shoulder whose depth agrees with the shoulder held on the torso (within ``consistency_m``) is kept
+  against a seen elbow that fits the wrist better than the shoulder fits the elbow (two against two): MediaPipe's
+  2D elbow 5 cm off the joint made eq. 8 move such a shoulder 12-18 cm (vicon_playground, cmu_01_01).
 * A shoulder whose upper arm points towards the camera (the elbow in front, its distance in x, y ``d_xy``) reads
   the arm's surface ``r / sin(theta)`` in front of the joint, where the depth offset expects ``r``: with the
   excess ``r (l_u / d_xy - 1)`` above ``consistency_m`` (``arm_radius_m`` = r) it does not count as seen
@@ -122,9 +132,11 @@ from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     fuse_held,
+    hidden_wrist,
     hold_blind,
     known_depths,
     nearer_wrist_misfit,
+    on_torso,
     unreachable_replacements,
 )
 from akc_drake.core.akc_plus_lengths import (
@@ -135,6 +147,7 @@ from akc_drake.core.akc_plus_lengths import (
     sphere_point,
 )
 from akc_drake.core.akc_plus_search import CandidateSearch
+from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
@@ -157,20 +170,13 @@ def _as_f64(x):
 
 _FLAT, _SHAPE = 3 * NUM_LANDMARKS, (NUM_LANDMARKS, 3)
 
-#: State: per side (shoulder, elbow, wrist) xyz = 18, 2 validity flags, 4 untrusted-frame counters, per
-#: elbow/shoulder the filter's estimate in the last frame its depth was seen (4 x 3, NaN if none), and per arm
-#: joint and axis the running mean of the normalised innovation squared (18), per side the forearm of the last
-#: output with the wrist detected (NaN if none) and the frames since (8), per side the upper arm likewise with
-#: the elbow detected (8), per side the shoulder's offset from the hips' centre in our outputs with its depth
-#: measured (x, y, z, a running mean; NaN if none) and the frames since the last (8).
-STATE_SIZE = 78
-_NIS, _BLIND, _BLIND_E, _HELD = 36, 54, 62, 70
 _LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
+_HAND = tuple(tuple(3 * INDEX[f"{s}_{j}"] for j in ("elbow", "wrist", "index", "pinky")) for s in SIDES)
 _NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
 _Z, _XYZ = (2,), (0, 1, 2)  # (the held shoulder's axes: its depth dropped; lost altogether)
 
 
-class ArmKinematicCorrectorPlus(CandidateSearch):
+class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
     """AKC+ for both arms (see the module docstring); the same interface as the paper's corrector.
 
     Args:
@@ -183,12 +189,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
 
     # Slots: this object's attributes are read tens of times a frame on the hot path.
     __slots__ = ("config", "_arm_index", "_axes", "_chi2_gate", "_cos_min", "_cur_var", "_dims", "_f0", "_fits",
-                 "_gate2", "_inv_t2", "_inv_torso2", "_inv_w2", "_inv_wrist2", "_len_var", "_lf", "_lost",
-                 "_off_var", "_v_t",
-                 "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev", "_r_axes",
-                 "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap", "_travel",
-                 "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz", "_inv_tz2",
-                 "_fs_r", "_fs_k2")
+                 "_gate2", "_inv_t2", "_inv_torso2", "_inv_w2", "_inv_wrist2", "_len_var", "_lf", "_lost", "_off_var",
+                 "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
+                 "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
+                 "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
+                 "_inv_tz2", "_fs_r", "_fs_k2")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -202,6 +207,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         self._lu = (dims.LUA, dims.RUA)
         self._ls = dims.SW
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
+        self._hand = tuple((*o, config.hand_length_m) for o in _HAND if config.hand_length_m > 0)
         self._inv_t2 = 1.0 / config.sigma_temporal_m**2
         self._v_t = config.sigma_temporal_m**2
         self._v_s = config.sigma_shoulder_m**2
@@ -256,72 +262,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
         # mean, weight ``shoulder_alpha``), and the frames since the last
         self._held_sh: list[list | None] = [None, None]
-
-    def get_state_vector(self) -> np.ndarray:
-        """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
-        filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
-        NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
-        its frames."""
-        v = np.full(STATE_SIZE, np.nan)
-        for side in (0, 1):
-            p = self._prev[side]
-            if p is not None:
-                v[9 * side : 9 * side + 9] = p
-            v[18 + side] = 0.0 if p is None else 1.0
-        v[20:24] = self._lost
-        for k in range(4):
-            if self._f0[k] is not None:
-                v[24 + 3 * k : 27 + 3 * k] = self._f0[k]
-        v[_NIS:_BLIND] = self._nis
-        for base, per_side in ((_BLIND, self._blind), (_BLIND_E, self._blind_e), (_HELD, self._held_sh)):
-            for side in (0, 1):
-                if per_side[side] is not None:
-                    v[base + 4 * side : base + 4 * side + 4] = per_side[side]
-        return v
-
-    def set_state_vector(self, v) -> None:
-        """Restore :meth:`get_state_vector`'s vector.
-
-        Raises:
-            ValueError: naming the wrong shape, a bad flag or counter, or non-finite joints of a valid arm.
-        """
-        a = np.asarray(v, dtype=float)
-        if a.shape != (STATE_SIZE,):
-            raise ValueError(f"AKC+ state vector must have shape ({STATE_SIZE},), got {a.shape}")
-        prev: list[tuple | None] = [None, None]
-        for side in (0, 1):
-            flag = a[18 + side]
-            if flag not in (0.0, 1.0):
-                raise ValueError(f"AKC+ state vector: validity flag [{18 + side}] must be 0 or 1, got {flag!r}")
-            if flag == 1.0:
-                joints = a[9 * side : 9 * side + 9]
-                if not np.all(np.isfinite(joints)):
-                    raise ValueError(f"AKC+ state vector: {SIDES[side]} arm is flagged valid but not finite")
-                prev[side] = tuple(joints.tolist())
-        lost = a[20:24]
-        if not np.all(np.isfinite(lost) & (lost >= 0)):
-            raise ValueError(f"AKC+ state vector: counters [20:24] must be >= 0, got {lost.tolist()}")
-        f0 = [a[24 + 3 * k : 27 + 3 * k] for k in range(4)]
-        f0 = [tuple(q.tolist()) if np.all(np.isfinite(q)) else None for q in f0]
-        self._prev = prev
-        self._lost = lost.tolist()
-        nis = a[_NIS:_BLIND]
-        if not np.all(np.isfinite(nis) & (nis > 0)):
-            raise ValueError(f"AKC+ state vector: NIS means [{_NIS}:{_BLIND}] must be > 0, got {nis.tolist()}")
-        blocks = []  # the forearms, the upper arms, the held shoulders: per side 3 floats and a frame count
-        for base, what in ((_BLIND, "blind-frame"), (_BLIND_E, "blind-elbow frame"), (_HELD, "held-shoulder frame")):
-            per_side: list[list | None] = [None, None]
-            for side in (0, 1):
-                b = a[base + 4 * side : base + 4 * side + 4]
-                if np.all(np.isfinite(b)):
-                    if b[3] < 0:
-                        raise ValueError(f"AKC+ state vector: {what} count [{base + 4 * side + 3}] must be >= 0")
-                    per_side[side] = b.tolist()
-            blocks.append(per_side)
-        self._blind, self._blind_e, self._held_sh = blocks
-        self._f0 = f0
-        self._travel = [0.0, 0.0, 0.0, 0.0]
-        self._nis = nis.tolist()
 
     # ------------------------------------------------------------------ hot path (plain floats)
     def _measured(self, m, o, fz):
@@ -513,10 +453,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
         te = df <= tol  # elbow seen and at l_f from the wrist
         # A seen shoulder is trusted unless a seen elbow that fits the wrist, better than the shoulder fits it,
         # contradicts it (two against one: e.g. an occluding upper arm's depth at the shoulder's pixel; MediaPipe's
-        # 2D elbow 5 cm short of the joint leaves both segments short, and eq. 8 put the shoulder 20-28 cm in
-        # front). A shoulder lost altogether (no x, y) is kept where held (eq. 8 needs its 2D position; a wrong
-        # elbow is likelier than a wrong held shoulder). (The upper arm's fit is computed only where it decides.)
-        ts = ((ms and not (te and self._cons < abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) > df))
+        # 2D elbow 5 cm short of the joint leaves both segments short, and eq. 8 put the shoulder 20-28 cm in front)
+        # and its depth is off the shoulder held on the torso (two against two: eq. 8 moved it 12-18 cm). One lost
+        # altogether (no x, y) is kept where held (eq. 8 needs its 2D position; a wrong elbow is likelier).
+        ts = ((ms and not (te and self._cons < abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) > df
+                           and not on_torso(self._held_sh[side], self._hips, sz, self._cons)))
               or (not sxy and prev is not None and not te) or (kn_s and not te))
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
@@ -637,6 +578,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch):
             if b.shape != _SHAPE:
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.reshape(_FLAT).tolist()
+            for o in self._hand:  # (a wrist its own hand hides, put behind it: ``hidden_wrist``)
+                hidden_wrist(v, m, *o)
         self._var = None
         if variance is not None:
             c = variance if type(variance) is np.ndarray and variance.dtype == _F64 else _as_f64(variance)  # (inline)

@@ -62,6 +62,10 @@ class AKCPlusConfig:
             squared (0.2: a time constant of 5 frames); the filter's variance times that mean is the error
             variance the residuals show (covariance matching): a lagging joint's grows, a still one's shrinks.
         nis_floor: the smallest factor the running mean may apply to the filter's variance.
+        hand_length_m: the wrist to its index and pinky knuckles' midpoint (MediaPipe's on the rendered adult:
+            8-8.5 cm; the skinned body's 8.6-9.4). A measured wrist its own hand hides (the forearm toward the
+            camera) reads the hand, up to a hand's length in front: it is put that far behind the knuckles
+            (:func:`~akc_drake.core.arm_geometry.behind_hand`; 0 turns it off).
         recent_frames: a depth not measured for up to this many frames (0.3 s at 10 Hz) whose filter variance
             is below the variance eq. 7-8 would rebuild it with counts as known: the filter's variance is a
             trustworthy error measure only shortly after a measurement (the running NIS was measured then;
@@ -92,6 +96,7 @@ class AKCPlusConfig:
     nis_alpha: float = 0.2
     nis_floor: float = 0.01
     recent_frames: float = 3.0
+    hand_length_m: float = 0.085
 
     def __post_init__(self):
         for f in dataclasses.fields(self):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from akc_drake.core.arm_geometry import rebuild_variance
+from akc_drake.core.arm_geometry import behind_hand, rebuild_variance
 
 _NAN = float("nan")
 
@@ -291,3 +291,34 @@ def nearer_wrist_misfit(f, lu, lf, cons):
     sx, sy, sz, ex, ey, ez, wx, wy, wz = f
     return (wz < ez and math.hypot(ex - wx, ey - wy, ez - wz) > lf
             and abs(math.hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons)
+
+
+def on_torso(held, hips, z, tol) -> bool:
+    """Whether a shoulder's depth ``z`` is within ``tol`` of the shoulder held on the torso (``held``'s offset from
+    the hips' centre ``hips``, :func:`fuse_held`; False when none is held or the hips' depths are unknown)."""
+    return held is not None and abs(z - hips[2] - held[2]) <= tol
+
+
+def hidden_wrist(v, m, o_e, o_w, o_i, o_p, length) -> None:
+    """A measured wrist that its own hand hides, put behind the hand (:func:`~akc_drake.core.arm_geometry.behind_hand`).
+
+    The forearm's direction is the filter's elbow to the measured wrist (the elbow's depth is often dropped then:
+    its pixel is near the wrist's). The filter's wrist, which filtered the same readings, is moved by the same
+    step (its bias removed, its lag kept: replaced by the measurement, a lagging EKF's arm 20-40 cm behind its new
+    wrist was rebuilt off its image x, y).
+
+    Args:
+        v: the flat (36) filtered pose; m: the flat (36) measurement (both changed in place).
+        o_e, o_w, o_i, o_p: the elbow's, wrist's, index and pinky knuckles' flat offsets.
+        length: the wrist to the knuckles' midpoint.
+    """
+    wx, wy, wz = m[o_w], m[o_w + 1], m[o_w + 2]
+    if not wz < v[o_e + 2]:  # (the forearm not toward the camera, or a depth NaN: the common case, at once)
+        return
+    k = behind_hand(v[o_e], v[o_e + 1], v[o_e + 2], wx, wy, wz, 0.5 * (m[o_i] + m[o_p]),
+                    0.5 * (m[o_i + 1] + m[o_p + 1]), 0.5 * (m[o_i + 2] + m[o_p + 2]), length)
+    if k != 1.0:
+        k -= 1.0
+        m[o_w], m[o_w + 1], m[o_w + 2] = wx + k * wx, wy + k * wy, wz + k * wz
+        v[o_w], v[o_w + 1], v[o_w + 2] = v[o_w] + k * wx, v[o_w + 1] + k * wy, v[o_w + 2] + k * wz
+

@@ -367,3 +367,42 @@ def follow(ax, ay, az, px, py, pz, length):
 def d2(p, qx, qy, qz):
     dx, dy, dz = p[0] - qx, p[1] - qy, p[2] - qz
     return dx * dx + dy * dy + dz * dz
+
+
+#: The forearm's share along the camera ray (``-f_z / |f|``, wrist nearer than the elbow) from which the hand is
+#: taken to hide the wrist (0.5, 30 deg out of the image plane; none below) and to fully hide it (0.8, 53 deg).
+TOWARD_CAMERA_SHARE = (0.5, 0.8)
+
+
+def behind_hand(ex, ey, ez, wx, wy, wz, cx, cy, cz, length) -> float:
+    """The factor that puts a wrist its own hand hides on its pixel ray behind the hand (1.0: left as it is).
+
+    When the forearm points toward the camera, the hand is in front of the wrist and the depth at the wrist's pixel
+    is not the wrist's: it reads the back of the hand or the fingers, up to a hand's length (10-15 cm measured)
+    nearer, or, the end-on arm being a small patch in the image, past the hand's edge, farther (MediaPipe's wrist on
+    the rendered reaches: 3-7 cm too far for a second while the arm is held out; the knuckles' midpoint there within
+    1 cm of its true depth, the back of the hand being a broad surface facing the camera). The hand's length is a
+    constant (``length``, wrist to the knuckles' midpoint ``c``), and its image part is measured, so the wrist lies
+    ``dz = sqrt(L^2 - |(w - c)_xy|^2)`` behind ``c``. The wrist is moved along its pixel ray toward that depth, from
+    nearer or from farther, by a weight that grows from 0 to 1 as the forearm (elbow ``e`` to wrist ``w``) turns
+    toward the camera (:data:`TOWARD_CAMERA_SHARE`). Every step is continuous in the landmarks (no switch, so no jump
+    from one frame to the next); a forearm across the image is left as it is, and so is a wrist whose knuckles read
+    more than a hand's length behind it (their depth failed); the move is at most a hand's length either way.
+    Plain floats (AKC+'s hot path); NaN anywhere leaves the wrist as it is.
+
+    Returns:
+        ``k``: the wrist is ``k * w`` (its pixel ray through the camera centre).
+    """
+    fx, fy, fz = wx - ex, wy - ey, wz - ez
+    nf = _hypot(fx, fy, fz)
+    if not (nf > 1e-6 and wz > 1e-6) or cz - wz > length or not _isfinite(cx + cy + cz):
+        return 1.0
+    lo, hi = TOWARD_CAMERA_SHARE
+    weight = (-fz / nf - lo) / (hi - lo)
+    if not weight > 0.0:
+        return 1.0
+    dx, dy = wx - cx, wy - cy
+    dz = math.sqrt(max(length * length - dx * dx - dy * dy, 0.0))
+    deficit = min(max(cz + dz - wz, -length), length)  # at most a hand's length either way
+    return (wz + (weight if weight < 1.0 else 1.0) * deficit) / wz
+

@@ -39,6 +39,7 @@ import math
 import numpy as np
 
 from akc_drake.core import smoothing
+from akc_drake.core.arm_geometry import behind_hand
 from akc_drake.core.frames import (
     DEFAULT_HAND_WIDTH_M,
     DEFAULT_MAX_LANDMARK_SPEED,
@@ -60,25 +61,9 @@ from akc_drake.core.skeleton import INDEX, SIDES
 #: Initial estimate of the wrist-to-knuckle-midpoint distance (metres) before it is learnt from the operator
 #: (MediaPipe's wrist to the midpoint of its index and pinky knuckles: 8-8.5 cm measured on the rendered adult).
 DEFAULT_HAND_LENGTH_M = 0.085
-#: The forearm's share along the camera ray (``-f_z / |f|``, wrist nearer than the elbow) from which the hand is
-#: taken to hide the wrist (0.5, 30 deg out of the image plane; none below) and to fully hide it (0.8, 53 deg).
-TOWARD_CAMERA_SHARE = (0.5, 0.8)
-
-
 def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
-    """The wrist put on its pixel ray a hand's length behind the knuckles when its own hand hides it from the camera.
-
-    When the forearm points toward the camera, the hand is in front of the wrist and the depth at the wrist's pixel
-    is not the wrist's: it reads the back of the hand or the fingers, up to a hand's length (10-15 cm measured)
-    nearer, or, the end-on arm being a small patch in the image, past the hand's edge, farther (MediaPipe's wrist on
-    the rendered reaches: 3-7 cm too far for a second while the arm is held out; the knuckles' midpoint there within
-    1 cm of its true depth, the back of the hand being a broad surface facing the camera). The hand's length is a
-    constant (``hand_length_m``, wrist to the knuckles' midpoint ``c``), and its image part is measured, so the
-    wrist lies ``dz = sqrt(L^2 - |(p_w - c)_xy|^2)`` behind ``c``. The wrist is moved along its pixel ray toward that
-    depth, from nearer or from farther, by a weight that grows from 0 to 1 as the forearm turns toward the camera
-    (:data:`TOWARD_CAMERA_SHARE`). Every step is continuous in the landmarks (no switch, so no jump from one frame to
-    the next); a forearm across the image is left as it is, and so is a wrist whose knuckles read more than a hand's
-    length behind it (their depth failed); the move is at most a hand's length either way.
+    """The wrist put on its pixel ray a hand's length behind the knuckles when its own hand hides it from the camera
+    (:func:`~akc_drake.core.arm_geometry.behind_hand`, which AKC+ applies to the measured wrist as well).
 
     Args:
         p_e, p_w, p_i, p_p: ``(3,)`` elbow, wrist, index and pinky knuckles in the camera frame C (z forward).
@@ -88,19 +73,9 @@ def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
         The wrist, ``(3,)`` (a copy of ``p_w`` when unchanged).
     """
     p_w = np.array(p_w, dtype=float)
-    f = p_w - np.asarray(p_e, dtype=float)
-    nf = float(np.linalg.norm(f))
-    lo, hi = TOWARD_CAMERA_SHARE
-    weight = min(max((-float(f[2]) / nf - lo) / (hi - lo), 0.0), 1.0) if nf > 1e-6 else 0.0
-    if weight == 0.0 or p_w[2] <= 1e-6:
-        return p_w
-    c = 0.5 * (np.asarray(p_i, dtype=float) + np.asarray(p_p, dtype=float))
-    d = p_w - c
-    dz = math.sqrt(max(hand_length_m**2 - float(d[0] ** 2 + d[1] ** 2), 0.0))
-    if c[2] - p_w[2] > hand_length_m:  # knuckles a hand's length behind the wrist: their depth failed
-        return p_w
-    deficit = min(max(c[2] + dz - p_w[2], -hand_length_m), hand_length_m)  # at most a hand's length either way
-    return p_w * ((p_w[2] + weight * deficit) / p_w[2])  # on the wrist's pixel ray, to a hand's length behind c
+    e = [float(x) for x in p_e]
+    c = [0.5 * (float(a) + float(b)) for a, b in zip(p_i, p_p, strict=True)]
+    return p_w * behind_hand(*e, *p_w.tolist(), *c, hand_length_m)
 
 
 def calibrate_torso(poses) -> TorsoModel:

@@ -1,0 +1,90 @@
+"""AKC+'s state as one flat vector (a Drake system's discrete state): :class:`StateVector`, a mixin of
+:class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`.
+
+Layout (:data:`STATE_SIZE` floats): per side the last output's shoulder, elbow, wrist xyz ``[0:18]``, two validity
+flags ``[18:20]``, four untrusted-frame counters ``[20:24]``, the filter's estimate of each elbow and shoulder when
+last seen ``[24:36]``, the running NIS means ``[36:54]``, then per side (x, y, z, frames) the held forearm
+``[54:62]``, the held upper arm ``[62:70]`` and the shoulder's offset from the hips' centre ``[70:78]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from akc_drake.core.skeleton import SIDES
+
+STATE_SIZE = 78
+_NIS, _BLIND, _BLIND_E, _HELD = 36, 54, 62, 70
+
+
+class StateVector:
+    """:meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``, ``_lost``, ``_f0``,
+    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``)."""
+
+    __slots__ = ()
+
+    def get_state_vector(self) -> np.ndarray:
+        """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
+        filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
+        NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
+        its frames."""
+        v = np.full(STATE_SIZE, np.nan)
+        for side in (0, 1):
+            p = self._prev[side]
+            if p is not None:
+                v[9 * side : 9 * side + 9] = p
+            v[18 + side] = 0.0 if p is None else 1.0
+        v[20:24] = self._lost
+        for k in range(4):
+            if self._f0[k] is not None:
+                v[24 + 3 * k : 27 + 3 * k] = self._f0[k]
+        v[_NIS:_BLIND] = self._nis
+        for base, per_side in ((_BLIND, self._blind), (_BLIND_E, self._blind_e), (_HELD, self._held_sh)):
+            for side in (0, 1):
+                if per_side[side] is not None:
+                    v[base + 4 * side : base + 4 * side + 4] = per_side[side]
+        return v
+
+    def set_state_vector(self, v) -> None:
+        """Restore :meth:`get_state_vector`'s vector.
+
+        Raises:
+            ValueError: naming the wrong shape, a bad flag or counter, or non-finite joints of a valid arm.
+        """
+        a = np.asarray(v, dtype=float)
+        if a.shape != (STATE_SIZE,):
+            raise ValueError(f"AKC+ state vector must have shape ({STATE_SIZE},), got {a.shape}")
+        prev: list[tuple | None] = [None, None]
+        for side in (0, 1):
+            flag = a[18 + side]
+            if flag not in (0.0, 1.0):
+                raise ValueError(f"AKC+ state vector: validity flag [{18 + side}] must be 0 or 1, got {flag!r}")
+            if flag == 1.0:
+                joints = a[9 * side : 9 * side + 9]
+                if not np.all(np.isfinite(joints)):
+                    raise ValueError(f"AKC+ state vector: {SIDES[side]} arm is flagged valid but not finite")
+                prev[side] = tuple(joints.tolist())
+        lost = a[20:24]
+        if not np.all(np.isfinite(lost) & (lost >= 0)):
+            raise ValueError(f"AKC+ state vector: counters [20:24] must be >= 0, got {lost.tolist()}")
+        f0 = [a[24 + 3 * k : 27 + 3 * k] for k in range(4)]
+        f0 = [tuple(q.tolist()) if np.all(np.isfinite(q)) else None for q in f0]
+        self._prev = prev
+        self._lost = lost.tolist()
+        nis = a[_NIS:_BLIND]
+        if not np.all(np.isfinite(nis) & (nis > 0)):
+            raise ValueError(f"AKC+ state vector: NIS means [{_NIS}:{_BLIND}] must be > 0, got {nis.tolist()}")
+        blocks = []  # the forearms, the upper arms, the held shoulders: per side 3 floats and a frame count
+        for base, what in ((_BLIND, "blind-frame"), (_BLIND_E, "blind-elbow frame"), (_HELD, "held-shoulder frame")):
+            per_side: list[list | None] = [None, None]
+            for side in (0, 1):
+                b = a[base + 4 * side : base + 4 * side + 4]
+                if np.all(np.isfinite(b)):
+                    if b[3] < 0:
+                        raise ValueError(f"AKC+ state vector: {what} count [{base + 4 * side + 3}] must be >= 0")
+                    per_side[side] = b.tolist()
+            blocks.append(per_side)
+        self._blind, self._blind_e, self._held_sh = blocks
+        self._f0 = f0
+        self._travel = [0.0, 0.0, 0.0, 0.0]
+        self._nis = nis.tolist()
