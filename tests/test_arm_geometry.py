@@ -195,4 +195,3 @@ def test_behind_hand_puts_a_wrist_its_hand_hides_a_hands_length_behind_the_knuck
         assert behind_hand(*args, 0.0, 0.0, 2.0, 0.03, 0.0, 1.98, 0.085) == 1.0
     assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, 2.0, 0.03, 0.0, nan, 0.085) == 1.0
     assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, nan, 0.03, 0.0, 1.98, 0.085) == 1.0
-

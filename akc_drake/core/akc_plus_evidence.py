@@ -321,4 +321,3 @@ def hidden_wrist(v, m, o_e, o_w, o_i, o_p, length) -> None:
         k -= 1.0
         m[o_w], m[o_w + 1], m[o_w + 2] = wx + k * wx, wy + k * wy, wz + k * wz
         v[o_w], v[o_w + 1], v[o_w + 2] = v[o_w] + k * wx, v[o_w + 1] + k * wy, v[o_w + 2] + k * wz
-

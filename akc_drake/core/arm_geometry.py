@@ -405,4 +405,3 @@ def behind_hand(ex, ey, ez, wx, wy, wz, cx, cy, cz, length) -> float:
     dz = math.sqrt(max(length * length - dx * dx - dy * dy, 0.0))
     deficit = min(max(cz + dz - wz, -length), length)  # at most a hand's length either way
     return (wz + (weight if weight < 1.0 else 1.0) * deficit) / wz
-

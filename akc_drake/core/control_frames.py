@@ -61,6 +61,8 @@ from akc_drake.core.skeleton import INDEX, SIDES
 #: Initial estimate of the wrist-to-knuckle-midpoint distance (metres) before it is learnt from the operator
 #: (MediaPipe's wrist to the midpoint of its index and pinky knuckles: 8-8.5 cm measured on the rendered adult).
 DEFAULT_HAND_LENGTH_M = 0.085
+
+
 def wrist_behind_hand(p_e, p_w, p_i, p_p, hand_length_m: float) -> np.ndarray:
     """The wrist put on its pixel ray a hand's length behind the knuckles when its own hand hides it from the camera
     (:func:`~akc_drake.core.arm_geometry.behind_hand`, which AKC+ applies to the measured wrist as well).
