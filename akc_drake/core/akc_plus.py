@@ -136,7 +136,6 @@ from akc_drake.core.akc_plus_evidence import (
     hold_blind,
     known_depths,
     nearer_wrist_misfit,
-    on_torso,
     unreachable_replacements,
 )
 from akc_drake.core.akc_plus_lengths import (
@@ -457,7 +456,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         # and its depth is off the shoulder held on the torso (two against two: eq. 8 moved it 12-18 cm). One lost
         # altogether (no x, y) is kept where held (eq. 8 needs its 2D position; a wrong elbow is likelier).
         ts = ((ms and not (te and self._cons < abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) > df
-                           and not on_torso(self._held_sh[side], self._hips, sz, self._cons)))
+                           and not abs(sz - self._held_z(side)) <= self._cons))
               or (not sxy and prev is not None and not te) or (kn_s and not te))
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor

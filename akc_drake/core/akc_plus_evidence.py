@@ -293,12 +293,6 @@ def nearer_wrist_misfit(f, lu, lf, cons):
             and abs(math.hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons)
 
 
-def on_torso(held, hips, z, tol) -> bool:
-    """Whether a shoulder's depth ``z`` is within ``tol`` of the shoulder held on the torso (``held``'s offset from
-    the hips' centre ``hips``, :func:`fuse_held`; False when none is held or the hips' depths are unknown)."""
-    return held is not None and abs(z - hips[2] - held[2]) <= tol
-
-
 def hidden_wrist(v, m, o_e, o_w, o_i, o_p, length) -> None:
     """A measured wrist that its own hand hides, put behind the hand (:func:`~akc_drake.core.arm_geometry.behind_hand`).
 

@@ -26,6 +26,7 @@ from akc_drake.core.skeleton import INDEX
 
 _hypot = math.hypot
 _inf = math.inf
+_NAN = float("nan")
 _isfinite = math.isfinite
 _LHIP_Z = 3 * INDEX["left_hip"] + 2
 _RHIP_Z = 3 * INDEX["right_hip"] + 2
@@ -199,6 +200,12 @@ class CandidateSearch:
                 axes = self._axes = torso_axes(self._v0)
         return BACKWARDS if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes) else 0.0
 
+    def _held_z(self, side):
+        """The depth of ``side``'s shoulder held on the torso: this frame's hips' depth plus our outputs' running-mean
+        offset (NaN when none is held or the hips' depths are unknown this frame)."""
+        h = self._held_sh[side]
+        return _NAN if h is None else self._hips[2] + h[2]
+
     def _set_torso(self, side):
         """The torso term of ``side``'s shoulder candidates (``_tz``, ``_inv_tz2``), set before a rebuild.
 
@@ -207,9 +214,9 @@ class CandidateSearch:
         ``sigma_torso_m``. A shoulder read on its own upper arm 24 cm in front is equidistant from eq. 8's two
         candidates, and the hips' 20 cm let the one 50 cm in front win (MediaPipe, bvhtools_a1).
         """
-        h, hz = self._held_sh[side], self._hips[2]
-        if h is not None and hz == hz:
-            self._tz, self._inv_tz2 = hz + h[2], 1.0 / (self._v_s * (h[3] + 1.0))
+        tz = self._held_z(side)
+        if tz == tz:
+            self._tz, self._inv_tz2 = tz, 1.0 / (self._v_s * (self._held_sh[side][3] + 1.0))
         else:
             v0 = self._v0
             self._tz, self._inv_tz2 = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z]), self._inv_torso2

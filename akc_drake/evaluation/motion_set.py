@@ -310,11 +310,12 @@ def pooled(results: list[dict], methods) -> dict:
 
 
 def _compared(r: dict, corrected: str, filt: str):
-    """``(corrected's, filt's)`` RMSE per joint of one clip: paired (:func:`paired_errors`) where recorded."""
+    """``(corrected's, filt's)`` RMSE per joint of one clip and the paired record (:func:`paired_errors`) they come
+    from, or each method's own RMSE and None where none was recorded."""
     p = r["methods"][corrected].get("paired")
     if p is not None and p["filter"] == filt:
-        return p["rmse_cm"], p["filter_rmse_cm"], True
-    return r["methods"][corrected]["rmse_cm"], r["methods"][filt]["rmse_cm"], False
+        return p["rmse_cm"], p["filter_rmse_cm"], p
+    return r["methods"][corrected]["rmse_cm"], r["methods"][filt]["rmse_cm"], None
 
 
 def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
@@ -327,13 +328,13 @@ def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
     for r in results:
         if corrected not in r["methods"] or filt not in r["methods"]:
             continue
-        a_all, b_all, paired = _compared(r, corrected, filt)
+        a_all, b_all, p = _compared(r, corrected, filt)
         for joint in ARM_JOINTS:
             a, b = a_all[joint], b_all[joint]
             for i, ax in enumerate(AXES):
                 dlt = a[i] - b[i]
                 if dlt > worst["delta_cm"]:
-                    worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "axis": ax, "paired": paired}
+                    worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "axis": ax, "paired": p is not None}
     return worst
 
 
@@ -349,9 +350,8 @@ def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
     for r in results:
         if corrected not in r["methods"] or filt not in r["methods"]:
             continue
-        a_all, b_all, paired = _compared(r, corrected, filt)
-        p = r["methods"][corrected].get("paired") if paired else None
-        any_paired |= paired
+        a_all, b_all, p = _compared(r, corrected, filt)
+        any_paired |= p is not None
         for joint in ARM_JOINTS:
             if r["lost_share"][joint] >= LOST_SHARE:
                 a.append(b_all[joint][2])
