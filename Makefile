@@ -9,7 +9,14 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: install demo test bench graphs lint system-deps clean mocap-data
 
-install: $(STAMP)
+install: $(STAMP) $(COMPILED)
+
+# AKC+'s per-frame modules compiled with Cython (setup.py, akc_drake/compiled.py). The editable install builds
+# them; this rebuilds them whenever their source changes (an edit, a checkout), so `make test` and `make bench`
+# always run what the source says. (Without a rebuild the package runs the changed source, with a warning.)
+COMPILED := akc_drake/core/_compiled_sources.json
+$(COMPILED): $(STAMP) setup.py akc_drake/compiled.py $(wildcard akc_drake/core/akc_plus*.py) akc_drake/core/arm_geometry.py
+	$(PY) setup.py -q build_ext --inplace
 
 $(STAMP): pyproject.toml Makefile constraints.txt
 	@$(MAKE) --no-print-directory system-deps
@@ -84,7 +91,8 @@ lint: install
 	$(VENV)/bin/lint-imports --no-cache
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) build *.egg-info .pytest_cache $(COMPILED)
+	find akc_drake -name '*.so' -delete
 
 # The real-motion evaluation set (akc-drake evaluate --motion-dir data/mocap): real mocap recordings taken out of
 # the registry packages that ship them (PyPI sdists, a Debian package), checked against their SHA-256; sources

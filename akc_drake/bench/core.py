@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from akc_drake import compiled
 from akc_drake.core.camera import CameraIntrinsics
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PROXIMAL_DISTAL_PAIRS, BodyDimensions
 from akc_drake.fileio import write_json
@@ -271,6 +272,8 @@ def machine_info() -> dict:
         "scipy": version("scipy"),
         "mediapipe": version("mediapipe"),
         "akc_drake": version("akc-drake"),
+        # AKC+'s per-frame modules: compiled with Cython or run as source (akc_drake/compiled.py)
+        "akc_plus_modules": compiled.build_state(),
         "load_average_at_start": _load_average(),
     }
 

@@ -170,8 +170,8 @@ def format_report(result: dict) -> str:
     m = result["machine"]
     lines = [
         f"akc-drake bench{' --quick' if result['quick'] else ''}: {m['cpu']}, {m['cpus_usable']} cores, "
-        f"drake {m['drake']}, python {m['python']}; input: {result['input']['kind']} "
-        f"({result['input']['frames']} frames)",
+        f"drake {m['drake']}, python {m['python']}, AKC+ {m.get('akc_plus_modules', '?')}; "
+        f"input: {result['input']['kind']} ({result['input']['frames']} frames)",
         "",
         f"{'figure':<46}{'median':>10}{'max':>10}  {'target':<9}{'met':>4}",
     ]

@@ -1,0 +1,41 @@
+"""Build hook: compiles AKC+'s per-frame modules (``akc_drake.compiled.COMPILED_MODULES``) with Cython.
+
+The metadata is in pyproject.toml. The modules are compiled unchanged (plain Python, language level 3); their
+source stays importable and is what runs when the compiled module is missing or stale (see akc_drake/compiled.py).
+"""
+
+import importlib.util
+import os
+from pathlib import Path
+
+from Cython.Build import cythonize
+from setuptools import setup
+from setuptools.command.build_ext import build_ext
+
+_ROOT = Path(__file__).resolve().parent
+# akc_drake/compiled.py by path: importing the package would import numpy and more before they are installed.
+_spec = importlib.util.spec_from_file_location("_akc_drake_compiled", _ROOT / "akc_drake" / "compiled.py")
+compiled = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(compiled)
+
+_SOURCES = [str(compiled.source_path(m, Path("akc_drake"))) for m in compiled.COMPILED_MODULES]
+
+
+class BuildExtAndRecord(build_ext):
+    """build_ext, then the record of the sources compiled (read at import to refuse stale compiled modules)."""
+
+    def finalize_options(self):
+        super().finalize_options()
+        if self.parallel is None:  # (one compiler per core: the five modules take ~40 s on one)
+            self.parallel = os.cpu_count() or 1
+
+    def run(self):
+        super().run()
+        out = _ROOT / "akc_drake" if self.inplace else Path(self.build_lib) / "akc_drake"
+        compiled.write_manifest(_ROOT / "akc_drake", out_dir=out)
+
+
+setup(
+    ext_modules=cythonize(_SOURCES, language_level=3, build_dir="build/cython", quiet=True),
+    cmdclass={"build_ext": BuildExtAndRecord},
+)
