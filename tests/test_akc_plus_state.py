@@ -3,6 +3,7 @@ import pytest
 
 from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
 from akc_drake.core.akc_plus_state import STATE_SIZE
+from akc_drake.core.skeleton import INDEX
 from tests.test_akc_plus import LE, LS, LW, arm_pose, kf_var
 
 
@@ -19,6 +20,7 @@ def test_state_round_trips_with_the_running_nis():
     assert v[57] == 0.0
     np.testing.assert_allclose(v[62:65], p[LE] - p[LS], atol=1e-9)  # the left upper arm, elbow detected
     assert v[65] == 0.0
+    np.testing.assert_allclose(v[78:81], p[LE] - p[LS], atol=1e-9)  # the upper arm the held forearm turns with
     other = ArmKinematicCorrectorPlus(dims)
     other.set_state_vector(v)
     np.testing.assert_array_equal(other.get_state_vector(), v)
@@ -37,3 +39,22 @@ def test_state_round_trips_with_the_running_nis():
         other.set_state_vector(bad)
     with pytest.raises(ValueError, match="variance"):
         akc.correct(p, measured=p, variance=np.zeros((3, 3)))
+
+
+def test_state_round_trips_while_a_held_forearm_turns_with_its_upper_arm():
+    # Mid-swing, the wrist lost: a corrector restored from the state vector goes on exactly as the original, and a
+    # forearm that no longer turns (NaN) stays so.
+    from tests.test_akc_plus import _swing_with_the_wrist_lost
+
+    for elbow_lost_at in (None, 1):
+        akc, dims, out, truth, f = _swing_with_the_wrist_lost(elbow_lost_at=elbow_lost_at, frames=2)
+        v = akc.get_state_vector()
+        assert np.isfinite(v[78:81]).all() == (elbow_lost_at is None)
+        other = ArmKinematicCorrectorPlus(dims)
+        other.set_state_vector(v)
+        np.testing.assert_array_equal(other.get_state_vector(), v)
+        m = truth.copy()
+        m[[LW, INDEX["left_index"], INDEX["left_pinky"]]] = np.nan  # (the wrist and the hand lost)
+        var = kf_var()
+        var[LW] = 0.09
+        np.testing.assert_array_equal(other.correct(f, m, var).pose, akc.correct(f, m, var).pose)

@@ -10,6 +10,7 @@ from akc_drake.core.arm_geometry import (
     project_lengths,
     signed_elbow_angle_deg,
     torso_axes,
+    turn_with,
 )
 from akc_drake.core.skeleton import INDEX
 
@@ -195,3 +196,25 @@ def test_behind_hand_puts_a_wrist_its_hand_hides_a_hands_length_behind_the_knuck
         assert behind_hand(*args, 0.0, 0.0, 2.0, 0.03, 0.0, 1.98, 0.085) == 1.0
     assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, 2.0, 0.03, 0.0, nan, 0.085) == 1.0
     assert behind_hand(0.0, 0.0, 2.3, 0.0, 0.0, nan, 0.03, 0.0, 1.98, 0.085) == 1.0
+
+
+def test_turn_with_is_the_smallest_rotation_between_two_directions():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        a, b, v = rng.normal(size=(3, 3))
+        a *= rng.uniform(0.1, 3.0)  # (any lengths: only the directions count)
+        axis = np.cross(a, b)
+        angle = np.arctan2(np.linalg.norm(axis), a @ b)
+        want = Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).apply(v)
+        np.testing.assert_allclose(turn_with(*v, *a, *b), want, atol=1e-12)
+        np.testing.assert_allclose(np.linalg.norm(turn_with(*v, *a, *b)), np.linalg.norm(v), rtol=1e-12)
+    # A vector along the axis stays; one along a goes along b with its length; no turn leaves v as it is.
+    np.testing.assert_allclose(turn_with(0.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0), (0.0, 0.0, 2.0), atol=1e-15)
+    np.testing.assert_allclose(turn_with(0.26, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 3.0, 0.0), (0.0, 0.26, 0.0), atol=1e-15)
+    assert turn_with(0.1, 0.2, 0.3, 1.0, 2.0, 3.0, 2.0, 4.0, 6.0) == pytest.approx((0.1, 0.2, 0.3), abs=1e-15)
+    # Undefined turns leave v as it is: a zero direction, a NaN, a half turn.
+    assert turn_with(0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0) == (0.1, 0.2, 0.3)
+    assert turn_with(0.1, 0.2, 0.3, np.nan, 0.0, 0.0, 1.0, 0.0, 0.0) == (0.1, 0.2, 0.3)
+    assert turn_with(0.1, 0.2, 0.3, 1.0, 0.0, 0.0, -2.0, 0.0, 0.0) == (0.1, 0.2, 0.3)

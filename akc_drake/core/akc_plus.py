@@ -154,6 +154,7 @@ from akc_drake.core.arm_geometry import follow as _follow
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
 from akc_drake.core.arm_geometry import ray_check
+from akc_drake.core.arm_geometry import turn_with as _turn_with
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
 _hypot, _inf = math.hypot, math.inf
@@ -255,7 +256,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when last seen
         self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
         self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
-        # per side: the forearm (wrist - elbow) of our last output with the wrist detected and the frames since
+        # per side: the forearm (wrist - elbow) of our last output with the wrist detected, the frames since, and
+        # the upper arm (elbow - shoulder) of that output, which the held forearm turns with (NaN: no longer turns)
         self._blind: list[list | None] = [None, None]
         self._blind_e: list[list | None] = [None, None]  # the upper arm (elbow - shoulder) likewise
         # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
@@ -314,8 +316,21 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
                 fuse_held(f, vs, self._blind_e[side], f[0:3], self._v_t, 3)
                 e_fused = True
-            if m is not None and self._blind[side] is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
-                fuse_held(f, vs, self._blind[side], f[3:6], self._v_t, 6)
+            b = self._blind[side]
+            if m is not None and b is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
+                if b[4] == b[4]:
+                    if not _isfinite(m[o_e] + m[o_e + 1]):
+                        b[4] = b[5] = b[6] = _NAN  # (the upper arm not followed: the forearm no longer turns)
+                    else:
+                        # The held forearm turns with the upper arm since the wrist was last seen (one arm swinging
+                        # about the shoulder); held fixed in the camera frame, it lagged a swinging arm's wrist
+                        # (mocapbank, simulated detector: +0.54 cm over the KF in y -> +0.33). Only while the
+                        # elbow has been seen throughout: an upper arm rebuilt without it turned the forearm with
+                        # its own error (MediaPipe boxing, +3.3 cm).
+                        b = [*_turn_with(b[0], b[1], b[2], b[4], b[5], b[6], f[3] - f[0], f[4] - f[1], f[5] - f[2]),
+                             b[3]]
+                fuse_held(f, vs, b, f[3:6], self._v_t, 6)
+                self._blind[side][3] = b[3]
             if m is not None:
                 # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
                 g2, rz = self._gate2, self._r_z
@@ -609,8 +624,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
             out = self._arm(v, m, side)  # (the other shoulder for the width term: ``_other_shoulder``, lazily)
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out
-                if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected
-                    self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0]
+                if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected, and the
+                    # upper arm then (the held forearm turns with it: ``_arm``)
+                    self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0,
+                                         out[3] - out[0], out[4] - out[1], out[5] - out[2]]
                 if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
                     self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
                 if hold:

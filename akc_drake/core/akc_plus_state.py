@@ -4,7 +4,9 @@
 Layout (:data:`STATE_SIZE` floats): per side the last output's shoulder, elbow, wrist xyz ``[0:18]``, two validity
 flags ``[18:20]``, four untrusted-frame counters ``[20:24]``, the filter's estimate of each elbow and shoulder when
 last seen ``[24:36]``, the running NIS means ``[36:54]``, then per side (x, y, z, frames) the held forearm
-``[54:62]``, the held upper arm ``[62:70]`` and the shoulder's offset from the hips' centre ``[70:78]``.
+``[54:62]``, the held upper arm ``[62:70]`` and the shoulder's offset from the hips' centre ``[70:78]``, and per
+side the upper arm when the held forearm was kept (x, y, z; NaN once the forearm no longer turns with it)
+``[78:84]``.
 """
 
 from __future__ import annotations
@@ -13,8 +15,8 @@ import numpy as np
 
 from akc_drake.core.skeleton import SIDES
 
-STATE_SIZE = 78
-_NIS, _BLIND, _BLIND_E, _HELD = 36, 54, 62, 70
+STATE_SIZE = 84
+_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U = 36, 54, 62, 70, 78
 
 
 class StateVector:
@@ -27,7 +29,7 @@ class StateVector:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
         filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
         NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
-        its frames."""
+        its frames, then per side the upper arm the held forearm turns with."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -42,7 +44,10 @@ class StateVector:
         for base, per_side in ((_BLIND, self._blind), (_BLIND_E, self._blind_e), (_HELD, self._held_sh)):
             for side in (0, 1):
                 if per_side[side] is not None:
-                    v[base + 4 * side : base + 4 * side + 4] = per_side[side]
+                    v[base + 4 * side : base + 4 * side + 4] = per_side[side][:4]
+        for side in (0, 1):
+            if self._blind[side] is not None:
+                v[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3] = self._blind[side][4:7]
         return v
 
     def set_state_vector(self, v) -> None:
@@ -84,6 +89,10 @@ class StateVector:
                         raise ValueError(f"AKC+ state vector: {what} count [{base + 4 * side + 3}] must be >= 0")
                     per_side[side] = b.tolist()
             blocks.append(per_side)
+        for side in (0, 1):  # the held forearm's upper arm (NaN: it no longer turns with it)
+            if blocks[0][side] is not None:
+                u = a[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3]
+                blocks[0][side] += u.tolist() if np.all(np.isfinite(u)) else [np.nan] * 3
         self._blind, self._blind_e, self._held_sh = blocks
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]

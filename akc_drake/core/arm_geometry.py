@@ -405,3 +405,22 @@ def behind_hand(ex, ey, ez, wx, wy, wz, cx, cy, cz, length) -> float:
     dz = math.sqrt(max(length * length - dx * dx - dy * dy, 0.0))
     deficit = min(max(cz + dz - wz, -length), length)  # at most a hand's length either way
     return (wz + (weight if weight < 1.0 else 1.0) * deficit) / wz
+
+
+def turn_with(vx, vy, vz, ax, ay, az, bx, by, bz) -> tuple[float, float, float]:
+    """The vector ``v`` turned by the smallest rotation that takes direction ``a`` to direction ``b`` (Rodrigues,
+    with the axis ``a x b`` unnormalised: ``v c + k x v + (k . v) k / (1 + c)``, ``c`` the cosine). A forearm held
+    while its wrist is not seen turns so with its upper arm (the arm swinging about the shoulder as one piece).
+    ``v`` is returned as it is when either direction is degenerate or the turn is a half turn or more (then the
+    smallest rotation is not defined). Plain floats (AKC+'s hot path)."""
+    na, nb = _hypot(ax, ay, az), _hypot(bx, by, bz)
+    if not (na > _MIN_SEGMENT_M and nb > _MIN_SEGMENT_M):
+        return vx, vy, vz
+    inv = 1.0 / (na * nb)
+    c = (ax * bx + ay * by + az * bz) * inv
+    if not c > -1.0 + 1e-9:
+        return vx, vy, vz
+    kx, ky, kz = (ay * bz - az * by) * inv, (az * bx - ax * bz) * inv, (ax * by - ay * bx) * inv
+    q = (kx * vx + ky * vy + kz * vz) / (1.0 + c)
+    return (vx * c + ky * vz - kz * vy + q * kx, vy * c + kz * vx - kx * vz + q * ky,
+            vz * c + kx * vy - ky * vx + q * kz)
