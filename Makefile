@@ -6,6 +6,8 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip --disable-pip-version-check
 STAMP  := $(VENV)/.installed
+# The build's record of AKC+'s compiled modules (see below); before `install:`, whose prerequisites expand at once.
+COMPILED := akc_drake/core/_compiled_sources.json
 
 .PHONY: install demo test bench graphs lint system-deps clean mocap-data
 
@@ -14,7 +16,6 @@ install: $(STAMP) $(COMPILED)
 # AKC+'s per-frame modules compiled with Cython (setup.py, akc_drake/compiled.py). The editable install builds
 # them; this rebuilds them whenever their source changes (an edit, a checkout), so `make test` and `make bench`
 # always run what the source says. (Without a rebuild the package runs the changed source, with a warning.)
-COMPILED := akc_drake/core/_compiled_sources.json
 $(COMPILED): $(STAMP) setup.py akc_drake/compiled.py $(wildcard akc_drake/core/akc_plus*.py) akc_drake/core/arm_geometry.py
 	$(PY) setup.py -q build_ext --inplace
 

@@ -144,3 +144,19 @@ def test_a_stale_build_runs_the_source_with_a_warning(tmp_path):
                        check=True, cwd=tmp_path)
     assert r.stdout.split() == ["source", "compiled"]
     assert "akc_plus_lengths do not match the source on disk" in r.stderr
+
+
+def test_make_install_recompiles_when_a_compiled_modules_source_changes():
+    # The Makefile's rule, dry run (`make -n`) as if akc_plus.py had just been edited (`-W`): `make install` (and so
+    # `make test`, `make demo`, `make bench`) rebuilds the compiled modules before anything runs them.
+    import shutil
+    from pathlib import Path
+
+    import akc_drake
+
+    root = Path(akc_drake.__file__).resolve().parents[1]
+    if shutil.which("make") is None or not (root / "Makefile").is_file():
+        pytest.skip("needs make and the source tree's Makefile")
+    for src in ("akc_drake/core/akc_plus.py", "akc_drake/core/arm_geometry.py"):
+        r = subprocess.run(["make", "-n", "-W", src, "install"], cwd=root, capture_output=True, text=True, check=True)
+        assert "setup.py -q build_ext --inplace" in r.stdout, r.stdout[-2000:]
