@@ -2,8 +2,8 @@
 
 The corrector's hot path is plain-float Python (``core/akc_plus*.py``, ``core/arm_geometry.py``). ``setup.py``
 compiles those modules, unchanged, with Cython into extension modules beside their source (an editable install
-builds them in place): the same Python semantics, bit-identical outputs, and about 40 % less time per frame
-(README "Speed"). The source stays the reference; nothing is written twice.
+builds them in place): the same Python semantics, bit-identical outputs, and about a third less time per frame
+(README "Development" and "Corrector time"). The source stays the reference; nothing is written twice.
 
 At ``import akc_drake`` a finder decides, per module, which one is imported:
 
