@@ -15,8 +15,9 @@ install: $(STAMP) $(COMPILED)
 
 # AKC+'s per-frame modules compiled with Cython (setup.py, akc_drake/compiled.py). The editable install builds
 # them; this rebuilds them whenever their source changes (an edit, a checkout), so `make test` and `make bench`
-# always run what the source says. (Without a rebuild the package runs the changed source, with a warning.)
-$(COMPILED): $(STAMP) setup.py akc_drake/compiled.py $(wildcard akc_drake/core/akc_plus*.py) akc_drake/core/arm_geometry.py
+# always run what the source says. (Without a rebuild the package runs the changed source, with a warning.) The
+# install only has to exist (order-only): the editable install has just built them and written the record.
+$(COMPILED): setup.py akc_drake/compiled.py $(wildcard akc_drake/core/akc_plus*.py) akc_drake/core/arm_geometry.py | $(STAMP)
 	$(PY) setup.py -q build_ext --inplace
 
 $(STAMP): pyproject.toml Makefile constraints.txt
