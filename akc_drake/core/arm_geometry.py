@@ -410,7 +410,8 @@ def behind_hand(ex, ey, ez, wx, wy, wz, cx, cy, cz, length) -> float:
 def turn_with(vx, vy, vz, ax, ay, az, bx, by, bz) -> tuple[float, float, float]:
     """The vector ``v`` turned by the smallest rotation that takes direction ``a`` to direction ``b`` (Rodrigues,
     with the axis ``a x b`` unnormalised: ``v c + k x v + (k . v) k / (1 + c)``, ``c`` the cosine). A forearm held
-    while its wrist is not seen turns so with its upper arm (the arm swinging about the shoulder as one piece).
+    while its wrist is not seen turns so with its upper arm (the arm swinging about the shoulder as one piece); the
+    teleoperation's roll prior carries the torso's forward axis so (``control_frames``).
     ``v`` is returned as it is when either direction is degenerate or the turn is a half turn or more (then the
     smallest rotation is not defined). Plain floats (AKC+'s hot path)."""
     na, nb = _hypot(ax, ay, az), _hypot(bx, by, bz)

@@ -39,7 +39,7 @@ import math
 import numpy as np
 
 from akc_drake.core import smoothing
-from akc_drake.core.arm_geometry import behind_hand
+from akc_drake.core.arm_geometry import behind_hand, turn_with
 from akc_drake.core.frames import (
     DEFAULT_HAND_WIDTH_M,
     DEFAULT_MAX_LANDMARK_SPEED,
@@ -155,10 +155,10 @@ def neutral_hand_direction(p_s, p_e, p_w, R_torso) -> np.ndarray:
         return np.zeros(3)
     f /= nf
     down, forward = -np.asarray(R_torso, dtype=float)[:, 2], np.asarray(R_torso, dtype=float)[:, 0]
-    c, k = float(down @ f), np.cross(down, f)
+    c = float(down @ f)
     swing = np.zeros(3)
-    if c > -1.0 + 1e-6:  # forward carried by the rotation taking down onto f (Rodrigues, axis k, cos c)
-        swing = forward + np.cross(k, forward) + np.cross(k, np.cross(k, forward)) / (1.0 + c)
+    if c > -1.0 + 1e-6:  # forward carried by the smallest rotation taking down onto f
+        swing = np.array(turn_with(*forward.tolist(), *down.tolist(), *f.tolist()))
         swing = NEUTRAL_STRAIGHT_WEIGHT * min(1.0 + c, 1.0) * (swing - float(swing @ f) * f)  # faded overhead
     u = np.asarray(p_e, dtype=float) - np.asarray(p_s, dtype=float)
     bent = -(u - float(u @ f) * f) / float(np.linalg.norm(u)) if np.all(np.isfinite(u)) and np.linalg.norm(u) > 1e-6 \
