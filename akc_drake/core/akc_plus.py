@@ -3,7 +3,7 @@
 The paper's AKC (:mod:`akc_drake.core.akc`) replaces the elbow and shoulder depths of every frame by one of
 four Pythagorean candidates, even when the camera measured those depths well; on real motion that makes
 well-seen joints worse than the filter it corrects. AKC+ was designed on a design half of real motion-capture
-clips (README, "Real motion"; the other half held out) and differs from the paper as follows.
+clips (docs/results.md, "Real motion"; the other half held out) and differs from the paper as follows.
 
 **With the filter's covariance** (``correct(pose, measured, variance)``, the filter's posterior variance of
 each coordinate; the evaluation always gives it), "trustworthy" is a statistical test, not a distance in cm:

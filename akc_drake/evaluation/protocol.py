@@ -13,7 +13,7 @@ S4 COIK                       cold start each frame, 10 iterations,         warm
 ============================  ============================================  =========================================
 
 Why each ``ours`` change: each measured alone on top of ``paper`` (rendered bench, 5 cycles, seed 7, left shoulder z
-RMSE in cm, Motion I / II; ``paper``: KF 44.8 / 40.3, per-joint EKF 6.0 / 6.0, AKC(KF) 5.9 / 5.3; README "Two
+RMSE in cm, Motion I / II; ``paper``: KF 44.8 / 40.3, per-joint EKF 6.0 / 6.0, AKC(KF) 5.9 / 5.3; docs/results.md, "Two
 protocols"):
 
 * the depth offset: EKF 3.0 / 2.7, AKC(KF) 2.9 / 2.0 -- the camera reads the body's surface, 4-5 cm in front of

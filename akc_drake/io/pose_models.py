@@ -32,7 +32,7 @@ from akc_drake.errors import UserError
 POSE_MODELS = ("lite", "full", "heavy")
 #: The model used when none is named: ``AKC_DRAKE_POSE_MODEL`` (a name or a path), else this. The heavy model keeps
 #: the visible elbow on its pixel when the upper arm points at the camera (the full model puts it 16-23 px up the
-#: forearm there: README, "The skinned operator and MediaPipe").
+#: forearm there: docs/skinned_operator.md).
 DEFAULT_POSE_MODEL = "heavy"
 #: The model used in place of the default when the default's file is not installed (with one warning line).
 FALLBACK_POSE_MODEL = "full"
