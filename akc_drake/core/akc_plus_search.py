@@ -114,49 +114,23 @@ class CandidateSearch:
         inv_t2, t_cap = self._inv_t2, self._t_cap
         if prev_p is not None:
             qx, qy, qz = prev_p
-        if inv_w2 is None and len(cands) == 2:
-            # The two Pythagorean candidates without the wrist's term (most calls): the loop below and the
-            # shortcut after it, unrolled, with the same operations in the same order (x = 0.0).
-            (ax, ay, az), (bx, by, bz) = cands
-            dx, dy, dz = ax - fx, ay - fy, az - fz
-            j0 = (dx * dx + dy * dy + dz * dz) * inv_f2
-            dx, dy, dz = bx - fx, by - fy, bz - fz
-            j1 = (dx * dx + dy * dy + dz * dz) * inv_f2
+        # Each candidate's terms without the penalty: j (filter, temporal) and x (the wrist's), low = j + x.
+        js, xs, lows = [], [], []
+        for px, py, pz in cands:
+            dx, dy, dz = px - fx, py - fy, pz - fz
+            j = (dx * dx + dy * dy + dz * dz) * inv_f2
             if prev_p is not None:
-                dx, dy, dz = ax - qx, ay - qy, az - qz
+                dx, dy, dz = px - qx, py - qy, pz - qz
                 t = (dx * dx + dy * dy + dz * dz) * inv_t2
-                j0 += t_cap if t_cap < t else t
-                dx, dy, dz = bx - qx, by - qy, bz - qz
-                t = (dx * dx + dy * dy + dz * dz) * inv_t2
-                j1 += t_cap if t_cap < t else t
-            low0, low1 = j0 + 0.0, j1 + 0.0
-            if low1 < low0:
-                high = j1 + (0.0 + BACKWARDS)
-                if high < low0:
-                    return cands[1] if high < _inf else None
+                j += t_cap if t_cap < t else t  # (min(t, t_cap), NaN included)
+            if inv_w2 is None:
+                x = 0.0
             else:
-                high = j0 + (0.0 + BACKWARDS)
-                if high < low1:
-                    return cands[0] if high < _inf else None
-            js, xs, lows = [j0, j1], [0.0, 0.0], [low0, low1]
-        else:
-            # Each candidate's terms without the penalty: j (filter, temporal) and x (the wrist's), low = j + x.
-            js, xs, lows = [], [], []
-            for px, py, pz in cands:
-                dx, dy, dz = px - fx, py - fy, pz - fz
-                j = (dx * dx + dy * dy + dz * dz) * inv_f2
-                if prev_p is not None:
-                    dx, dy, dz = px - qx, py - qy, pz - qz
-                    t = (dx * dx + dy * dy + dz * dz) * inv_t2
-                    j += t_cap if t_cap < t else t  # (min(t, t_cap), NaN included)
-                if inv_w2 is None:
-                    x = 0.0
-                else:
-                    x = _hypot(px - w[0], py - w[1], pz - w[2]) - lf
-                    x = x * x * inv_w2
-                js.append(j)
-                xs.append(x)
-                lows.append(j + x)
+                x = _hypot(px - w[0], py - w[1], pz - w[2]) - lf
+                x = x * x * inv_w2
+            js.append(j)
+            xs.append(x)
+            lows.append(j + x)
         # Bounds on each cost j + (x + penalty) (rounding is monotone): j + x <= cost <= j + (x + BACKWARDS).
         n = len(lows)
         b = 0
