@@ -7,7 +7,6 @@ from akc_drake.core.arm_geometry import (
     bends_backwards,
     circle_point,
     elbow_angle_deg,
-    project_lengths,
     signed_elbow_angle_deg,
     torso_axes,
     turn_with,
@@ -53,47 +52,6 @@ def test_signed_elbow_angle():
 def _arm():
     s, e, w = np.array([0.18, 0.0, 2.0]), np.array([0.25, 0.25, 1.9]), np.array([0.3, 0.1, 1.7])
     return s, e, w, float(np.linalg.norm(s - e)), float(np.linalg.norm(e - w))
-
-
-def test_project_lengths_keeps_an_exact_arm_and_moves_the_uncertain_depth():
-    s, e, w, lu, lf = _arm()
-    f = [*s, *e, *w]
-    var = [1e-4, 1e-4, 2.5e-3] * 3
-    arm, chi2 = project_lengths(f, var, lu, lf, 1e-4, gate=11.8)
-    np.testing.assert_allclose(arm, f, atol=1e-12)
-    assert chi2 == pytest.approx(0.0, abs=1e-20)
-    # The elbow 2 cm off in depth, the only uncertain coordinate: the projection moves its depth back,
-    # x, y (100x surer) barely, the exact lengths hold.
-    g = list(f)
-    g[5] += 0.02
-    var = [1e-8] * 9
-    var[5] = 2.5e-3
-    arm, chi2 = project_lengths(g, var, lu, lf, 1e-4, gate=11.8)
-    a = np.array(arm).reshape(3, 3)
-    assert np.linalg.norm(a[0] - a[1]) == pytest.approx(lu, abs=1e-12)
-    assert np.linalg.norm(a[1] - a[2]) == pytest.approx(lf, abs=1e-12)
-    np.testing.assert_allclose(a[[0, 2]], [s, w], atol=1e-6)
-    assert abs(a[1, 2] - e[2]) < 2e-3 and np.abs(a[1, :2] - e[:2]).max() < 1e-4
-    assert chi2 > 0.0
-
-
-def test_project_lengths_chi2_gate_and_impossible_arms():
-    s, e, w, lu, lf = _arm()
-    g = [*s, *e, *w]
-    g[5] -= 0.20  # 20 cm: far outside the variances
-    var = [1e-4, 1e-4, 2.5e-3] * 3
-    arm, chi2 = project_lengths(g, var, lu, lf, 1e-4, gate=11.8)
-    assert arm is None and chi2 > 11.8
-    arm, _ = project_lengths(g, var, lu, lf, 1e-4)  # no gate: projected
-    a = np.array(arm).reshape(3, 3)
-    assert np.linalg.norm(a[0] - a[1]) == pytest.approx(lu, abs=1e-12)
-    far = [*s, *e, *(w + [1.0, 0, 0])]  # the wrist 1 m away: every joint moves, lengths still exact (or None)
-    arm, _ = project_lengths(far, [1e-4] * 9, lu, lf)
-    if arm is not None:
-        a = np.array(arm).reshape(3, 3)
-        assert np.linalg.norm(a[1] - a[2]) == pytest.approx(lf, abs=1e-12)
-    assert project_lengths([*s, *s, *w], [1e-4] * 9, lu, lf)[0] is None  # a zero-length upper arm
-    assert project_lengths([float("nan")] * 9, var, lu, lf, gate=11.8)[0] is None
 
 
 def test_circle_point_is_at_both_lengths_and_nearest():

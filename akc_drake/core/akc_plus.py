@@ -33,7 +33,7 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   for a segment near the image plane, plus the risk of choosing the mirror candidate under the filter's
   depth variance), and the arm passes the chi2 test against the calibrated lengths
   (``length_sigma_m``), the output is the arm nearest the filter's in its covariance metric with the exact
-  lengths (:func:`~akc_drake.core.arm_geometry.project_lengths`): the joint the filter is least sure of moves,
+  lengths (:func:`~akc_drake.core.akc_plus_lengths.project_arm`): the joint the filter is least sure of moves,
   mostly in depth. The metric adds each landmark's offset from its joint centre (isotropic, ``length_sigma_m^2
   / 2`` per axis: what makes a measured segment's length differ from the calibrated one), so that a length
   mismatch of a segment near the image plane is shared with the x, y instead of becoming a depth error several
@@ -456,7 +456,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
             # with the precise x, y instead of going wholly into the depth of the joint the filter is least sure
             # of (a segment near the image plane turned 1-2 cm of length into 5-10 cm of a seen shoulder's depth).
             # The chi2 test uses the same model (the offsets stand for the calibration's variance).
-            # (project_arm adds the offsets' variance to each of vs: project_lengths' arm, unrolled.)
+            # (project_arm adds the offsets' variance to each of vs.)
             arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var)
             if arm is not None:
                 return arm

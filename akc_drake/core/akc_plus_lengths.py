@@ -1,18 +1,19 @@
-"""AKC+'s length projections, written out for its two calls (plain floats, bit-identical to the general one).
+"""AKC+'s projections of an arm onto the exact lengths (plain floats, unrolled: they run on most frames).
 
-:func:`~akc_drake.core.arm_geometry.project_lengths` (two steps of sequential quadratic programming, then the
-elbow on the exact circle between the shoulder and the wrist) as AKC+ runs it on most frames, unrolled with
-the circle inlined: the operations are the same, in the same order, so the arms are bit-identical; only the
-loop, the branches on the step number and the calls are gone (about a third of its time). ``offset_var`` (AKC+'s
-landmark offsets) is added to each variance here, as the caller's ``[x + offset_var for x in var]`` would.
-
-* :func:`project_arm`: both depths known, the whole arm in the filter's metric with the chi2 gate (the arm of
-  ``project_lengths(f, var, lu, lf, length_var, gate)``).
+* :func:`project_arm`: both depths known, the whole arm nearest the filter's in its covariance metric (the
+  maximum a posteriori arm under the filter's Gaussian and exact lengths) after a chi2 test against the
+  calibrated lengths.
 * :func:`project_forearm`: a kept shoulder (its variances zero, no calibration variance, no gate): the terms
-  the zero variances cancel are not computed either (the arm of ``project_lengths(f, (0, 0, 0, *v_ew), lu,
-  lf)``). AKC+ runs it on the frames where a lost elbow cannot close the arm at its image x, y from a kept
-  shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of some clips.
+  the zero variances cancel are not computed (the arm of ``project_arm(f, (0, 0, 0, *v_ew), lu, lf, 0.0,
+  inf)``, bit-identical). AKC+ runs it on the frames where a lost elbow cannot close the arm at its image x, y
+  from a kept shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of some clips.
 * :func:`circle_pair`: ``circle_point`` for the two Pythagorean elbow candidates, the circle computed once.
+
+Both projections take two steps of sequential quadratic programming (fewer once the lengths are met to
+0.01 mm) written out, with :func:`~akc_drake.core.arm_geometry.circle_point` inlined: a loop over the steps,
+its branches on the step number and the calls cost about a third of the time (measured before and after the
+module was compiled). ``offset_var`` (AKC+'s landmark offsets) is added to each variance here, as the caller's
+``[x + offset_var for x in var]`` would.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import math
 _hypot = math.hypot
 _sqrt = math.sqrt
 _inf = math.inf
-#: A segment shorter than this (m) has no direction (as in ``project_lengths``).
+#: A segment shorter than this (m) has no direction.
 _MIN_SEGMENT_M = 1e-12
 
 
@@ -51,10 +52,22 @@ def _circle(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
 
 
 def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
-    """The arm nearest ``f`` in the metric of variances ``var`` with the exact lengths ``lu`` and ``lf``.
+    """The arm nearest ``f`` in the filter's metric whose segments have exactly the lengths ``lu`` and ``lf``.
 
-    The arm of :func:`~akc_drake.core.arm_geometry.project_lengths` with two steps (see there: the chi2 test of
-    the filter's arm against the calibrated lengths first, then the steps, then the circle), bit-identical.
+    Minimises ``sum (p - f)^2 / var`` over the nine coordinates (shoulder, elbow, wrist) subject to
+    ``|s - e| = lu`` and ``|e - w| = lf``: the maximum a posteriori arm under the filter's Gaussian (a diagonal
+    covariance per axis) and exact lengths. The nearly noise-free axes (x, y) then barely move and the
+    correction goes to the uncertain depths, in proportion to their variances. Two steps of sequential
+    quadratic programming (the constraints linearised at the current point; the second skipped once the
+    lengths are met to 0.01 mm), then the elbow is put on the exact circle between the shoulder and the wrist.
+    Two steps approximate the minimum: on 3,684 of AKC+'s calls (10 clips, simulated and MediaPipe detectors,
+    KF and EKF) the arm is within 0.01 mm of the constrained minimum in the median, more than 1 cm from it on
+    0.9 %; iterating to convergence moved the 10-clip summaries (worst increase over the filter, lost-joint and
+    pooled arm z) by at most 0.02 cm (2026-11-25).
+
+    Before any step, ``chi2 = g^T (J V J^T + length_var I)^-1 g`` of the length residuals ``g`` tests whether
+    the filter's arm is consistent with the calibrated lengths (2 degrees of freedom; ``length_var`` is the
+    calibration's variance): above ``gate`` nothing is projected.
 
     Args:
         f: nine floats, the filter's shoulder, elbow and wrist.
@@ -65,7 +78,8 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
         offset_var: added to each variance (AKC+'s landmark offsets), as ``[x + offset_var for x in var]``.
 
     Returns:
-        The arm (nine floats), or None when chi2 > gate or no arm with these lengths exists near ``f``.
+        The arm (nine floats), or None when chi2 > gate (or is NaN) or no arm with these lengths exists near
+        ``f`` (the shoulder-wrist distance out of reach, a zero-length segment, a singular step).
     """
     fsx, fsy, fsz, fex, fey, fez, fwx, fwy, fwz = f
     vsx, vsy, vsz, vex, vey, vez, vwx, vwy, vwz = var
@@ -130,7 +144,7 @@ def project_forearm(s, f, v, lu, lf, offset_var=0.0):
     """The elbow and wrist nearest ``f`` in the metric of variances ``v`` with ``|s - e| = lu``, ``|e - w| = lf``.
 
     Two steps of sequential quadratic programming (fewer once the lengths are met to 0.01 mm), then the elbow
-    on the exact circle between the shoulder and the wrist, as ``project_lengths``.
+    on the exact circle between the shoulder and the wrist, as :func:`project_arm`.
 
     Args:
         s: the kept shoulder (x, y, z).
