@@ -64,9 +64,9 @@ def _local_map_arm(f, var, lu, lf, start):
 
 def test_arm_projection_approximates_the_map_arm_with_exact_lengths():
     # Arms a filter produces (segments within 5 mm of the lengths, x, y known to 3-10 mm, depths to 3-10 cm),
-    # against a general constrained solver started from the projection: two steps and the circle are at its
-    # minimum to ~0.003 mm in the median; the worst of 60 is 4.7 mm away (the steps stop before converging:
-    # iterating to convergence moves the 10-clip summaries by at most 0.02 cm, see project_arm).
+    # against a general constrained solver started from the projection: two steps and the circle are at its minimum
+    # to 0.003 mm in the median; the worst of these 60 is 1.5 mm away (4.7 mm of 200) (the steps stop before
+    # converging: iterating to convergence moves the 10-clip summaries by at most 0.02 cm, see project_arm).
     rng = random.Random(5)
     lu, lf = 0.29, 0.26
     away = []

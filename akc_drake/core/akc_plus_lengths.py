@@ -9,11 +9,11 @@
   from a kept shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of some clips.
 * :func:`circle_pair`: ``circle_point`` for the two Pythagorean elbow candidates, the circle computed once.
 
-Both projections take two steps of sequential quadratic programming (fewer once the lengths are met to
-0.01 mm) written out, with :func:`~akc_drake.core.arm_geometry.circle_point` inlined: a loop over the steps,
-its branches on the step number and the calls cost about a third of the time (measured before and after the
-module was compiled). ``offset_var`` (AKC+'s landmark offsets) is added to each variance here, as the caller's
-``[x + offset_var for x in var]`` would.
+Both projections take two steps of sequential quadratic programming (fewer once the lengths are met to 0.01 mm)
+written out, with :func:`~akc_drake.core.arm_geometry.circle_point` inlined: a loop over the steps, its branches on
+the step number and the calls cost about a third of the projection's time as source, and compiled still 0.8-1.0 us
+of AKC+'s ~18.7 us per frame (2026-11-25). ``offset_var`` (AKC+'s landmark offsets) is added to each variance here,
+as the caller's ``[x + offset_var for x in var]`` would.
 """
 
 from __future__ import annotations
@@ -60,10 +60,10 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
     correction goes to the uncertain depths, in proportion to their variances. Two steps of sequential
     quadratic programming (the constraints linearised at the current point; the second skipped once the
     lengths are met to 0.01 mm), then the elbow is put on the exact circle between the shoulder and the wrist.
-    Two steps approximate the minimum: on 3,684 of AKC+'s calls (10 clips, simulated and MediaPipe detectors,
-    KF and EKF) the arm is within 0.01 mm of the constrained minimum in the median, more than 1 cm from it on
-    0.9 %; iterating to convergence moved the 10-clip summaries (worst increase over the filter, lost-joint and
-    pooled arm z) by at most 0.02 cm (2026-11-25).
+    Two steps approximate the minimum: on a sample of 3,684 of AKC+'s calls (10 clips, simulated and MediaPipe
+    detectors, KF and EKF) the arm is within 0.01 mm of the constrained minimum in the median, more than 1 cm from
+    it on 0.9 %; iterating to convergence moved the 10-clip summaries (worst increase over the filter, lost-joint
+    and pooled arm z) by at most 0.02 cm (2026-11-25).
 
     Before any step, ``chi2 = g^T (J V J^T + length_var I)^-1 g`` of the length residuals ``g`` tests whether
     the filter's arm is consistent with the calibrated lengths (2 degrees of freedom; ``length_var`` is the
