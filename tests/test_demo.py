@@ -75,6 +75,8 @@ def _synthetic_run(n=30, period=0.1, h=0.01, corrector="AKC(KF)") -> teleop.Tele
         ik_steps={"left": 301, "right": 301},
         ik_failures={"left": 2, "right": 5},
         ik_failure_kinds={"stuck": 6, "no solution": 1},
+        ik_relaxed={"left": 4, "right": 0},
+        ik_joint_space={"left": 10, "right": 20},
         error_t={s: (np.arange(n) + 1) * period - h for s in teleop.SIDES},
         errors=errors,
         frame_t=(np.arange(n) + 1) * period - h,
@@ -109,6 +111,7 @@ def test_run_metrics_on_known_numbers():
         math.degrees(0.2))
     assert m["ik_failures"] == 7 and m["ik_steps"] == 602
     assert m["ik_failure_kinds"] == {"stuck": 6, "no solution": 1}
+    assert m["ik_orientation_relaxed"] == 4 and m["ik_joint_space_steps"] == 30
     assert m["position_limit_hits"] == 3 and m["velocity_limit_hits"] == 4
     assert m["realtime_factor"] == pytest.approx(2.0)
     assert m["tracking_lost_share"] == pytest.approx(0.1)

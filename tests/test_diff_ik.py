@@ -154,6 +154,27 @@ def test_unreachable_target_respects_velocity_and_position_limits(ik_plants):
     np.testing.assert_allclose(v[1:], np.diff(q, axis=0) / IK_DT, atol=1e-9)
 
 
+def test_leaving_home_for_a_target_beside_the_robot_takes_a_joint_space_move(ik_plants):
+    # The demo's first target for the right arm (the operator in a T-pose, MediaPipe, seed 0): from the home pose
+    # the differential IK's straight line runs into a joint limit and both IKs are stuck (they reach it after 1.2 s).
+    side = "right"
+    X = RigidTransform(RollPitchYaw(0.03, 0.85, 0.17), [0.25, -0.88, 0.03])
+    stuck = IKRig(ik_plants[side], side, joint_space_approach=False)
+    assert pose_error(stuck.run(X, 0.6), X)[0] > 0.4
+    rig = IKRig(ik_plants[side], side)
+    assert rig.ik.approach is not None and not rig.ik.approaching(rig.context)
+    rig.run(X, 0.4)
+    assert rig.ik.approaching(rig.context)
+    dist, angle = pose_error(rig.run(X, 0.8), X)
+    assert dist < 0.01 and angle < np.radians(2.0), (dist, angle)
+    assert not rig.ik.approaching(rig.context)  # arrived: the differential IK again
+    q = rig.q()
+    lower, upper, vel = arm_joint_limits(side)
+    assert np.all(np.abs(np.diff(q, axis=0)) / IK_DT <= vel * (1 + 1e-9))
+    assert np.all(q >= lower + DEFAULT_POSITION_LIMIT_MARGIN - 1e-12)
+    assert np.all(q <= upper - DEFAULT_POSITION_LIMIT_MARGIN + 1e-12)
+
+
 def test_invalid_target_holds_then_recovers(ik_plants):
     side = "left"
     rig = IKRig(ik_plants[side], side)

@@ -61,6 +61,10 @@ def test_one_second_of_teleop_commands_no_nan(akc_run):
     assert run.ik_steps == {"left": 101, "right": 101}
     assert 0 <= run.ik_failures["left"] <= 101 and 0 <= run.ik_failures["right"] <= 101
     assert sum(run.ik_failure_kinds.values()) == run.ik_failures["left"] + run.ik_failures["right"]
+    # A step is a failure, driven by the position-only IK, by the joint-space move, or a full-pose solution.
+    for side in teleop.SIDES:
+        assert run.ik_failures[side] + run.ik_relaxed[side] + run.ik_joint_space[side] <= 101
+    assert all(arm.approach is not None for arm in td.ik.values())
     # The commanded joints stayed within the joint guard's limits: speed ratio <= 1 (plus the QP's tolerance).
     assert 0.0 < run.max_speed_ratio <= 1.0 + 1e-6
     for side in teleop.SIDES:

@@ -41,6 +41,7 @@ from pydrake.systems.primitives import AffineSystem, ConstantValueSource, Consta
 
 from akc_drake.robot.ik_fallback_selector import IKFallbackSelector
 from akc_drake.robot.joint_command_guard import JointCommandGuard
+from akc_drake.robot.joint_space_approach import JointSpaceApproach
 from akc_drake.robot.model import (
     HEAD_JOINTS,
     NOMINAL_ARM_Q,
@@ -198,6 +199,8 @@ class ArmDifferentialIK:
         integrator: Drake's DifferentialInverseKinematicsIntegrator (the full pose).
         fallback: the position-only integrator used when the full-pose one is stuck
             (:class:`IKFallbackSelector`); None without it.
+        approach: the :class:`JointSpaceApproach` that moves the joints to a solved pose while the IK is stuck
+            far from its target; None without it.
         pose_guard: the :class:`PoseTargetGuard` in front of it.
         command_guard: the :class:`JointCommandGuard` after it.
         X_TE_desired_input: the input port for the desired end-effector pose (AbstractValue RigidTransform,
@@ -217,6 +220,7 @@ class ArmDifferentialIK:
     q_commanded_output: OutputPort
     v_commanded_output: OutputPort
     fallback: DifferentialInverseKinematicsIntegrator | None = None
+    approach: JointSpaceApproach | None = None
 
     def status(self, root_context: Context) -> DifferentialInverseKinematicsStatus:
         """The full-pose integrator's most recent status (solution found, no solution, stuck)."""
@@ -229,6 +233,10 @@ class ArmDifferentialIK:
             return None
         ctx = self.fallback.GetMyContextFromRoot(root_context)
         return DifferentialInverseKinematicsStatus(int(ctx.get_discrete_state(1).get_value()[0]))
+
+    def approaching(self, root_context: Context) -> bool:
+        """Whether the command is the joint-space move to a solved pose (False without the approach)."""
+        return self.approach is not None and self.approach.approaching(self.approach.GetMyContextFromRoot(root_context))
 
     def held_count(self, root_context: Context) -> int:
         """How many IK periods the command guard held the command because the IK output was not finite."""
@@ -250,6 +258,7 @@ def AddArmDifferentialIK(
     parameters: DifferentialInverseKinematicsParameters | None = None,
     workspace_radii: tuple[float, float] = DEFAULT_WORKSPACE_RADII,
     position_fallback: bool = True,
+    joint_space_approach: bool = True,
     **parameter_kwargs,
 ) -> ArmDifferentialIK:
     """Add differential IK for one arm: target guard -> Drake's integrator -> command guard.
@@ -274,6 +283,8 @@ def AddArmDifferentialIK(
             outside are moved onto it (see :class:`PoseTargetGuard`).
         position_fallback: add the position-only integrator used when the full-pose IK is stuck
             (:class:`IKFallbackSelector`).
+        joint_space_approach: add the :class:`JointSpaceApproach`: when both are stuck far from the target, the
+            pose is solved by (global) inverse kinematics and the joints move straight to it.
         **parameter_kwargs: passed to :func:`arm_ik_parameters`.
 
     Returns:
@@ -344,9 +355,19 @@ def AddArmDifferentialIK(
         chooser.set_name(f"{side}_arm_ik_fallback")
         builder.Connect(integrator.GetOutputPort("joint_positions"), chooser.GetInputPort("q_full"))
         builder.Connect(fallback.GetOutputPort("joint_positions"), chooser.GetInputPort("q_position"))
-        builder.Connect(chooser.get_output_port(), select.get_input_port())
+        ik_q = chooser.get_output_port()
     else:
-        builder.Connect(integrator.GetOutputPort("joint_positions"), select.get_input_port())
+        ik_q = integrator.GetOutputPort("joint_positions")
+    approach = None
+    if joint_space_approach:
+        q_lo_all, q_hi_all = (np.asarray(b, dtype=float) for b in parameters.get_joint_position_limits())
+        v_max = np.asarray(parameters.get_joint_velocity_limits()[1], dtype=float)
+        approach = builder.AddSystem(JointSpaceApproach(plant_for_ik, side, time_step, q_lo_all, q_hi_all, v_max))
+        approach.set_name(f"{side}_arm_joint_space_approach")
+        builder.Connect(ik_q, approach.GetInputPort("q_ik"))
+        builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), approach.GetInputPort("X_AE_desired"))
+        ik_q = approach.get_output_port()
+    builder.Connect(ik_q, select.get_input_port())
     builder.Connect(select.get_output_port(), command_guard.GetInputPort("q"))
     builder.Connect(command_guard.GetOutputPort("q_commanded"), expand.get_input_port())
     builder.Connect(expand.get_output_port(), integrator.GetInputPort("robot_state"))
@@ -369,4 +390,5 @@ def AddArmDifferentialIK(
         q_commanded_output=command_guard.GetOutputPort("q_commanded"),
         v_commanded_output=command_guard.GetOutputPort("v_commanded"),
         fallback=fallback,
+        approach=approach,
     )

@@ -143,6 +143,7 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "ik_failures": int(sum(sum(r.ik_failures.values()) for r in runs)),
         "ik_failure_kinds": _sum_dicts(r.ik_failure_kinds for r in runs),
         "ik_orientation_relaxed": int(sum(sum(r.ik_relaxed.values()) for r in runs)),
+        "ik_joint_space_steps": int(sum(sum(r.ik_joint_space.values()) for r in runs)),
         "ik_failure_share": _share(
             sum(sum(r.ik_failures.values()) for r in runs), sum(sum(r.ik_steps.values()) for r in runs)
         ),

@@ -201,13 +201,13 @@ def format_table(summary: dict) -> str:
 def control_frame_lines(summary: dict) -> list[str]:
     """The control-frame figures per corrector (both motions): the target against the operator's true mapped
     wrist, jitter relative to the operator's, the smoothing's added latency, workspace clips, IK failures and
-    position-only IK steps, midline crossings."""
+    position-only and joint-space IK steps, midline crossings."""
     out = [
         "Control frames, both motions: target vs the operator's true mapped wrist (median/p95 cm; unsmoothed "
         "median, constant offset), jitter "
         "relative to the operator's (angular, linear), smoothing latency of positions (and rotations) in ms, "
         "clipped to the workspace (%), "
-        "IK steps failed (%) / position-only, midline crossings"
+        "IK steps failed (%) / position-only / joint-space move, midline crossings"
     ]
     for c, m in summary["correctors"].items():
         if "target_operator_error_cm" not in m:
@@ -234,6 +234,7 @@ def control_frame_lines(summary: dict) -> list[str]:
             f" ang, x{ratio('linear_m_s', 'left')}/x{ratio('linear_m_s', 'right')} lin   latency "
             f"{_lr(lat, '.0f')} ms (rotation {_lr(rlat, '.0f')})   clipped {_lr(pct, '.0f')} %   IK failed "
             f"{_fmt(None if share is None else 100 * share, '.2f')} % / {m.get('ik_orientation_relaxed', 0)} "
-            f"position-only   midline {cross.get('left', 0)}/{cross.get('right', 0)}"
+            f"position-only / {m.get('ik_joint_space_steps', 0)} joint-space   "
+            f"midline {cross.get('left', 0)}/{cross.get('right', 0)}"
         )
     return out

@@ -185,6 +185,8 @@ class IKStatusCounter:
             solution (the command is held).
         relaxed: per side, updates where the full-pose IK was stuck and the position-only fallback moved the
             arm (the orientation is then left to the joint centering).
+        joint_space: per side, updates where the joint-space move to a solved pose drove the arm (both IKs
+            stuck far from the target: :class:`~akc_drake.robot.joint_space_approach.JointSpaceApproach`).
         kinds: per status name ("no solution", "stuck"), updates with it (both arms).
     """
 
@@ -204,6 +206,7 @@ class IKStatusCounter:
         self.failures = dict.fromkeys(ik, 0)
         self.kinds: dict[str, int] = {}
         self.relaxed = dict.fromkeys(ik, 0)
+        self.joint_space = dict.fromkeys(ik, 0)
 
     def __call__(self, root_context):
         from pydrake.systems.framework import EventStatus
@@ -218,6 +221,10 @@ class IKStatusCounter:
                 continue
             self._last[side] = j
             self.steps[side] += 1
+            if hasattr(arm, "approaching") and arm.approaching(root_context):
+                # The joint-space move drives the arm (whatever the differential IKs report): not a failure.
+                self.joint_space[side] += 1
+                continue
             status = arm.status(root_context)
             if status == self._ok:
                 continue
@@ -253,6 +260,7 @@ class TeleopRun:
         nan_commands, position_limit_hits, velocity_limit_hits, max_speed_ratio: from the monitor.
         tracking_lost_share: share of IK-period samples with either side's tracking lost.
         ik_steps, ik_failures: per side (:class:`IKStatusCounter`); ik_failure_kinds: per status.
+        ik_relaxed, ik_joint_space: per side, IK steps the position-only fallback, the joint-space move drove.
         error_t, errors: per side, the monitor's target-to-achieved distances (m) and their times.
         frame_t: ``(frames,)`` per-frame sample times.
         target: per side ``(frames, 4, 4)`` X_TE_desired (NaN where no sample).
@@ -288,6 +296,7 @@ class TeleopRun:
     dropout: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     clipped: dict = field(default_factory=dict)
     ik_relaxed: dict = field(default_factory=dict)
+    ik_joint_space: dict = field(default_factory=dict)
     box_pose: np.ndarray | None = None
     box_contacts: tuple = ()
     gripper_closed: np.ndarray | None = None
@@ -546,6 +555,7 @@ def run_teleop(
         ik_failures=dict(counter.failures),
         ik_failure_kinds=dict(counter.kinds),
         ik_relaxed=dict(counter.relaxed),
+        ik_joint_space=dict(counter.joint_space),
         box_pose=_box_pose(td, sim),
         box_contacts=_box_contacts(td, sim),
         gripper_closed=None
