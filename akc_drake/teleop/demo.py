@@ -400,8 +400,10 @@ def _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, ren
             "jitter": "RMS angular (rad/s) and linear (m/s) speed of X_TE_desired between camera frames, "
             "after settling",
             "nan_commands": "IK-period samples with a non-finite joint command, all runs of the demo",
-            "ik_failures": "differential-IK steps (100 Hz per arm) whose status was not 'solution found' "
-            "('no solution' or 'stuck'; the command is held), all runs of the demo",
+            "ik_failures": "differential-IK steps (100 Hz per arm) where neither the full-pose IK nor its "
+            "position-only fallback found a solution ('no solution' or 'stuck') and no joint-space move drove the "
+            "arm (the command is held), all runs of the demo; ik_orientation_relaxed and ik_joint_space_steps "
+            "count the steps the fallback and the joint-space move drove",
             "limit_hits": "IK-period samples with a joint command within 1e-3 rad of a position limit "
             "(position_limit_hits) or a step at >= 97% of a velocity limit (velocity_limit_hits)",
             "realtime_factor": f"{MAIN_CORRECTOR} with the camera rendered in the diagram (S1-S5, robot): "

@@ -182,7 +182,7 @@ class IKStatusCounter:
     Attributes:
         steps: per side, IK updates seen.
         failures: per side, updates where neither the full-pose IK nor its position-only fallback found a
-            solution (the command is held).
+            solution and no joint-space move drove the arm (the command is held).
         relaxed: per side, updates where the full-pose IK was stuck and the position-only fallback moved the
             arm (the orientation is then left to the joint centering).
         joint_space: per side, updates where the joint-space move to a solved pose drove the arm (both IKs
