@@ -299,7 +299,9 @@ def AddArmDifferentialIK(
         raise ValueError("AddArmDifferentialIK: give either parameters or parameter keyword arguments")
     nq = plant_for_ik.num_positions()
     idx = arm_position_indices(plant_for_ik, side)
-    q_lo, q_hi = (np.asarray(b)[idx] for b in parameters.get_joint_position_limits())
+    # The IK's position bounds of every plant position (the joint-space move's), and of the arm's (the guard's).
+    q_lo_all, q_hi_all = (np.asarray(b, dtype=float) for b in parameters.get_joint_position_limits())
+    q_lo, q_hi = q_lo_all[idx], q_hi_all[idx]
 
     integrator = builder.AddSystem(
         DifferentialInverseKinematicsIntegrator(
@@ -360,7 +362,6 @@ def AddArmDifferentialIK(
         ik_q = integrator.GetOutputPort("joint_positions")
     approach = None
     if joint_space_approach:
-        q_lo_all, q_hi_all = (np.asarray(b, dtype=float) for b in parameters.get_joint_position_limits())
         v_max = np.asarray(parameters.get_joint_velocity_limits()[1], dtype=float)
         approach = builder.AddSystem(JointSpaceApproach(plant_for_ik, side, time_step, q_lo_all, q_hi_all, v_max))
         approach.set_name(f"{side}_arm_joint_space_approach")

@@ -101,21 +101,10 @@ class JointSpaceApproach(LeafSystem):
         super().__init__()
         check_side(side)
         nq = plant.num_positions()
-        self._lo, self._hi, self._v = (np.array(a, dtype=float).reshape(-1) for a in (q_lower, q_upper, v_max))
-        for name, a in (("q_lower", self._lo), ("q_upper", self._hi), ("v_max", self._v)):
-            if a.shape != (nq,) or not np.all(np.isfinite(a)):
-                raise ValueError(f"JointSpaceApproach: {name} must be {nq} finite numbers, got shape {a.shape}")
-        if np.any(self._lo > self._hi) or np.any(self._v < 0.0):
-            raise ValueError("JointSpaceApproach: need q_lower <= q_upper and v_max >= 0")
-        for name, v, low in (("time_step", time_step, 0), ("min_error_m", min_error_m, 0), ("replan_m", replan_m, 0),
-                             ("accel_time_s", accel_time_s, 0), ("position_tol_m", position_tol_m, 0),
-                             ("min_progress_m", min_progress_m, None)):
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and (v > 0.0 if low == 0 else v >= 0.0)):
-                raise ValueError(f"JointSpaceApproach: {name} must be a {'positive' if low == 0 else 'non-negative'} "
-                                 f"number, got {v!r}")
-        if not all(isinstance(v, int) and v >= 1 for v in (stuck_steps, cooldown_steps)):
-            raise ValueError(f"JointSpaceApproach: stuck_steps and cooldown_steps must be positive integers, got "
-                             f"{stuck_steps!r}, {cooldown_steps!r}")
+        self._lo, self._hi, self._v = _check_bounds(nq, q_lower, q_upper, v_max)
+        _check_settings(time_step=time_step, min_error_m=min_error_m, replan_m=replan_m, accel_time_s=accel_time_s,
+                        position_tol_m=position_tol_m, min_progress_m=min_progress_m, stuck_steps=stuck_steps,
+                        cooldown_steps=cooldown_steps)
         self._plant, self._ctx = plant, plant.CreateDefaultContext()
         self._E, self._T = ee_frame(plant, side), torso_frame(plant)
         self._h, self._nq, self._stuck_steps, self._cool = float(time_step), nq, stuck_steps, cooldown_steps
@@ -185,6 +174,30 @@ class JointSpaceApproach(LeafSystem):
                         s[_COOL] = float(self._cool)
             prev[:] = tool
         discrete_state.get_mutable_vector(self._state).SetFromVector(s)
+
+
+def _check_bounds(nq, q_lower, q_upper, v_max):
+    """The bounds and velocity limits as float arrays of ``nq``; ValueError unless finite, ordered, v_max >= 0."""
+    lo, hi, v = (np.array(a, dtype=float).reshape(-1) for a in (q_lower, q_upper, v_max))
+    for name, a in (("q_lower", lo), ("q_upper", hi), ("v_max", v)):
+        if a.shape != (nq,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"JointSpaceApproach: {name} must be {nq} finite numbers, got shape {a.shape}")
+    if np.any(lo > hi) or np.any(v < 0.0):
+        raise ValueError("JointSpaceApproach: need q_lower <= q_upper and v_max >= 0")
+    return lo, hi, v
+
+
+def _check_settings(*, min_progress_m, stuck_steps, cooldown_steps, **positive) -> None:
+    """ValueError unless each of ``positive`` is a positive number, ``min_progress_m`` a non-negative one and the
+    step counts positive integers."""
+    for name, v in positive.items():
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0.0):
+            raise ValueError(f"JointSpaceApproach: {name} must be a positive number, got {v!r}")
+    if not (isinstance(min_progress_m, (int, float)) and math.isfinite(min_progress_m) and min_progress_m >= 0.0):
+        raise ValueError(f"JointSpaceApproach: min_progress_m must be a non-negative number, got {min_progress_m!r}")
+    for name, v in (("stuck_steps", stuck_steps), ("cooldown_steps", cooldown_steps)):
+        if not (isinstance(v, int) and v >= 1):
+            raise ValueError(f"JointSpaceApproach: {name} must be a positive integer, got {v!r}")
 
 
 def solve_arm_pose(plant, frame_E, frame_T, X_target, q_start, q_lower, q_upper, v_max, position_tol_m):
