@@ -72,6 +72,14 @@ def _seed(text: str) -> int:
     return value
 
 
+def _add_joint_names(p) -> None:
+    """``--joint-names``: the roles a motion file names differently (evaluate, record, run)."""
+    p.add_argument("--joint-names", metavar="MAP",
+                   help="the motion file's joints for roles the usual names miss: role=joint[,role=joint...] or a "
+                        "JSON file (roles: left_shoulder, left_elbow, left_wrist, right_..., hips; BVH, CMU, "
+                        "Blender, Unreal, Kinect and Motive names are found without it)")
+
+
 def _add_seed(p: argparse.ArgumentParser, what: str = "the motion variation, detector and depth noise") -> None:
     p.add_argument("--seed", type=_seed, default=0, metavar="S", help=f"random seed of {what}")
 
@@ -151,6 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--motion", default="both", choices=("I", "II", "both"), help="the paper's motion(s)")
     p.add_argument("--motion-file", metavar="FILE", help="a BVH file, or an AMC file with --skeleton")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
+    _add_joint_names(p)
     p.add_argument("--cycles", type=int, default=30, metavar="N", help="motion cycles of 6 s each")
     _add_seed(p)
     p.add_argument("--methods", default=None, help="comma-separated, from: " + ", ".join(METHODS)
@@ -195,6 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("record", help="render (or capture) a session into a recording folder")
     p.add_argument("--motion", default="II", help="I | II | tpose | lpose | FILE.bvh | FILE.amc")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
+    _add_joint_names(p)
     p.add_argument("--source", default="sim", help="sim | realsense | bag:FILE (default: sim)")
     p.add_argument("--cycles", type=int, default=1, metavar="N", help="motion cycles of 6 s each (--source sim)")
     _add_seed(p)
@@ -207,6 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--motion", default="II",
                    help="motion for --source sim: I | II | tpose | lpose | FILE.bvh | FILE.amc")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC --motion file")
+    _add_joint_names(p)
     p.add_argument("--cycles", type=int, default=1, metavar="N", help="motion cycles of 6 s each (--source sim)")
     _add_seed(p)
     p.add_argument("--filter", default="KF", choices=("none", "KF", "EKF"), help="the landmark filter")

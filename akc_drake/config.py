@@ -73,6 +73,8 @@ class PipelineConfig:
         source: ``sim`` (rendered operator) or ``recording:DIR`` / ``bag:FILE`` / ``realsense`` / ``video:FILE``.
         motion: for ``sim``: ``I``, ``II``, ``tpose``, ``lpose`` or a BVH/AMC file path.
         skeleton: the ASF file for an AMC motion.
+        joint_names: the motion file's joint-name map (role -> joint, e.g. ``{"left_shoulder": "upper_arm.L"}``;
+            :func:`~akc_drake.operator.retarget.find_arm_joints`); empty: the names it finds.
         cycles: motion cycles (6 s each).
         seed: seed of the motion variation, detector and depth noise.
         camera: the simulated camera.
@@ -98,6 +100,7 @@ class PipelineConfig:
     source: str = "sim"
     motion: str = "II"
     skeleton: str = ""
+    joint_names: dict[str, str] = field(default_factory=dict)
     cycles: int = 1
     seed: int = 0
     camera: CameraConfig = field(default_factory=CameraConfig)

@@ -163,7 +163,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
             from akc_drake.operator.retarget import motion_from_spec
 
             motion = motion_from_spec(cfg.motion, cycles=cfg.cycles, seed=cfg.seed, skeleton=cfg.skeleton or None,
-                                      rate_hz=cfg.camera.rate_hz)
+                                      rate_hz=cfg.camera.rate_hz, names=cfg.joint_names or None)
         intrinsics, placement, noise = sim_camera(cfg)
         # Render only the images the detector looks at (the simulated detector needs depth only).
         needs_color, needs_label = images_needed(detector)

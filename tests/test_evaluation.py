@@ -481,6 +481,44 @@ def test_evaluate_cli_end_to_end(tmp_path, capsys):
     assert (out / "figures" / "arm_length_II.png").is_file()
 
 
+def test_evaluate_cli_joint_names(tmp_path, capsys):
+    """A file whose joints the aliases do not find: one line naming them, then --joint-names maps them."""
+    pytest.importorskip("akc_drake.systems.depth_camera_source", reason="renderer not installed yet")
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).parent / "data" / "mocap" / "upper_body.bvh").read_text()
+    for old, new in (("LeftArm", "ShoulderL"), ("RightArm", "ShoulderR"), ("LeftShoulder", "ClavL"),
+                     ("RightShoulder", "ClavR")):
+        text = re.sub(rf"JOINT {old}\b", f"JOINT {new}", text)
+    bvh = tmp_path / "renamed.bvh"
+    bvh.write_text(text)
+    base = ["evaluate", "--motion-file", str(bvh), "--width", "160", "--height", "120", "--methods", "Raw,KF"]
+    assert cli_main(base) == 2
+    err = capsys.readouterr().err
+    assert "no joint for left_shoulder" in err and "ShoulderL" in err and "Traceback" not in err
+    for bad, message in (("left_shoulder:ShoulderL", "is not role=joint"), ("left_knee=ShoulderL", "unknown role"),
+                         ("left_shoulder=Nope", "'Nope'"), (str(tmp_path / "none.json"), "cannot read")):
+        assert cli_main([*base, "--joint-names", bad]) == 2
+        assert message in capsys.readouterr().err
+    assert cli_main(["evaluate", "--joint-names", "left_shoulder=ShoulderL"]) == 2
+    assert "--motion-file" in capsys.readouterr().err
+    names = tmp_path / "names.json"
+    names.write_text(json.dumps({"left_shoulder": "ShoulderL", "right_shoulder": "ShoulderR"}))
+    js = tmp_path / "renamed.json"
+    assert cli_main([*base, "--joint-names", str(names), "--json", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    assert doc["config"]["joint_names"] == {"left_shoulder": "ShoulderL", "right_shoulder": "ShoulderR"}
+    # The same motion as the original file's, so the same raw errors.
+    orig = tmp_path / "orig.json"
+    argv = ["evaluate", "--motion-file", str(Path(__file__).parent / "data" / "mocap" / "upper_body.bvh"),
+            "--width", "160", "--height", "120", "--methods", "Raw,KF", "--json", str(orig)]
+    assert cli_main(argv) == 0
+    a = {(r["motion"], r["method"], r["joint"]): r["rmse_cm"] for r in doc["results"]}
+    b = {(r["motion"], r["method"], r["joint"]): r["rmse_cm"] for r in json.loads(orig.read_text())["results"]}
+    assert list(a.values()) == list(b.values()) and len(a) == 2 * len(ARM_JOINTS)
+
+
 def test_evaluate_cli_motion_file(tmp_path, capsys):
     pytest.importorskip("akc_drake.systems.depth_camera_source", reason="renderer not installed yet")
     from pathlib import Path

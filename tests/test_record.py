@@ -69,6 +69,7 @@ def test_record_refuses_to_overwrite_and_keeps_what_is_there(tmp_path, capsys):
         (["--motion", "I", "--seconds", "3"], "--seconds applies to live or bag sources"),
         (["--motion", "missing/file.bvh"], "motion file not found"),
         (["--motion", "I", "--source", "webcam"], "unknown source"),
+        (["--motion", "I", "--joint-names", "left_knee=LeftUpLeg"], "unknown role"),
     ],
 )
 def test_bad_options_exit_2_with_a_clear_message(tmp_path, capsys, argv, message):

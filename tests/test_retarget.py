@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +19,11 @@ from akc_drake.operator.model import NEUTRAL_FOREARM_ROLL, arm_forward_kinematic
 from akc_drake.operator.motions import OperatorMotion
 from akc_drake.operator.retarget import (
     arm_directions_from_positions,
+    auto_up_axis,
     find_arm_joints,
     load_motion_file,
+    motion_from_spec,
+    parse_joint_names,
     resample_directions,
     retarget_motion,
     retarget_positions,
@@ -231,6 +236,86 @@ def test_joint_aliases():
     assert find_arm_joints(cmu)["left_wrist"] == "lwrist"
 
 
+@pytest.mark.parametrize(
+    "convention",
+    [
+        # Blender / Rigify: the clavicle is "shoulder.L", the side after a dot.
+        {"LeftShoulder": "shoulder.L", "LeftArm": "upper_arm.L", "LeftForeArm": "forearm.L", "LeftHand": "hand.L",
+         "RightShoulder": "shoulder.R", "RightArm": "upper_arm.R", "RightForeArm": "forearm.R",
+         "RightHand": "hand.R", "LeftUpLeg": "thigh.L", "RightUpLeg": "thigh.R"},
+        # Unreal's mannequin.
+        {"LeftShoulder": "clavicle_l", "LeftArm": "upperarm_l", "LeftForeArm": "lowerarm_l", "LeftHand": "hand_l",
+         "RightShoulder": "clavicle_r", "RightArm": "upperarm_r", "RightForeArm": "lowerarm_r",
+         "RightHand": "hand_r", "LeftUpLeg": "thigh_l", "RightUpLeg": "thigh_r", "Hips": "pelvis"},
+        # Bandai Namco's motion dataset: "Shoulder_L" is the clavicle there too.
+        {"LeftShoulder": "Shoulder_L", "LeftArm": "UpperArm_L", "LeftForeArm": "LowerArm_L", "LeftHand": "Hand_L",
+         "RightShoulder": "Shoulder_R", "RightArm": "UpperArm_R", "RightForeArm": "LowerArm_R",
+         "RightHand": "Hand_R"},
+        # Kinect: joints named by the joint, the side spelled out last (no clavicle).
+        {"LeftShoulder": "SpineShoulderL", "LeftArm": "ShoulderLeft", "LeftForeArm": "ElbowLeft",
+         "LeftHand": "WristLeft", "RightShoulder": "SpineShoulderR", "RightArm": "ShoulderRight",
+         "RightForeArm": "ElbowRight", "RightHand": "WristRight", "LeftUpLeg": "HipLeft", "RightUpLeg": "HipRight"},
+        # OptiTrack Motive's segments, namespaced by the skeleton.
+        {"LeftShoulder": "Sk1:LShoulder", "LeftArm": "Sk1:LUArm", "LeftForeArm": "Sk1:LFArm", "LeftHand": "Sk1:LHand",
+         "RightShoulder": "Sk1:RShoulder", "RightArm": "Sk1:RUArm", "RightForeArm": "Sk1:RFArm",
+         "RightHand": "Sk1:RHand"},
+    ],
+    ids=["blender", "unreal", "bandai", "kinect", "motive"],
+)
+def test_joint_names_with_the_side_last_or_abbreviated(convention):
+    """Rigs that name the side after the part, or abbreviate the segments, need no name map."""
+    m = read_bvh(BVH)
+    renamed = [convention.get(n, n) for n in m.joint_names]
+    d = arm_directions_from_positions(m.global_positions(), renamed)
+    for role, joint in (("left_shoulder", "LeftArm"), ("left_elbow", "LeftForeArm"), ("left_wrist", "LeftHand"),
+                        ("right_shoulder", "RightArm"), ("right_elbow", "RightForeArm"),
+                        ("right_wrist", "RightHand")):
+        assert d.joints[role] == convention[joint]
+    if "LeftUpLeg" in convention:
+        assert d.joints["left_hip"] == convention["LeftUpLeg"]
+    _check_expected(d, 5)
+    # Kinect's skeleton has a hand joint beyond the wrist: the wrist is still the wrist.
+    kinect = ["SpineBase", "ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft", "ShoulderRight", "ElbowRight",
+              "WristRight", "HandRight"]
+    assert find_arm_joints(kinect)["left_wrist"] == "WristLeft"
+    # Twist bones and numbered copies are not the joints.
+    ue = ["pelvis", "upperarm_twist_01_l", "upperarm_l", "lowerarm_twist_01_l", "lowerarm_l", "hand_l",
+          "upperarm_r", "lowerarm_r", "hand_r", "index_01_l", "pinky_01_r"]
+    j = find_arm_joints(ue)
+    assert (j["left_shoulder"], j["left_elbow"]) == ("upperarm_l", "lowerarm_l")
+    assert (j["left_index"], j["right_pinky"]) == ("index_01_l", "pinky_01_r")
+
+
+def test_parse_joint_names(tmp_path):
+    both = {"left_shoulder": "upper_arm.L", "right_shoulder": "upper_arm.R"}
+    assert parse_joint_names(" left_shoulder=upper_arm.L, right_shoulder = upper_arm.R ,") == both
+    f = tmp_path / "names.json"
+    f.write_text(json.dumps(both))
+    assert parse_joint_names(str(f)) == both
+    for bad, message in (("left_shoulder", "is not role=joint"), ("=x", "is not role=joint"), (" , ", "empty"),
+                         ("left_knee=x", "unknown role")):
+        with pytest.raises(UserError, match=message):
+            parse_joint_names(bad)
+    for content, message in (("[1, 2]", "JSON object"), ("{", "not valid JSON"), ('{"left_shoulder": 3}', "object")):
+        f.write_text(content)
+        with pytest.raises(UserError, match=message):
+            parse_joint_names(str(f))
+    with pytest.raises(UserError, match="cannot read"):
+        parse_joint_names(str(tmp_path / "missing.json"))
+    # motion_from_spec takes the map for a file (the record and run commands' --joint-names).
+    text = BVH.read_text()
+    for old, new in (("LeftArm", "ShL"), ("RightArm", "ShR"), ("LeftShoulder", "ClL"), ("RightShoulder", "ClR")):
+        text = re.sub(rf"JOINT {old}\b", f"JOINT {new}", text)
+    renamed = tmp_path / "renamed.bvh"
+    renamed.write_text(text)
+    with pytest.raises(UserError, match="no joint for left_shoulder"):
+        motion_from_spec(str(renamed))
+    m = motion_from_spec(str(renamed), names={"left_shoulder": "ShL", "right_shoulder": "ShR"})
+    ref = motion_from_spec(str(BVH))
+    np.testing.assert_array_equal(m.q_left, ref.q_left)
+    np.testing.assert_array_equal(m.q_right, ref.q_right)
+
+
 def test_name_map_and_missing_joints(tmp_path):
     m = read_bvh(BVH)
     rename = {
@@ -271,6 +356,23 @@ def test_up_axis_is_configurable():
     np.testing.assert_allclose(d_neg.fore["left"][2], [0, 0, -1], atol=1e-12)
     with pytest.raises(UserError, match="up axis"):
         arm_directions_from_positions(P, m.joint_names, up="w")
+
+
+def test_up_axis_auto_finds_a_z_up_or_upside_down_export():
+    """The default up axis is the file's axis nearest the torso: a Z-up export needs no option."""
+    m = read_bvh(BVH)
+    P = m.global_positions()
+    R = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])  # y -> z
+    _check_expected(arm_directions_from_positions(Pz := P @ R.T, m.joint_names), 5)
+    spine = m.joint_names.index("Spine")
+    assert auto_up_axis(Pz[:, spine] - Pz[:, m.joint_names.index("Hips")] + 1e-3) == "z"
+    # y -> -z (a file whose "down" is +z): still the person's up.
+    _check_expected(arm_directions_from_positions(P @ (R @ R @ R).T, m.joint_names), 5)
+    # With the file's Y named explicitly, the Z-up data is read as a person lying down (here a degenerate frame).
+    with pytest.raises(UserError, match="shoulder line"):
+        arm_directions_from_positions(Pz, m.joint_names, up="y")
+    assert auto_up_axis(np.array([[0.1, 0.9, 0.2], [0.0, 0.8, -0.3]])) == "y"
+    assert auto_up_axis(np.array([[0.2, -0.1, -0.97]])) == "-z"
 
 
 def test_torso_up_follows_a_leaning_person():

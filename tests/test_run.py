@@ -298,6 +298,25 @@ def test_run_reads_a_config_and_dims(tmp_path):
     assert s["frames"] == 3 and "corrector" not in s["latency_ms"]
 
 
+def test_run_a_motion_file_with_a_joint_name_map(tmp_path, capsys):
+    """``--joint-names`` maps a file's joints the aliases miss; its JSON config keeps the map."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).parent / "data" / "mocap" / "upper_body.bvh").read_text()
+    for old, new in (("LeftArm", "ShL"), ("RightArm", "ShR"), ("LeftShoulder", "ClL"), ("RightShoulder", "ClR")):
+        text = re.sub(rf"JOINT {old}\b", f"JOINT {new}", text)
+    bvh = tmp_path / "renamed.bvh"
+    bvh.write_text(text)
+    argv = ["run", "--source", "sim", "--motion", str(bvh), "--seconds", "0.3"]
+    assert cli.main(argv) == 2
+    assert "no joint for left_shoulder" in capsys.readouterr().err
+    out = tmp_path / "r.json"
+    assert cli.main([*argv, "--joint-names", "left_shoulder=ShL,right_shoulder=ShR", "--json", str(out)]) == 0
+    s = json.loads(out.read_text())
+    assert s["frames"] >= 1 and s["config"]["joint_names"] == {"left_shoulder": "ShL", "right_shoulder": "ShR"}
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [

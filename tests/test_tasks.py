@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 
@@ -62,6 +63,8 @@ def reference(tmp_path_factory):
 def test_plain_round_trips(reference):
     cfg, _, ev = reference
     assert config_from_plain(json.loads(json.dumps(config_to_plain(cfg)))) == cfg
+    named = dataclasses.replace(cfg, motion_file="walk.bvh", joint_names={"left_shoulder": "upper_arm.L"})
+    assert config_from_plain(json.loads(json.dumps(config_to_plain(named)))) == named
     s = ev.runs["I"].session
     back = session_from_plain(session_to_plain(s))
     assert back.motion == "I" and back.intrinsics == s.intrinsics

@@ -13,6 +13,19 @@ from pathlib import Path
 from akc_drake.errors import UserError
 
 
+def _joint_names(args) -> dict | None:
+    """``--joint-names`` parsed (None when not given); only with ``--motion-file``."""
+    text = getattr(args, "joint_names", None)
+    if text is None:
+        return None
+    if not getattr(args, "motion_file", None):
+        raise UserError("--joint-names: names the joints of a --motion-file (a --motion-dir clip's are in its "
+                        "mocap_sources.json, key \"names\")")
+    from akc_drake.operator.retarget import parse_joint_names
+
+    return parse_joint_names(text)
+
+
 def _motion_file_options(args) -> tuple[str | None, str | None]:
     mf, sk = getattr(args, "motion_file", None), getattr(args, "skeleton", None)
     if mf is None:
@@ -69,6 +82,7 @@ def build_config(args):
             height=getattr(args, "height", 480),
             motion_file=motion_file,
             skeleton=skeleton,
+            joint_names=_joint_names(args),
             body=getattr(args, "body", "primitive"),
             detector="mediapipe" if getattr(args, "detector", "sim") == "both" else getattr(args, "detector", "sim"),
             protocol=getattr(args, "protocol", "paper"),
@@ -136,7 +150,7 @@ def _rig_clips(args) -> list | None:
         from akc_drake.operator.rig_drive import read_clip
 
         read_clip(mf, sk)  # a clip the rig cannot take is one line before the calibration renders
-        return [{"name": Path(mf).stem, "path": mf, "skeleton": sk, "window_s": None, "names": None}]
+        return [{"name": Path(mf).stem, "path": mf, "skeleton": sk, "window_s": None, "names": _joint_names(args)}]
     if not getattr(args, "motion_dir", None):
         raise UserError("--drive rig: give the CMU clip, --motion-file CLIP (or --motion-dir DIR)")
     return None
@@ -217,7 +231,7 @@ def main(args) -> int:
         # Read the motion file now: a bad file is reported in one line before the calibration renders.
         from akc_drake.operator.retarget import load_motion_file
 
-        load_motion_file(config.motion_file, config.skeleton)
+        load_motion_file(config.motion_file, config.skeleton, names=config.joint_names)
     from akc_drake.evaluation.executor import check_scheduler
 
     scheduler = check_scheduler(getattr(args, "scheduler", "local"))

@@ -46,14 +46,15 @@ def _record_sim(args, out: Path) -> int:
 
     from akc_drake.core.camera import CameraIntrinsics
     from akc_drake.io.recording import RecordingWriter
-    from akc_drake.operator.retarget import motion_from_spec
+    from akc_drake.operator.retarget import motion_from_spec, parse_joint_names
     from akc_drake.systems.depth_camera_source import render_session
 
     if args.seconds is not None:
         raise UserError("--seconds applies to live or bag sources; for --source sim use --cycles")
     intrinsics = CameraIntrinsics()
     motion = motion_from_spec(
-        args.motion, cycles=args.cycles, seed=args.seed, skeleton=args.skeleton, rate_hz=intrinsics.rate_hz
+        args.motion, cycles=args.cycles, seed=args.seed, skeleton=args.skeleton, rate_hz=intrinsics.rate_hz,
+        names=parse_joint_names(args.joint_names) if args.joint_names else None,
     )
     n = len(motion.frame_times(intrinsics.rate_hz))
     t0 = time.perf_counter()

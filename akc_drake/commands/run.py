@@ -48,6 +48,10 @@ def _config(args):
             setattr(cfg, name, value)
     if getattr(args, "skeleton", None):
         cfg.skeleton = args.skeleton
+    if getattr(args, "joint_names", None):
+        from akc_drake.operator.retarget import parse_joint_names
+
+        cfg.joint_names = parse_joint_names(args.joint_names)
     return cfg.validate()
 
 

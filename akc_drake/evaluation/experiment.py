@@ -67,6 +67,8 @@ class ExperimentConfig:
         rate_hz: camera rate.
         calibration_frames: frames of the held T-pose / L-pose (the paper: 100).
         motion_file, skeleton: a BVH (or AMC + ASF) recording driving the operator instead of Motion I/II.
+        joint_names: the motion file's joint-name map (role -> joint; :func:`~akc_drake.operator.retarget.
+            find_arm_joints`), or None for the names it finds.
         exclude_first_cycle: leave the first cycle out of the metrics (the paper's protocol).
         weight_study: also run Table VII (AKC(KF) with Wa, Wb, Wc).
         calibration_study: also run Tables VIII-IX (AKC(KF) with each calibration; renders the L-pose).
@@ -89,6 +91,7 @@ class ExperimentConfig:
     calibration_frames: int = 100
     motion_file: str | None = None
     skeleton: str | None = None
+    joint_names: dict | None = None
     exclude_first_cycle: bool = True
     weight_study: bool = True
     calibration_study: bool = True
@@ -382,6 +385,7 @@ class Evaluation:
             "height": cfg.height,
             "motion_file": cfg.motion_file,
             "skeleton": cfg.skeleton,
+            "joint_names": dict(cfg.joint_names) if cfg.joint_names else None,
             "calibration": "tpose",
             "calibration_frames": cfg.calibration_frames,
             "excluded_cycles": 1 if cfg.exclude_first_cycle else 0,

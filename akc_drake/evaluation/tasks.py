@@ -66,6 +66,8 @@ def _is_plain_value(v) -> bool:
         return True
     if isinstance(v, (list, tuple)):
         return all(_is_plain_value(x) for x in v)
+    if isinstance(v, dict):
+        return all(isinstance(k, str) and _is_plain_value(x) for k, x in v.items())
     return False
 
 
@@ -168,7 +170,8 @@ def session_specs(config) -> dict[str, dict]:
     if config.motion_file:
         name = config.motion_names[0]
         specs[name] = render_spec(
-            name, {"kind": "file", "path": config.motion_file, "skeleton": config.skeleton}, **common
+            name, {"kind": "file", "path": config.motion_file, "skeleton": config.skeleton,
+                   **({"names": dict(config.joint_names)} if config.joint_names else {})}, **common
         )
     else:
         for name in config.motions:

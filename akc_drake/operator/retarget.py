@@ -5,9 +5,11 @@ file is the *direction* of each upper arm and forearm, expressed in the person's
 (x forward = the way the person faces, y = the person's left, z up):
 
 1. Find the shoulder, elbow and wrist joints of each side by name (aliases cover the usual BVH
-   exporters and the CMU skeleton; an explicit ``names`` map overrides them).
-2. Build O in each frame: z is the file's up axis (Y for BVH and CMU data; or, with ``up=None``, the
-   hips-to-shoulders direction of the torso), y is the right-to-left shoulder line made perpendicular
+   exporters and the CMU skeleton, with the side first or last: "LeftArm", "lShldr", "upper_arm.L",
+   "upperarm_l", "ElbowLeft"; an explicit ``names`` map overrides them).
+2. Build O in each frame: z is the file's up axis (by default the file's axis nearest the clip's mean
+   hips-to-shoulders direction: Y for BVH and CMU data, Z for a Z-up export; or, with ``up=None``, each
+   frame's hips-to-shoulders direction), y is the right-to-left shoulder line made perpendicular
    to z, and ``x = y x z``.
 3. Express the unit directions shoulder->elbow and elbow->wrist in O, resample them to the camera rate
    by linear interpolation (renormalised), and turn them into joint angles with
@@ -60,6 +62,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "{s}uparm",
         "{s}shldr",
         "{s}humerus",
+        "{s}uarm",
         "{s}shoulder",
         "{S}shoulder",
     ),
@@ -71,12 +74,13 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "{s}lowerarm",
         "{s}lowarm",
         "{s}radius",
+        "{s}farm",
         "{s}elbow",
         "{S}elbow",
     ),
     "wrist": ("{S}hand", "{s}wrist", "{S}wrist", "{s}hand"),
     "hip": ("{S}upleg", "{S}upperleg", "{S}thigh", "{s}thigh", "{s}femur", "{s}upleg", "{s}hip", "{S}hip"),
-    "index": ("{S}handindex1", "{S}index1", "{s}index1", "{s}handindex1", "{S}indexproximal"),
+    "index": ("{S}handindex1", "{S}index1", "{s}index1", "{s}handindex1", "{S}indexproximal", "{S}index01"),
     "pinky": (
         "{S}handpinky1",
         "{S}pinky1",
@@ -84,6 +88,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
         "{s}handpinky1",
         "{S}littleproximal",
         "{S}pinkyproximal",
+        "{S}pinky01",
     ),
 }
 _PREFIXES = ("bip001", "bip01", "mixamorig")
@@ -104,6 +109,40 @@ def _normalise(name: str) -> str:
 def _aliases(role: str) -> list[str]:
     side, part = role.split("_")
     return [a.format(S=side, s=side[0]) for a in _ALIASES[part]]
+
+
+#: Side words a joint name may end with, as a token of its own ("upper_arm.L", "UpperArm_L") or, spelled out,
+#: at the end of a word ("ElbowLeft").
+_SIDE_TOKENS = {"l": "left", "left": "left", "r": "right", "right": "right"}
+
+
+def _side_last(name: str) -> tuple[str, str] | None:
+    """``(side, part)`` of a name whose side comes last, the part normalised as :func:`_normalise` does, or None.
+
+    Blender and Rigify ("upper_arm.L", "forearm.L", "hand.L"), Unreal ("upperarm_l", "lowerarm_l", "hand_l"),
+    Bandai Namco's dataset ("UpperArm_L") and Kinect ("ElbowLeft") put the side after the part.
+    """
+    tokens = [t for t in re.split(r"[^A-Za-z0-9]+", name.rsplit(":", 1)[-1]) if t]
+    if len(tokens) >= 2 and tokens[-1].lower() in _SIDE_TOKENS:
+        return _SIDE_TOKENS[tokens[-1].lower()], _normalise("".join(tokens[:-1]))
+    n = _normalise(name)
+    for word in ("left", "right"):
+        if n.endswith(word) and len(n) > len(word):
+            return word, n[: -len(word)]
+    return None
+
+
+def _side_last_aliases(role: str) -> list[str]:
+    """The part names of ``role`` without their side, best first (from the same aliases; a "wrist" before a
+    "hand": Kinect's skeleton has both, the hand's joint at its centre)."""
+    part = role.split("_")[1]
+    out: list[str] = ["wrist"] if part == "wrist" else []
+    for a in _ALIASES[part]:
+        if a.startswith("{S}") or a.startswith("{s}"):
+            p = a[3:]
+            if p and p not in out:
+                out.append(p)
+    return out
 
 
 def find_arm_joints(
@@ -134,6 +173,7 @@ def find_arm_joints(
     normal: dict[str, list[str]] = {}
     for n in joint_names:
         normal.setdefault(_normalise(n), []).append(n)
+    side_last = [(n, sp) for n in joint_names if (sp := _side_last(n)) is not None]
     out: dict[str, str | None] = {}
     for role in ROLES:
         if role in names:
@@ -153,6 +193,14 @@ def find_arm_joints(
             if alias in normal:
                 found = normal[alias][0]
                 break
+        if found is None:
+            # The side after the part ("upper_arm.L", "upperarm_l", "ElbowLeft"): the same aliases, best first.
+            side = role.split("_")[0]
+            for alias in _side_last_aliases(role):
+                hits = [n for n, sp in side_last if sp == (side, alias)]
+                if hits:
+                    found = hits[0]
+                    break
         if found is None:
             # Namespaced or prefixed names ("Character1_LeftArm"): a unique suffix match.
             for alias in _aliases(role):
@@ -189,6 +237,15 @@ def _up_vector(up) -> np.ndarray:
     if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-9:
         raise UserError(f"up axis must be x, y, z (optionally signed), a 3-vector or None, got {up!r}")
     return v / np.linalg.norm(v)
+
+
+def auto_up_axis(torso) -> str:
+    """The file's signed axis ("y", "-z", ...) nearest the mean of ``torso`` ``(F, 3)``, the unit hips-to-shoulders
+    directions: the up axis of a clip of a person who is mostly upright, whatever the exporter's convention (BVH
+    is Y-up by convention, but Blender, 3ds Max and MotionBuilder write Z-up files too)."""
+    m = np.nanmean(np.asarray(torso, dtype=float).reshape(-1, 3), axis=0)
+    k = int(np.argmax(np.abs(m)))
+    return ("-" if m[k] < 0 else "") + "xyz"[k]
 
 
 @dataclass
@@ -228,7 +285,7 @@ def arm_directions_from_positions(
     joint_names,
     *,
     names: dict | None = None,
-    up="y",
+    up="auto",
     source: str = "motion",
 ) -> ArmDirections:
     """Upper-arm and forearm directions in the operator frame O from global joint positions.
@@ -237,7 +294,8 @@ def arm_directions_from_positions(
         positions: ``(F, J, 3)`` global positions of the joints (any length unit).
         joint_names: the J names.
         names: optional role -> joint name map (see :func:`find_arm_joints`).
-        up: the file's up axis ("y", "-z", a 3-vector, ...), or None to use the torso's
+        up: the file's up axis ("y", "-z", a 3-vector, ...); "auto" (the default) for the signed axis nearest
+            the clip's mean hips-to-shoulders direction (:func:`auto_up_axis`); or None to use each frame's
             hips-to-shoulders direction as z.
         source: the file name for error messages.
 
@@ -260,16 +318,19 @@ def arm_directions_from_positions(
         return P[:, index[roles[role]]]
 
     lateral = pos("left_shoulder") - pos("right_shoulder")
-    if up is None:
+
+    def torso() -> np.ndarray:
         if roles["left_hip"] and roles["right_hip"]:
             pelvis = 0.5 * (pos("left_hip") + pos("right_hip"))
         else:
             pelvis = pos("hips")
-        z = _unit(
-            0.5 * (pos("left_shoulder") + pos("right_shoulder")) - pelvis,
-            "the hips-to-shoulders line",
-            source,
-        )
+        return _unit(0.5 * (pos("left_shoulder") + pos("right_shoulder")) - pelvis, "the hips-to-shoulders line",
+                     source)
+
+    if isinstance(up, str) and up.strip().lower() == "auto":
+        up = auto_up_axis(torso())
+    if up is None:
+        z = torso()
     else:
         z = np.broadcast_to(_up_vector(up), P.shape[:1] + (3,))
     y = lateral - np.einsum("fi,fi->f", lateral, z)[:, None] * z
@@ -329,7 +390,7 @@ def retarget_positions(
     *,
     rate_hz: float = DEFAULT_RATE_HZ,
     names: dict | None = None,
-    up="y",
+    up="auto",
     name: str = "mocap",
     source: str = "motion",
 ) -> OperatorMotion:
@@ -382,7 +443,7 @@ def load_motion_file(
     rate_hz: float = DEFAULT_RATE_HZ,
     *,
     units: str = "cm",
-    up="y",
+    up="auto",
     names: dict | None = None,
     frame_rate: float = 120.0,
 ) -> OperatorMotion:
@@ -393,7 +454,8 @@ def load_motion_file(
         skeleton: the ``.asf`` skeleton of an AMC file (a path or an :class:`ASFSkeleton`).
         rate_hz: the output's sample rate (the camera's, 10 Hz by default).
         units: a BVH file's length unit (directions do not depend on it).
-        up: the file's up axis (Y-up by default, as BVH and CMU data are), or None for the torso's.
+        up: the file's up axis; "auto" (the default) takes the file's axis nearest the clip's torso (Y for BVH
+            and CMU data, which are Y-up by convention; Z for a Z-up export), None the torso's per frame.
         names: optional role -> joint name map (roles: ``left_shoulder`` ... ``right_wrist``, ``hips``).
         frame_rate: an AMC file's frame rate (CMU: 120 Hz).
 
@@ -429,7 +491,7 @@ def retarget_motion(
     *,
     rate_hz: float = DEFAULT_RATE_HZ,
     names: dict | None = None,
-    up="y",
+    up="auto",
     source: str | None = None,
 ) -> OperatorMotion:
     """Retarget a parsed BVH or AMC motion onto the operator's arms (see :func:`retarget_positions`).
@@ -438,7 +500,8 @@ def retarget_motion(
         motion: the motion; BVH joints are used at their origins, ASF bones at their proximal ends.
         rate_hz: the output's sample rate.
         names: optional role -> joint name map.
-        up: the file's up axis, or None for the torso's.
+        up: the file's up axis, "auto" (the default: the axis nearest the torso's) or None (the torso's, per
+            frame; see :func:`arm_directions_from_positions`).
         source: the file name for error messages (default: the motion's name).
 
     Returns:
@@ -465,15 +528,53 @@ def retarget_motion(
 MOTION_FILE_SUFFIXES = (".bvh", ".amc")
 
 
-def motion_from_spec(spec: str, *, cycles: int = 1, seed: int = 0, skeleton: str | None = None, rate_hz=10.0):
-    """An :class:`~akc_drake.operator.motions.OperatorMotion` from a name (I, II, tpose, lpose) or a BVH/AMC file."""
+def parse_joint_names(text: str) -> dict[str, str]:
+    """A joint-name map (role -> the file's joint) from ``--joint-names``: a JSON file holding an object, or
+    ``role=joint[,role=joint...]`` inline (roles: :data:`ROLES`).
+
+    Raises:
+        UserError: an unreadable file, not an object of strings, an entry without "=", or an unknown role.
+    """
+    text = str(text).strip()
+    if text.lower().endswith(".json"):
+        import json
+
+        try:
+            with open(text, encoding="utf-8") as f:
+                names = json.load(f)
+        except OSError as e:
+            raise UserError(f"--joint-names {text}: cannot read it ({e.strerror or e})") from None
+        except json.JSONDecodeError as e:
+            raise UserError(f"--joint-names {text}: not valid JSON ({e})") from None
+        if not isinstance(names, dict) or not all(isinstance(k, str) and isinstance(v, str)
+                                                  for k, v in names.items()):
+            raise UserError(f"--joint-names {text}: expected a JSON object of role -> joint name strings")
+    else:
+        names = {}
+        for item in filter(None, (t.strip() for t in text.split(","))):
+            role, eq, joint = item.partition("=")
+            if not eq or not role.strip() or not joint.strip():
+                raise UserError(f"--joint-names: {item!r} is not role=joint (e.g. left_shoulder=upper_arm.L)")
+            names[role.strip()] = joint.strip()
+        if not names:
+            raise UserError("--joint-names: empty; give role=joint[,role=joint...] or a JSON file")
+    unknown = [k for k in names if k not in ROLES]
+    if unknown:
+        raise UserError(f"--joint-names: unknown role(s) {', '.join(map(repr, unknown))}; known: {', '.join(ROLES)}")
+    return dict(names)
+
+
+def motion_from_spec(spec: str, *, cycles: int = 1, seed: int = 0, skeleton: str | None = None, rate_hz=10.0,
+                     names: dict | None = None):
+    """An :class:`~akc_drake.operator.motions.OperatorMotion` from a name (I, II, tpose, lpose) or a BVH/AMC file
+    (``names``: its joint-name map, :func:`find_arm_joints`; not used with a name)."""
     if str(spec).lower().endswith(MOTION_FILE_SUFFIXES) or os.sep in str(spec):
         path = Path(spec)
         if not path.is_file():
             raise UserError(f"{path}: motion file not found")
         if skeleton is not None and not Path(skeleton).is_file():
             raise UserError(f"{skeleton}: skeleton file not found")
-        return load_motion_file(path, skeleton, rate_hz=rate_hz)
+        return load_motion_file(path, skeleton, rate_hz=rate_hz, names=names or None)
     try:
         return make_motion(spec, cycles, seed)
     except ValueError as e:

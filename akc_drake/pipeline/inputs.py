@@ -91,6 +91,7 @@ def open_inputs(
                 seed=cfg.seed,
                 skeleton=skeleton or cfg.skeleton or None,
                 rate_hz=cfg.camera.rate_hz,
+                names=cfg.joint_names or None,
             )
         inputs.motion = motion
         from akc_drake.systems.depth_camera_source import make_detector

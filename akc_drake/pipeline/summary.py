@@ -78,6 +78,7 @@ def run_summary(cfg, inputs, built, result, *, teleop: bool = False, depth_m: fl
         "config": {
             "source": cfg.source,
             "motion": cfg.motion if source_kind(cfg.source) == "sim" else None,
+            "joint_names": dict(cfg.joint_names) if cfg.joint_names and source_kind(cfg.source) == "sim" else None,
             "cycles": cfg.cycles,
             "seed": cfg.seed,
             "filter": cfg.filter,
