@@ -93,6 +93,7 @@ def test_fingerprint_covers_the_renderer_not_the_evaluation():
     assert "evaluation/session.py" in files  # the stored format
     # What only reads sessions is not in it: editing a corrector or a filter keeps the renders.
     assert not files & {"core/akc.py", "core/akc_plus.py", "core/kalman.py", "evaluation/methods.py"}
+    assert "core/_compiled_sources.json" not in files  # rewritten by every rebuild of the compiled corrector
     assert not any(f.startswith("commands/") for f in files)
     assert any(f.endswith(".sdf") for f in files)  # the models
 

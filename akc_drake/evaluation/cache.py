@@ -231,8 +231,10 @@ def render_modules(entry=RENDER_ENTRY_MODULES) -> list[Path]:
 
 def fingerprint_files() -> list[Path]:
     """The package files a render can depend on: :func:`render_modules` and the package's data files (models,
-    meshes, JSON, YAML, images; not under ``evaluation/`` or ``commands/``)."""
+    meshes, JSON, YAML, images; not under ``evaluation/`` or ``commands/``, nor the build's record of the compiled
+    corrector modules, which a rebuild of AKC+ rewrites and no render reads)."""
     import akc_drake
+    from akc_drake.compiled import MANIFEST
 
     root = Path(akc_drake.__file__).resolve().parent
     skip = {"evaluation", "commands", "__pycache__"}
@@ -240,6 +242,7 @@ def fingerprint_files() -> list[Path]:
         p
         for p in sorted(root.rglob("*"))
         if p.is_file() and p.suffix in _DATA_SUFFIXES and not skip & set(p.relative_to(root).parts)
+        and p.relative_to(root) != MANIFEST
     ]
     return sorted(set(render_modules()) | set(data))
 
