@@ -61,6 +61,36 @@ def test_a_lagging_filter_yields_to_a_consistent_measurement():
     assert f[5] == 2.10 and out[5] == R_Z
 
 
+def test_a_constrained_filter_is_refit_to_the_update_its_nis_shows():
+    """``refit``: the estimate and variance of the Kalman update whose prior variance is the one the NIS shows."""
+    p0, c, r = 4e-4, 6.0, R_Z  # the filter's prior variance, the factor its true prior variance is off, R
+    x0, z = 2.0, 2.09  # the filter's prediction and this frame's measurement
+    f_post = x0 + p0 / (p0 + r) * (z - x0)  # what the filter output (its gain from the prior it assumed)
+    p_post = p0 * r / (p0 + r)
+    k = (c * p0 + r) / (p0 + r)  # the residual's variance over the filter's own R - P, in expectation
+    right = x0 + c * p0 / (c * p0 + r) * (z - x0)  # the update with the right prior variance
+    right_var = c * p0 * r / (c * p0 + r)
+    var = [1e-4] * 9
+    var[5] = p_post
+    m, v = [NAN] * 9, [0.0] * 9
+    m[5], v[5] = z, f_post
+    nis = [k] * 9
+    f = list(v)
+    out = arm_variances(SUB, var, m, v, f, nis, 0.0, 0.01, 9.0, refit=True)  # alpha 0: the mean stays at k
+    assert f[5] == pytest.approx(right, abs=1e-12) and out[5] == pytest.approx(right_var, rel=1e-9)
+    assert abs(f[5] - z) < abs(f_post - z)  # moved towards the measurement, not onto it
+    # Without refit (a plain KF), the covariance-matched variance p k is below R: the filter's estimate stays.
+    f = list(v)
+    out = arm_variances(SUB, var, m, v, f, [k] * 9, 0.0, 0.01, 9.0)
+    assert f[5] == f_post and out[5] == pytest.approx(p_post * k, rel=1e-12)
+    # A NIS of 1 or below: the filter is consistent, nothing moves; an outlier outside the gate moves nothing.
+    for nis_k, z_k in ((1.0, z), (0.5, z), (k, 3.0)):
+        f = list(v)
+        m[5] = z_k
+        arm_variances(SUB, var, m, v, f, [nis_k] * 9, 0.0, 0.01, 9.0, refit=True)
+        assert f[5] == f_post
+
+
 def test_an_extrapolated_blind_depth_is_held_at_the_last_output():
     prev = (0.1, 0.0, 2.0, 0.2, 0.2, 2.05, 0.3, 0.4, 2.0)
     vs = [1e-4] * 9

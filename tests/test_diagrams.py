@@ -85,6 +85,10 @@ def test_akc_plus_reads_the_filters_variance_in_the_diagram():
         np.testing.assert_allclose(log.corrected[k], want, rtol=0, atol=1e-12)
     L = segment_lengths(log.corrected)
     assert np.isfinite(L["LUA"]).sum() >= 9
+    # After an EKF, whose posterior holds bone-length constraints, AKC+ refits it (``constrained_filter``).
+    assert built.systems["corrector"].corrector.config.constrained_filter is False
+    ekf = diagrams.build_mocap_diagram(dataclasses.replace(cfg, filter="EKF"))
+    assert ekf.systems["corrector"].corrector.config.constrained_filter is True
 
 
 def test_coik_corrector_meets_lengths_on_success():

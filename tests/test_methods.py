@@ -39,3 +39,21 @@ def test_akc_plus_method_gets_the_filter_variance():
     np.testing.assert_array_equal(res.estimates, want)
     without, _, _ = run_akc(ArmKinematicCorrectorPlus(dims), kf_est, accepted)
     assert not np.array_equal(np.nan_to_num(without), np.nan_to_num(want))
+
+
+def test_akc_plus_after_an_ekf_refits_its_constrained_posterior():
+    """AKC+(EKF) runs with ``constrained_filter`` (the EKF's posterior holds bone lengths), AKC+(KF) without."""
+    from akc_drake.core.akc_plus_config import AKCPlusConfig
+
+    s = synthetic_session("II", cycles=1, seed=5)
+    dims = BodyDimensions.paper_participant()
+    runner = MethodRunner(s, dims)
+    res = runner.run("AKC+(EKF)")
+    ekf_est, _ = runner.filtered("EKF")
+    var = runner.filter_variance("EKF")
+    accepted, _ = runner.occlusion()
+    refit = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=True))
+    want, _, _ = run_akc(refit, ekf_est, accepted, var)
+    np.testing.assert_array_equal(res.estimates, want)
+    plain, _, _ = run_akc(ArmKinematicCorrectorPlus(dims), ekf_est, accepted, var)
+    assert not np.array_equal(np.nan_to_num(plain), np.nan_to_num(want))

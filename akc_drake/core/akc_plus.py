@@ -26,7 +26,10 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
 * *Covariance matching*: a running mean of each arm coordinate's NIS (each frame's winsorised at the gate,
   weight ``nis_alpha``) scales the filter's variance into the error variance its residuals show: a lagging
   filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
-  that passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's.
+  that passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's. After an EKF
+  (``constrained_filter``: its posterior also holds the bone lengths, which pull a seen joint off its measurement)
+  a measured coordinate whose running NIS ``k`` exceeds 1 is fused again with its measurement at the prior
+  variance the NIS shows, ``z - (z - f) / k`` (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`).
 * *Minimal change*: when both depths are known (seen; or not measured this frame and known by the filter as
   well as a measurement would know them or, dropped at most ``recent_frames`` ago, better than eq. 7-8 would
   rebuild them from their neighbours: :func:`~akc_drake.core.arm_geometry.rebuild_variance`, which is large
@@ -193,7 +196,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                  "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
-                 "_inv_tz2", "_fs_r", "_fs_k2")
+                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -235,6 +238,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         self._gate2 = config.gate_sigma**2
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
         self._nis_a, self._nis_floor, self._tol = config.nis_alpha, config.nis_floor, config.length_tol_m
+        self._refit = config.constrained_filter
         self._cons, self._xy_tol = config.consistency_m, config.xy_tol_m
         self._occ_r2 = config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
@@ -302,7 +306,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         if var is not None:
             f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
-                                               self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2)
+                                               self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2,
+                                               self._refit)
             if m is not None and m[o_s + 2] != m[o_s + 2]:
                 # A shoulder whose depth was dropped, or lost altogether (no x, y either): the filter's estimate
                 # and the shoulder held on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left

@@ -355,7 +355,7 @@ class MethodRunner:
                 accepted, _ = self.occlusion()
                 var = self.filter_variance(spec.filter)
                 est, t_cor, status = run_akc(
-                    make_akc_plus(self.dims, self.options.akc_plus_config), est, accepted, var
+                    make_akc_plus(self.dims, self.options.akc_plus_config, spec.filter), est, accepted, var
                 )
                 times["corrector"] = t_cor
             elif spec.corrector == "COIK":
@@ -391,10 +391,16 @@ def make_akc(dims: BodyDimensions, weights):
     return ArmKinematicCorrector(dims, resolve_weights(weights))
 
 
-def make_akc_plus(dims: BodyDimensions, config=None):
-    """A fresh ``ArmKinematicCorrectorPlus`` (AKC+)."""
-    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+def make_akc_plus(dims: BodyDimensions, config=None, filter_kind: str | None = None):
+    """A fresh ``ArmKinematicCorrectorPlus`` (AKC+); ``filter_kind`` ("KF" | "EKF") sets the config's
+    ``constrained_filter`` (the EKFs' posteriors hold bone-length constraints)."""
+    import dataclasses
 
+    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+    from akc_drake.core.akc_plus_config import AKCPlusConfig
+
+    if filter_kind is not None:
+        config = dataclasses.replace(config or AKCPlusConfig(), constrained_filter=filter_kind == "EKF")
     return ArmKinematicCorrectorPlus(dims, config)
 
 
