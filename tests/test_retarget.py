@@ -372,6 +372,13 @@ def test_up_axis_auto_finds_a_z_up_or_upside_down_export():
     with pytest.raises(UserError, match="shoulder line"):
         arm_directions_from_positions(Pz, m.joint_names, up="y")
     assert auto_up_axis(np.array([[0.1, 0.9, 0.2], [0.0, 0.8, -0.3]])) == "y"
+    # No torso to go by (the hips' joints at the shoulders): the BVH convention, Y, and no error.
+    names = m.joint_names
+    flat = P.copy()
+    for hip, shoulder in (("LeftUpLeg", "LeftArm"), ("RightUpLeg", "RightArm")):
+        flat[:, names.index(hip)] = P[:, names.index(shoulder)]
+    auto, y = arm_directions_from_positions(flat, names), arm_directions_from_positions(flat, names, up="y")
+    np.testing.assert_array_equal(auto.upper["left"], y.upper["left"])
     assert auto_up_axis(np.array([[0.2, -0.1, -0.97]])) == "-z"
 
 

@@ -319,18 +319,18 @@ def arm_directions_from_positions(
 
     lateral = pos("left_shoulder") - pos("right_shoulder")
 
-    def torso() -> np.ndarray:
-        if roles["left_hip"] and roles["right_hip"]:
-            pelvis = 0.5 * (pos("left_hip") + pos("right_hip"))
-        else:
-            pelvis = pos("hips")
-        return _unit(0.5 * (pos("left_shoulder") + pos("right_shoulder")) - pelvis, "the hips-to-shoulders line",
-                     source)
-
+    if roles["left_hip"] and roles["right_hip"]:
+        pelvis = 0.5 * (pos("left_hip") + pos("right_hip"))
+    else:
+        pelvis = pos("hips")
+    torso = 0.5 * (pos("left_shoulder") + pos("right_shoulder")) - pelvis
     if isinstance(up, str) and up.strip().lower() == "auto":
-        up = auto_up_axis(torso())
+        n = np.linalg.norm(torso, axis=1)
+        ok = np.isfinite(n) & (n > 1e-9)
+        # (No frame with a torso, e.g. the hips' joint at the shoulders: the BVH convention, Y.)
+        up = auto_up_axis(torso[ok] / n[ok, None]) if ok.any() else "y"
     if up is None:
-        z = torso()
+        z = _unit(torso, "the hips-to-shoulders line", source)
     else:
         z = np.broadcast_to(_up_vector(up), P.shape[:1] + (3,))
     y = lateral - np.einsum("fi,fi->f", lateral, z)[:, None] * z
