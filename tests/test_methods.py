@@ -1,8 +1,10 @@
 """The method runner's plumbing of the filter's covariance into AKC+ (evaluation/methods.py)."""
 
 import numpy as np
+import pytest
 
 from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.kalman import ConstantVelocityKF
 from akc_drake.core.skeleton import BodyDimensions
 from akc_drake.evaluation.methods import MethodRunner, run_akc, run_filter
@@ -26,34 +28,21 @@ def test_run_filter_records_the_posterior_variance_of_every_step():
     assert dt.shape == (s.num_frames,)
 
 
-def test_akc_plus_method_gets_the_filter_variance():
-    s = synthetic_session("I", cycles=1, seed=4)
+@pytest.mark.parametrize("filt, refit", [("KF", False), ("EKF", True)])
+def test_akc_plus_method_gets_the_filter_variance(filt, refit):
+    """AKC+ gets the filter's variance; after an EKF, whose posterior holds bone lengths, it refits it
+    (``constrained_filter``), after the KF not."""
+    s = synthetic_session("II" if refit else "I", cycles=1, seed=5 if refit else 4)
     dims = BodyDimensions.paper_participant()
     runner = MethodRunner(s, dims)
-    res = runner.run("AKC+(KF)")
-    kf_est, _ = runner.filtered("KF")
-    var = runner.filter_variance("KF")
-    assert var.shape == kf_est.shape and np.all(var[np.isfinite(kf_est)] > 0)
+    res = runner.run(f"AKC+({filt})")
+    est, _ = runner.filtered(filt)
+    var = runner.filter_variance(filt)
+    assert var.shape == est.shape and np.all(var[np.isfinite(est)] > 0)
     accepted, _ = runner.occlusion()
-    want, _, _ = run_akc(ArmKinematicCorrectorPlus(dims), kf_est, accepted, var)
+    want, _, _ = run_akc(ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=refit)), est, accepted, var)
     np.testing.assert_array_equal(res.estimates, want)
-    without, _, _ = run_akc(ArmKinematicCorrectorPlus(dims), kf_est, accepted)
-    assert not np.array_equal(np.nan_to_num(without), np.nan_to_num(want))
-
-
-def test_akc_plus_after_an_ekf_refits_its_constrained_posterior():
-    """AKC+(EKF) runs with ``constrained_filter`` (the EKF's posterior holds bone lengths), AKC+(KF) without."""
-    from akc_drake.core.akc_plus_config import AKCPlusConfig
-
-    s = synthetic_session("II", cycles=1, seed=5)
-    dims = BodyDimensions.paper_participant()
-    runner = MethodRunner(s, dims)
-    res = runner.run("AKC+(EKF)")
-    ekf_est, _ = runner.filtered("EKF")
-    var = runner.filter_variance("EKF")
-    accepted, _ = runner.occlusion()
-    refit = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=True))
-    want, _, _ = run_akc(refit, ekf_est, accepted, var)
-    np.testing.assert_array_equal(res.estimates, want)
-    plain, _, _ = run_akc(ArmKinematicCorrectorPlus(dims), ekf_est, accepted, var)
-    assert not np.array_equal(np.nan_to_num(plain), np.nan_to_num(want))
+    # Without the variance (KF), or without the refit (EKF), the output differs: each is used.
+    other = (run_akc(ArmKinematicCorrectorPlus(dims, AKCPlusConfig()), est, accepted, var) if refit
+             else run_akc(ArmKinematicCorrectorPlus(dims), est, accepted))[0]
+    assert not np.array_equal(np.nan_to_num(other), np.nan_to_num(want))
