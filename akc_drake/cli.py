@@ -157,7 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="reproduce the paper's tables and figures against ground truth")
     p.add_argument("--motion", default="both", choices=("I", "II", "both"), help="the paper's motion(s)")
-    p.add_argument("--motion-file", metavar="FILE", help="a BVH file, or an AMC file with --skeleton")
+    p.add_argument("--motion-file", metavar="FILE", help="a BVH or C3D file, or an AMC file with --skeleton")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
     _add_joint_names(p)
     p.add_argument("--cycles", type=int, default=30, metavar="N", help="motion cycles of 6 s each")
@@ -202,7 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="folder for NAME.dot and NAME.svg (required)")
 
     p = sub.add_parser("record", help="render (or capture) a session into a recording folder")
-    p.add_argument("--motion", default="II", help="I | II | tpose | lpose | FILE.bvh | FILE.amc")
+    p.add_argument("--motion", default="II", help="I | II | tpose | lpose | FILE.bvh | FILE.c3d | FILE.amc")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC motion file")
     _add_joint_names(p)
     p.add_argument("--source", default="sim", help="sim | realsense | bag:FILE (default: sim)")
@@ -215,7 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run the mocap (or teleop) diagram on a source")
     _add_source_args(p)
     p.add_argument("--motion", default="II",
-                   help="motion for --source sim: I | II | tpose | lpose | FILE.bvh | FILE.amc")
+                   help="motion for --source sim: I | II | tpose | lpose | FILE.bvh | FILE.c3d | FILE.amc")
     p.add_argument("--skeleton", metavar="FILE.asf", help="the ASF skeleton for an AMC --motion file")
     _add_joint_names(p)
     p.add_argument("--cycles", type=int, default=1, metavar="N", help="motion cycles of 6 s each (--source sim)")

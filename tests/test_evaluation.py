@@ -435,6 +435,7 @@ def test_config_validation():
         (["--motion-file", "x.txt"], "unknown file type"),
         (["--motion-file", "{tmp}/walk.amc"], "needs its skeleton"),
         (["--motion-file", "{tmp}/missing.bvh"], "no such file"),
+        (["--motion-file", "{tmp}/missing.c3d"], "no such file"),
         (["--skeleton", "{tmp}/s.asf"], "only used with"),
     ],
 )

@@ -34,9 +34,9 @@ def _motion_file_options(args) -> tuple[str | None, str | None]:
         return None, None
     p = Path(mf)
     suffix = p.suffix.lower()
-    if suffix not in (".bvh", ".amc"):
+    if suffix not in (".bvh", ".amc", ".c3d"):
         raise UserError(
-            f"--motion-file {mf}: unknown file type {p.suffix!r} (expected .bvh, or .amc with --skeleton)"
+            f"--motion-file {mf}: unknown file type {p.suffix!r} (expected .bvh, .c3d, or .amc with --skeleton)"
         )
     if not p.is_file():
         raise UserError(f"--motion-file {mf}: no such file")

@@ -35,7 +35,8 @@ MANIFEST = "mocap_sources.json"
 
 def find_clips(motion_dir) -> list[dict]:
     """The clips of ``motion_dir``: from its ``mocap_sources.json`` (with windows and name maps), else every
-    ``*.bvh`` and every ``*.amc`` that has an ``.asf`` of the same stem (or a single ``.asf``) beside it.
+    ``*.bvh``, every ``*.c3d`` and every ``*.amc`` that has an ``.asf`` of the same stem (or a single ``.asf``)
+    beside it.
 
     Raises:
         UserError: the folder does not exist, or holds no clip, or a listed file is missing.
@@ -66,7 +67,7 @@ def find_clips(motion_dir) -> list[dict]:
     else:
         asfs = sorted(d.glob("*.asf"))
         for p in sorted(d.iterdir()):
-            if p.suffix.lower() == ".bvh":
+            if p.suffix.lower() in (".bvh", ".c3d"):
                 clips.append({"name": p.stem, "path": str(p), "skeleton": None, "window_s": None, "names": None})
             elif p.suffix.lower() == ".amc":
                 sk = p.with_suffix(".asf")
@@ -76,7 +77,7 @@ def find_clips(motion_dir) -> list[dict]:
                     raise UserError(f"{p}: an AMC motion needs its ASF skeleton ({p.stem}.asf) beside it")
                 clips.append({"name": p.stem, "path": str(p), "skeleton": str(sk), "window_s": None, "names": None})
     if not clips:
-        raise UserError(f"--motion-dir {d}: no .bvh or .amc clip (and no {MANIFEST})")
+        raise UserError(f"--motion-dir {d}: no .bvh, .c3d or .amc clip (and no {MANIFEST})")
     return clips
 
 

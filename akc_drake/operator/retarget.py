@@ -1,4 +1,4 @@
-"""Retarget motion-capture files (BVH, CMU ASF/AMC) onto the simulated operator's arm joints.
+"""Retarget motion-capture files (BVH, CMU ASF/AMC, C3D markers) onto the simulated operator's arm joints.
 
 The operator (:mod:`akc_drake.operator.model`) has its own fixed dimensions, so what is carried over from a
 file is the *direction* of each upper arm and forearm, expressed in the person's own body frame O
@@ -450,7 +450,8 @@ def load_motion_file(
     """Load a motion-capture file and retarget it onto the operator's arms.
 
     Args:
-        path: a ``.bvh`` file, or an ``.amc`` file (then ``skeleton`` is required).
+        path: a ``.bvh`` file, a ``.c3d`` file (markers: :mod:`akc_drake.operator.c3d_motion`), or an ``.amc``
+            file (then ``skeleton`` is required).
         skeleton: the ``.asf`` skeleton of an AMC file (a path or an :class:`ASFSkeleton`).
         rate_hz: the output's sample rate (the camera's, 10 Hz by default).
         units: a BVH file's length unit (directions do not depend on it).
@@ -477,11 +478,25 @@ def load_motion_file(
                 raise UserError(f"{os.fspath(skeleton)}: a skeleton file must end in .asf")
             skeleton = read_asf(skeleton)
         motion = read_amc(path, skeleton, frame_rate=frame_rate)
+    elif suffix == ".c3d":
+        from akc_drake.operator.c3d_motion import c3d_joint_positions, read_c3d
+
+        if skeleton is not None:
+            raise UserError(f"{path}: a C3D file needs no skeleton file")
+        data = read_c3d(path)
+        if not data["rate_hz"] > 0 or data["points"].shape[0] < 2:
+            raise UserError(f"{path}: no motion in the file ({data['points'].shape[0]} frames at "
+                            f"{data['rate_hz']:g} Hz)")
+        positions, joints = c3d_joint_positions(data["labels"], data["points"], names, source=path)
+        if "hips" not in joints and isinstance(up, str) and up.strip().lower() == "auto":
+            up = "z"  # (no torso to find it from: the laboratory convention of C3D files)
+        return retarget_positions(positions, joints, 1.0 / data["rate_hz"], rate_hz=rate_hz, up=up,
+                                  name=os.path.splitext(os.path.basename(path))[0], source=path)
     elif suffix == ".asf":
         raise UserError(f"{path}: an ASF file is a skeleton; pass the AMC motion file with this skeleton")
     else:
         raise UserError(
-            f"{path}: unknown motion file type {suffix or '(none)'!r}; use .bvh, or .amc with an .asf"
+            f"{path}: unknown motion file type {suffix or '(none)'!r}; use .bvh, .c3d, or .amc with an .asf"
         )
     return retarget_motion(motion, rate_hz=rate_hz, names=names, up=up, source=path)
 
@@ -525,7 +540,7 @@ def retarget_motion(
     )
 
 
-MOTION_FILE_SUFFIXES = (".bvh", ".amc")
+MOTION_FILE_SUFFIXES = (".bvh", ".amc", ".c3d")
 
 
 def parse_joint_names(text: str) -> dict[str, str]:

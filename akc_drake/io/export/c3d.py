@@ -50,16 +50,3 @@ def write_c3d(path, points_mm: np.ndarray, names, *, rate_hz: float, z_up: bool 
         c.write(str(tmp))
 
     return atomic_write_via_path(path, writer)
-
-
-def read_c3d(path) -> dict:
-    """Read a C3D file with ezc3d: ``{"labels", "rate_hz", "units", "points" (T, M, 3)}`` (invalid points NaN)."""
-    ezc3d = _ezc3d()
-    c = ezc3d.c3d(str(path))
-    pts = np.asarray(c["data"]["points"], dtype=float)  # (4, M, T)
-    return {
-        "labels": list(c["parameters"]["POINT"]["LABELS"]["value"]),
-        "rate_hz": float(c["parameters"]["POINT"]["RATE"]["value"][0]),
-        "units": c["parameters"]["POINT"]["UNITS"]["value"][0],
-        "points": pts[:3].transpose(2, 1, 0),
-    }
