@@ -71,6 +71,8 @@ def test_markers_to_joints():
     np.testing.assert_allclose(pos3[:, names3.index("left_wrist")], pts[:, labels.index("Subject01:LFIN")])
     with pytest.raises(UserError, match="'NOPE'"):
         c3d_joint_positions(labels, pts, {"left_wrist": "NOPE"})
+    with pytest.raises(UserError, match="unknown role.*'left_knee'"):
+        c3d_joint_positions(labels, pts, {"left_knee": "LFIN"})
     keep = [i for i, lab in enumerate(labels) if not lab.endswith("LELB")]
     with pytest.raises(UserError, match="no marker for left_elbow .*LEJC or LELB.*Subject01:LSHO"):
         c3d_joint_positions([labels[i] for i in keep], pts[:, keep], source="x.c3d")

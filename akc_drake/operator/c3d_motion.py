@@ -115,9 +115,15 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
         xs = [marker(lab) for lab in labels_]
         return None if any(x is None for x in xs) else np.mean(xs, axis=0)
 
+    from akc_drake.operator.retarget import ROLES
+
     out_names: list[str] = []
     out: list[np.ndarray] = []
     names = dict(names or {})
+    unknown = [k for k in names if k not in ROLES]
+    if unknown:
+        raise UserError(f"{source}: unknown role(s) {', '.join(map(repr, unknown))} in the name map; known: "
+                        f"{', '.join(ROLES)}")
     for side in ("left", "right"):
         for part, rules in MARKER_RULES.items():
             role = f"{side}_{part}"
