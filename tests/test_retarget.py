@@ -438,7 +438,9 @@ def test_palm_normal_sets_the_forearm_roll():
 
 
 def test_file_errors(tmp_path):
-    with pytest.raises(UserError, match="unknown motion file type '.c3d'"):
+    with pytest.raises(UserError, match="unknown motion file type '.trc'"):
+        load_motion_file(tmp_path / "walk.trc")
+    with pytest.raises(UserError, match="walk.c3d: not a readable C3D file"):
         load_motion_file(tmp_path / "walk.c3d")
     with pytest.raises(UserError, match="is a skeleton"):
         load_motion_file(ASF)
