@@ -108,11 +108,11 @@ class AKCPlusConfig:
     constrained_filter: bool = False
 
     def __post_init__(self):
-        if not isinstance(self.constrained_filter, bool):
-            raise ValueError(f"AKCPlusConfig.constrained_filter must be True or False, got {self.constrained_filter!r}")
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name == "constrained_filter":
+            if f.name == "constrained_filter":  # (the one switch; every other field is a number)
+                if not isinstance(v, bool):
+                    raise ValueError(f"AKCPlusConfig.constrained_filter must be True or False, got {v!r}")
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"AKCPlusConfig.{f.name} must be a finite number >= 0, got {v!r}")

@@ -70,16 +70,16 @@ def arm_variances(sub_index, var, m, v, f, nis, alpha, floor, g2, refit=False):
             q = q * q / d
             k = nis[n] = b * k + alpha * (q if q < g2 else g2)
         vi = p * (k if k > floor else floor)
-        if refit and k > 1.0 and r > p:
-            d = z - f[i]
-            if d * d <= g2 * ((r - p) + (vi - p if vi > p else 0.0)) + 1e-12:
-                f[i] = z - d / k
-                vi = r - (r - p) / k
-        elif vi > r:
+        refit_k = refit and k > 1.0 and r > p
+        if refit_k or vi > r:
             d = z - f[i]
             if d * d <= g2 * ((r - p if r > p else 0.0) + (vi - p if vi > p else 0.0)) + 1e-12:
-                f[i] = z
-                vi = r
+                if refit_k:  # the update at the prior variance the NIS shows
+                    f[i] = z - d / k
+                    vi = r - (r - p) / k
+                else:  # the measurement replaces the filter
+                    f[i] = z
+                    vi = r
         out[i] = vi
     return out
 

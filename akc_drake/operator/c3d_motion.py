@@ -68,6 +68,11 @@ def read_c3d(path) -> dict:
     }
 
 
+def _label(label) -> str:
+    """A label as compared: without a ``Subject:`` prefix, surrounding spaces or case."""
+    return str(label).rsplit(":", 1)[-1].strip().upper()
+
+
 def fill_gaps(x: np.ndarray) -> np.ndarray | None:
     """``x`` ``(T, 3)`` with its invalid frames (any coordinate not finite) interpolated linearly in time, held
     before the first and after the last valid frame; None when no frame is valid."""
@@ -100,11 +105,11 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
     P = np.asarray(points, dtype=float)
     key = {}
     for i, lab in enumerate(labels):
-        key.setdefault(str(lab).rsplit(":", 1)[-1].strip().upper(), i)
+        key.setdefault(_label(lab), i)
     filled: dict[int, np.ndarray | None] = {}
 
     def marker(label: str) -> np.ndarray | None:
-        i = key.get(label.upper())
+        i = key.get(_label(label))
         if i is None:
             return None
         if i not in filled:
@@ -128,7 +133,7 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
         for part, rules in MARKER_RULES.items():
             role = f"{side}_{part}"
             if role in names:
-                x = marker(str(names[role]).rsplit(":", 1)[-1].strip())
+                x = marker(names[role])
                 if x is None:
                     raise UserError(f"{source}: the name map sets {role} = {names[role]!r}, which is not a marker "
                                     f"with a valid frame (labels: {', '.join(map(str, labels))})")
@@ -144,7 +149,7 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
             out_names.append(role)
             out.append(x)
     if "hips" in names:
-        x = marker(str(names["hips"]).rsplit(":", 1)[-1].strip())
+        x = marker(names["hips"])
         if x is None:
             raise UserError(f"{source}: the name map sets hips = {names['hips']!r}, which is not a marker with a "
                             "valid frame")

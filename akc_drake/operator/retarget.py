@@ -319,12 +319,14 @@ def arm_directions_from_positions(
 
     lateral = pos("left_shoulder") - pos("right_shoulder")
 
-    if roles["left_hip"] and roles["right_hip"]:
-        pelvis = 0.5 * (pos("left_hip") + pos("right_hip"))
-    else:
-        pelvis = pos("hips")
-    torso = 0.5 * (pos("left_shoulder") + pos("right_shoulder")) - pelvis
-    if isinstance(up, str) and up.strip().lower() == "auto":
+    auto = isinstance(up, str) and up.strip().lower() == "auto"
+    if auto or up is None:  # (the hips-to-shoulders line, only where it is read)
+        if roles["left_hip"] and roles["right_hip"]:
+            pelvis = 0.5 * (pos("left_hip") + pos("right_hip"))
+        else:
+            pelvis = pos("hips")
+        torso = 0.5 * (pos("left_shoulder") + pos("right_shoulder")) - pelvis
+    if auto:
         n = np.linalg.norm(torso, axis=1)
         ok = np.isfinite(n) & (n > 1e-9)
         # (No frame with a torso, e.g. the hips' joint at the shoulders: the BVH convention, Y.)
