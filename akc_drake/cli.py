@@ -80,6 +80,14 @@ def _add_joint_names(p) -> None:
                         "Blender, Unreal, Kinect and Motive names are found without it)")
 
 
+def _add_akc_plus(p) -> None:
+    """``--akc-plus``: AKC+ settings (evaluate, run)."""
+    p.add_argument("--akc-plus", metavar="SETTINGS",
+                   help="AKC+ settings (AKCPlusConfig fields): field=value[,field=value...] or a JSON file, e.g. "
+                        "gate_sigma=2.5,nis_alpha=0.1 (constrained_filter=true|false overrides the choice made from "
+                        "the filter)")
+
+
 def _add_seed(p: argparse.ArgumentParser, what: str = "the motion variation, detector and depth noise") -> None:
     p.add_argument("--seed", type=_seed, default=0, metavar="S", help=f"random seed of {what}")
 
@@ -165,6 +173,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", default=None, help="comma-separated, from: " + ", ".join(METHODS)
                    + " (default: all; with --motion-dir: KF, EKF and the AKC/AKC+ variants)")
     p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"), help="AKC weight preset (paper Table I)")
+    _add_akc_plus(p)
     p.add_argument("--protocol", default="paper", choices=("paper", "ours"),
                    help="paper: the stages and table definitions as the paper describes them; ours: our "
                    "improvements (default: paper)")
@@ -223,6 +232,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--filter", default="KF", choices=("none", "KF", "EKF"), help="the landmark filter")
     p.add_argument("--corrector", default="AKC", choices=("none", "AKC", "AKC+", "COIK"),
                    help="the arm correction after the filter")
+    _add_akc_plus(p)
     p.add_argument("--teleop", action="store_true", help="drive the simulated robot too")
     p.add_argument("--meshcat", action="store_true", help="with --teleop: serve Meshcat on localhost")
     p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources; default: "

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from akc_drake.errors import UserError
+from akc_drake.option_maps import read_option_map
 
 FILTERS = ("none", "KF", "EKF")
 CORRECTORS = ("none", "AKC", "AKC+", "COIK")
@@ -95,6 +96,9 @@ class PipelineConfig:
             :data:`TELEOP_MAX_PREDICT_S` in the teleop diagram, where an extrapolated wrist drives the robot.
         body: the simulated operator, ``primitive`` (fast) or ``skinned`` (MakeHuman body, what MediaPipe sees).
         detector: the 2D detector on simulated renders, ``sim`` or ``mediapipe``.
+        akc_plus: AKC+ settings, field -> number (:class:`~akc_drake.core.akc_plus_config.AKCPlusConfig`; e.g.
+            ``{gate_sigma: 2.5}``); empty: the defaults. ``constrained_filter`` (1 or 0) is otherwise set from
+            ``filter``. Used only with ``corrector: AKC+``.
     """
 
     source: str = "sim"
@@ -116,6 +120,7 @@ class PipelineConfig:
     max_predict_s: float = -1.0
     body: str = "primitive"
     detector: str = "sim"
+    akc_plus: dict[str, float] = field(default_factory=dict)
 
     def resolved_gate_sigma(self, teleop: bool) -> float | None:
         """The gate the filter gets (None = off): ``gate_sigma`` resolved for the mocap or teleop diagram."""
@@ -157,6 +162,13 @@ class PipelineConfig:
             )
         if self.camera.rate_hz <= 0 or self.camera.width <= 0 or self.camera.height <= 0:
             raise UserError("config.camera: width, height and rate_hz must be positive")
+        if self.akc_plus:
+            from akc_drake.core.akc_plus_config import akc_plus_config
+
+            try:
+                akc_plus_config(dict(self.akc_plus))
+            except ValueError as e:
+                raise UserError(f"config.akc_plus: {e}") from None
         if self.dims:
             from akc_drake.core.skeleton import BodyDimensions
 
@@ -165,6 +177,37 @@ class PipelineConfig:
             except ValueError as e:
                 raise UserError(str(e)) from None
         return self
+
+
+def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
+    """AKC+ settings (field -> value, :class:`~akc_drake.core.akc_plus_config.AKCPlusConfig`) from the command
+    line: ``field=value[,field=value...]`` inline, or a JSON file holding an object
+    (:func:`~akc_drake.option_maps.read_option_map`).
+    Numbers; the switch ``constrained_filter`` takes true / false (or 1 / 0).
+
+    Raises:
+        UserError: as :func:`~akc_drake.option_maps.read_option_map`, or an inline value that is not a number,
+            an unknown field (the known ones listed) or a value the config rejects, each naming ``option``.
+    """
+    from akc_drake.core.akc_plus_config import akc_plus_config
+
+    inline = not str(text).strip().lower().endswith(".json")
+    settings = read_option_map(text, option, "field=value", "gate_sigma=2.5", "setting -> value")
+    if inline:
+        for name, value in settings.items():
+            switch = {"true": True, "false": False}.get(value.lower())
+            if switch is not None:
+                settings[name] = switch
+                continue
+            try:
+                settings[name] = float(value)
+            except ValueError:
+                raise UserError(f"{option}: {name}={value!r} is not a number") from None
+    try:
+        akc_plus_config(settings)
+    except (ValueError, TypeError) as e:
+        raise UserError(f"{option}: {e}") from None
+    return settings
 
 
 def load_config(path: str | Path, schema=PipelineConfig):

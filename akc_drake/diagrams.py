@@ -255,14 +255,14 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
 
     corrected = estimated
     if cfg.corrector in ("AKC", "AKC+"):
-        from akc_drake.core.akc_plus_config import AKCPlusConfig
+        from akc_drake.core.akc_plus_config import akc_plus_config
         from akc_drake.systems.arm_kinematic_correction import ArmKinematicCorrection
 
+        plus = akc_plus_config(cfg.akc_plus or None, cfg.filter) if cfg.corrector == "AKC+" else None
         akc = builder.AddSystem(
             ArmKinematicCorrection(dims, WEIGHT_PRESETS[cfg.weights], rate_hz=cfg.camera.rate_hz,
                                    stage_offset_s=cfg.stage_offset_s, anatomical_check=teleop,
-                                   corrector=cfg.corrector,
-                                   plus_config=AKCPlusConfig(constrained_filter=cfg.filter == "EKF"))
+                                   corrector=cfg.corrector, plus_config=plus)
         )
         akc.set_name("ArmKinematicCorrection")
         builder.Connect(estimated, akc.GetInputPort("landmarks_C"))

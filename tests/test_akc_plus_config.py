@@ -3,7 +3,7 @@ import math
 import pytest
 
 from akc_drake.core.akc_plus import AKCPlusConfig as ReExported
-from akc_drake.core.akc_plus_config import AKCPlusConfig
+from akc_drake.core.akc_plus_config import AKCPlusConfig, akc_plus_config
 
 
 def test_defaults_are_the_measurement_model_of_the_kf():
@@ -14,15 +14,43 @@ def test_defaults_are_the_measurement_model_of_the_kf():
     assert c.sigma_shoulder_m == 0.01 and c.shoulder_alpha == 0.2 and c.arm_radius_m == 0.05
     assert AKCPlusConfig(sigma_shoulder_m=0).sigma_shoulder_m == 0.0  # 0 turns the held shoulder off
     assert isinstance(AKCPlusConfig(gate_frames=4).gate_frames, float)
-    assert c.constrained_filter is False and AKCPlusConfig(constrained_filter=True).constrained_filter is True
+    # None: set from the filter AKC+ follows (``akc_plus_config``); True / False force it.
+    assert c.constrained_filter is None and AKCPlusConfig(constrained_filter=True).constrained_filter is True
 
 
 @pytest.mark.parametrize("field, value", [("recent_frames", -1.0), ("gate_sigma", math.nan),
                                           ("sigma_temporal_m", 0.0), ("elbow_min_deg", 180.0),
-                                          ("nis_alpha", True), ("shoulder_alpha", 0.0),
+                                          ("nis_alpha", True), ("nis_alpha", 0.0), ("nis_alpha", 1.2),
+                                          ("shoulder_alpha", 0.0),
                                           ("shoulder_alpha", 1.5), ("sigma_shoulder_m", -0.01),
                                           ("arm_radius_m", -0.05), ("constrained_filter", 1),
                                           ("constrained_filter", "yes")])
 def test_bad_settings_name_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         AKCPlusConfig(**{field: value})
+
+
+def test_settings_resolve_for_the_filter_they_follow():
+    # None: the defaults, the switch set from the filter (on after the EKF, whose posterior holds bone lengths).
+    assert akc_plus_config() == AKCPlusConfig()
+    assert akc_plus_config(None, "EKF").constrained_filter is True
+    assert akc_plus_config(None, "KF").constrained_filter is False
+    # A mapping (plain data: a YAML map, --akc-plus, a worker's task) sets the fields it names.
+    c = akc_plus_config({"gate_sigma": 2.5, "nis_alpha": 0.1}, "EKF")
+    assert (c.gate_sigma, c.nis_alpha, c.constrained_filter) == (2.5, 0.1, True)
+    assert c.depth_sigma_m == AKCPlusConfig().depth_sigma_m
+    # A switch the settings give is kept whatever the filter; 1 / 0 stand for it in a map of numbers.
+    assert akc_plus_config({"constrained_filter": False}, "EKF").constrained_filter is False
+    assert akc_plus_config({"constrained_filter": 1.0}, "KF").constrained_filter is True
+    assert akc_plus_config(AKCPlusConfig(constrained_filter=True), "KF").constrained_filter is True
+    given = AKCPlusConfig(gate_sigma=2.0)
+    assert akc_plus_config(given) is given
+
+
+@pytest.mark.parametrize("settings, match", [({"gate_sgima": 2.5}, "unknown AKC\\+ setting.*'gate_sgima'.*gate_sigma"),
+                                             ({"gate_sigma": -1.0}, "gate_sigma"),
+                                             ({"constrained_filter": 2.0}, "constrained_filter"),
+                                             ("gate_sigma=2.5", "mapping")])
+def test_bad_settings_are_one_clear_error(settings, match):
+    with pytest.raises(ValueError, match=match):
+        akc_plus_config(settings)

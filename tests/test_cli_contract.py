@@ -114,6 +114,22 @@ def test_run_takes_skeleton_for_amc_motion():
     assert _config(args).skeleton == "clip.asf"
 
 
+def test_run_takes_akc_plus_settings(capsys):
+    from akc_drake.commands.run import _config
+
+    args = cli.build_parser().parse_args(["run", "--corrector", "AKC+", "--akc-plus", "gate_sigma=2.5,nis_alpha=0.1"])
+    assert _config(args).akc_plus == {"gate_sigma": 2.5, "nis_alpha": 0.1}
+    assert cli.main(["run", "--akc-plus", "gate_sigma=2.5"]) == 2  # (the default corrector is the paper's AKC)
+    assert "add --corrector AKC+" in capsys.readouterr().err
+    assert cli.main(["run", "--corrector", "AKC+", "--akc-plus", "gate_sigm=2.5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unknown AKC+ setting(s) 'gate_sigm'" in err
+    assert cli.main(["evaluate", "--methods", "Raw,KF", "--akc-plus", "gate_sigma=2.5"]) == 2
+    assert "runs none" in capsys.readouterr().err
+    assert cli.main(["evaluate", "--akc-plus", "gate_sigma=-1"]) == 2
+    assert "gate_sigma must be a finite number >= 0" in capsys.readouterr().err
+
+
 def test_run_cycles_named(capsys):
     assert cli.main(["run", "--cycles", "0"]) == 2
     assert capsys.readouterr().err.strip() == "akc-drake run: error: --cycles must be at least 1, got 0"

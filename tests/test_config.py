@@ -1,12 +1,12 @@
 import pytest
 
-from akc_drake.config import PipelineConfig, dump_config, load_config
+from akc_drake.config import PipelineConfig, dump_config, load_config, parse_akc_plus
 from akc_drake.errors import UserError
 
 
 def test_yaml_round_trip(tmp_path):
     cfg = PipelineConfig(motion="I", cycles=3, filter="EKF", corrector="COIK", dims={"LUA": 0.3, "LLA": 0.28,
-                         "RUA": 0.3, "RLA": 0.27, "SW": 0.33})
+                         "RUA": 0.3, "RLA": 0.27, "SW": 0.33}, akc_plus={"gate_sigma": 2.5, "constrained_filter": 0.0})
     f = tmp_path / "c.yaml"
     f.write_text(dump_config(cfg))
     back = load_config(f)
@@ -29,3 +29,29 @@ def test_yaml_errors_name_file_and_field(tmp_path):
         load_config(f)
     with pytest.raises(UserError, match="not found"):
         load_config(tmp_path / "nope.yaml")
+    f.write_text("akc_plus: {gate_sgima: 2.5}\n")
+    with pytest.raises(UserError, match=r"bad.yaml: config.akc_plus: unknown AKC\+ setting.*'gate_sgima'"):
+        load_config(f)
+    f.write_text("akc_plus: {nis_alpha: 0}\n")
+    with pytest.raises(UserError, match=r"config.akc_plus: .*nis_alpha must be in \(0, 1\]"):
+        load_config(f)
+
+
+def test_akc_plus_settings_from_the_command_line(tmp_path):
+    assert parse_akc_plus("gate_sigma=2.5, nis_alpha=0.1,constrained_filter=TRUE") == {
+        "gate_sigma": 2.5, "nis_alpha": 0.1, "constrained_filter": True}
+    f = tmp_path / "plus.json"
+    f.write_text('{"xy_tol_m": 0.02, "constrained_filter": false}')
+    assert parse_akc_plus(str(f)) == {"xy_tol_m": 0.02, "constrained_filter": False}
+    for text, match in [("gate_sigma", "is not field=value"), ("gate_sigma=two", "'two' is not a number"),
+                        (" , ", "empty"), ("jump=0.1", "unknown AKC\\+ setting.*'jump'.*jump_m"),
+                        ("hand_length_m=-0.08", "hand_length_m must be a finite number >= 0"),
+                        (str(tmp_path / "none.json"), "cannot read it"), (str(f) + "x.json", "cannot read it")]:
+        with pytest.raises(UserError, match="^--akc-plus.*" + match):
+            parse_akc_plus(text)
+    f.write_text("[1, 2]")
+    with pytest.raises(UserError, match="expected a JSON object"):
+        parse_akc_plus(str(f))
+    f.write_text("{nope")
+    with pytest.raises(UserError, match="not valid JSON"):
+        parse_akc_plus(str(f))

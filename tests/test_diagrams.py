@@ -89,6 +89,11 @@ def test_akc_plus_reads_the_filters_variance_in_the_diagram():
     assert built.systems["corrector"].corrector.config.constrained_filter is False
     ekf = diagrams.build_mocap_diagram(dataclasses.replace(cfg, filter="EKF"))
     assert ekf.systems["corrector"].corrector.config.constrained_filter is True
+    # The config's AKC+ settings (YAML ``akc_plus``, ``run --akc-plus``) reach it; a switch they give wins.
+    tuned = diagrams.build_mocap_diagram(dataclasses.replace(cfg, akc_plus={"gate_sigma": 2.5,
+                                                                            "constrained_filter": 1.0}))
+    c = tuned.systems["corrector"].corrector.config
+    assert (c.gate_sigma, c.constrained_filter) == (2.5, True)
 
 
 def test_coik_corrector_meets_lengths_on_success():

@@ -510,6 +510,7 @@ def test_evaluate_cli_joint_names(tmp_path, capsys):
     assert cli_main([*base, "--joint-names", str(names), "--json", str(js)]) == 0
     doc = json.loads(js.read_text())
     assert doc["config"]["joint_names"] == {"left_shoulder": "ShoulderL", "right_shoulder": "ShoulderR"}
+    assert doc["config"]["akc_plus"] is None  # (AKC+'s settings: the defaults)
     # The same motion as the original file's, so the same raw errors.
     orig = tmp_path / "orig.json"
     argv = ["evaluate", "--motion-file", str(Path(__file__).parent / "data" / "mocap" / "upper_body.bvh"),

@@ -7,7 +7,7 @@ from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
 from akc_drake.core.akc_plus_config import AKCPlusConfig
 from akc_drake.core.kalman import ConstantVelocityKF
 from akc_drake.core.skeleton import BodyDimensions
-from akc_drake.evaluation.methods import MethodRunner, run_akc, run_filter
+from akc_drake.evaluation.methods import MethodOptions, MethodRunner, run_akc, run_filter
 from tests.test_evaluation import synthetic_session
 
 
@@ -46,3 +46,21 @@ def test_akc_plus_method_gets_the_filter_variance(filt, refit):
     other = (run_akc(ArmKinematicCorrectorPlus(dims, AKCPlusConfig()), est, accepted, var) if refit
              else run_akc(ArmKinematicCorrectorPlus(dims), est, accepted))[0]
     assert not np.array_equal(np.nan_to_num(other), np.nan_to_num(want))
+
+
+def test_akc_plus_settings_reach_the_method():
+    """``MethodOptions.akc_plus_config`` as plain data (what ``--akc-plus`` and the workers carry): a switch it sets
+    wins over the one made from the filter, and the other fields reach the corrector."""
+    s = synthetic_session("II", cycles=1, seed=5)
+    dims = BodyDimensions.paper_participant()
+    settings = {"constrained_filter": False, "gate_sigma": 2.0}
+    runner = MethodRunner(s, dims, options=MethodOptions(akc_plus_config=settings))
+    res = runner.run("AKC+(EKF)")
+    est, _ = runner.filtered("EKF")
+    accepted, _ = runner.occlusion()
+    var = runner.filter_variance("EKF")
+    want, _, _ = run_akc(ArmKinematicCorrectorPlus(dims, AKCPlusConfig(gate_sigma=2.0, constrained_filter=False)),
+                         est, accepted, var)
+    np.testing.assert_array_equal(res.estimates, want)
+    default = MethodRunner(s, dims).run("AKC+(EKF)").estimates
+    assert not np.array_equal(np.nan_to_num(default), np.nan_to_num(want))

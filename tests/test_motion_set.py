@@ -235,6 +235,8 @@ def test_motion_dir_command_options(tmp_path, capsys):
     assert "--detector both: not with --motion-dir" in capsys.readouterr().err
     assert cli_main(base + ["--workers", "0"]) == 2
     assert "--workers must be at least 1" in capsys.readouterr().err
+    assert cli_main(base + ["--akc-plus", "nope=1"]) == 2
+    assert "--akc-plus: unknown AKC+ setting(s) 'nope'" in capsys.readouterr().err
 
 
 def test_motion_dir_same_numbers_in_process_and_on_two_local_workers(tmp_path):
@@ -252,3 +254,15 @@ def test_motion_dir_same_numbers_in_process_and_on_two_local_workers(tmp_path):
     for a, b in zip(here["clips"], there["clips"], strict=True):
         for m in kw["methods"]:
             assert json.dumps(a["methods"][m]["sse_m2"]) == json.dumps(b["methods"][m]["sse_m2"])
+    # AKC+ settings (--akc-plus) cross to the workers as plain data, are recorded, and change AKC+ alone.
+    tuned = {"gate_sigma": 1.0, "constrained_filter": True}
+    tuned_here = evaluate_motion_dir(tmp_path, scheduler="inprocess", akc_plus=tuned, **kw)
+    tuned_there = evaluate_motion_dir(tmp_path, scheduler="local", n_workers=2, akc_plus=tuned, **kw)
+    assert tuned_here["akc_plus"] == tuned_there["akc_plus"] == tuned and here["akc_plus"] is None
+    assert _tables_bytes(tuned_here) == _tables_bytes(tuned_there) != _tables_bytes(here)
+    pairs = list(zip(here["clips"], tuned_there["clips"], strict=True))
+    assert all(json.dumps(a["methods"]["KF"]["sse_m2"]) == json.dumps(b["methods"]["KF"]["sse_m2"]) for a, b in pairs)
+    assert any(json.dumps(a["methods"]["AKC+(KF)"]["sse_m2"]) != json.dumps(b["methods"]["AKC+(KF)"]["sse_m2"])
+               for a, b in pairs)
+    with pytest.raises(ValueError, match="unknown AKC\\+ setting"):
+        evaluate_motion_dir(tmp_path, akc_plus={"gate": 1.0}, **kw)

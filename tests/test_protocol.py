@@ -5,6 +5,7 @@ import pytest
 from akc_drake.core.occlusion import PAPER_RULES
 from akc_drake.errors import UserError
 from akc_drake.evaluation.experiment import ExperimentConfig
+from akc_drake.evaluation.methods import MethodOptions
 from akc_drake.evaluation.protocol import check_protocol, method_options, paper_coik_config, render_kwargs
 
 
@@ -26,6 +27,11 @@ def test_ours_protocol_is_the_default_stages():
     assert cfg.run_options() is cfg.options
     paper = ExperimentConfig(protocol="paper", cycles=1).run_options()
     assert paper.ekf_kind == "per_joint" and paper.visibility_threshold == 0.7
+    # AKC+'s settings (--akc-plus) ride along under either protocol.
+    tuned = MethodOptions(akc_plus_config={"gate_sigma": 2.5})
+    for protocol in ("paper", "ours"):
+        run = ExperimentConfig(protocol=protocol, cycles=1, options=tuned).run_options()
+        assert run.akc_plus_config == {"gate_sigma": 2.5}
 
 
 def test_unknown_protocol():

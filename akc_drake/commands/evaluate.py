@@ -26,6 +26,20 @@ def _joint_names(args) -> dict | None:
     return parse_joint_names(text)
 
 
+def _akc_plus(args) -> dict | None:
+    """``--akc-plus`` parsed (None when not given); an error when no AKC+ method runs."""
+    text = getattr(args, "akc_plus", None)
+    if text is None:
+        return None
+    from akc_drake.config import parse_akc_plus
+
+    settings = parse_akc_plus(text)
+    methods = getattr(args, "methods", None)
+    if methods is not None and "AKC+" not in methods:
+        raise UserError(f"--akc-plus: sets AKC+, but --methods {methods!r} runs none (add AKC+(KF) or AKC+(EKF))")
+    return settings
+
+
 def _motion_file_options(args) -> tuple[str | None, str | None]:
     mf, sk = getattr(args, "motion_file", None), getattr(args, "skeleton", None)
     if mf is None:
@@ -59,7 +73,7 @@ def build_config(args):
         UserError: naming the option and its value.
     """
     from akc_drake.evaluation.experiment import ExperimentConfig
-    from akc_drake.evaluation.methods import METHODS, parse_methods
+    from akc_drake.evaluation.methods import METHODS, MethodOptions, parse_methods
 
     if args.cycles < 1:
         raise UserError(f"--cycles must be at least 1, got {args.cycles}")
@@ -71,6 +85,7 @@ def build_config(args):
         ) from None
     motion_file, skeleton = _motion_file_options(args)
     motions = ("I", "II") if args.motion == "both" else (args.motion,)
+    akc_plus = _akc_plus(args)
     try:
         return ExperimentConfig(
             motions=motions,
@@ -86,6 +101,7 @@ def build_config(args):
             body=getattr(args, "body", "primitive"),
             detector="mediapipe" if getattr(args, "detector", "sim") == "both" else getattr(args, "detector", "sim"),
             protocol=getattr(args, "protocol", "paper"),
+            options=MethodOptions(akc_plus_config=akc_plus),
         )
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -191,7 +207,8 @@ def run_motion_dir(args) -> int:
     scheduler = check_scheduler(getattr(args, "scheduler", "local"))
     result = evaluate_motion_dir(args.motion_dir, methods=methods, seed=args.seed, protocol=args.protocol,
                                  weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
-                                 scheduler=scheduler, n_workers=workers, drive=drive, clips=clips)
+                                 scheduler=scheduler, n_workers=workers, drive=drive, clips=clips,
+                                 akc_plus=_akc_plus(args))
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))

@@ -52,6 +52,12 @@ def _config(args):
         from akc_drake.operator.retarget import parse_joint_names
 
         cfg.joint_names = parse_joint_names(args.joint_names)
+    if getattr(args, "akc_plus", None):
+        from akc_drake.config import parse_akc_plus
+
+        if cfg.corrector != "AKC+":
+            raise UserError(f"--akc-plus: sets AKC+, but the corrector is {cfg.corrector} (add --corrector AKC+)")
+        cfg.akc_plus = {**cfg.akc_plus, **parse_akc_plus(args.akc_plus)}
     return cfg.validate()
 
 

@@ -238,7 +238,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         self._gate2 = config.gate_sigma**2
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
         self._nis_a, self._nis_floor, self._tol = config.nis_alpha, config.nis_floor, config.length_tol_m
-        self._refit = config.constrained_filter
+        self._refit = config.constrained_filter is True  # (None: not resolved for a filter, off)
         self._cons, self._xy_tol = config.consistency_m, config.xy_tol_m
         self._occ_r2 = config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 
@@ -78,7 +79,9 @@ class AKCPlusConfig:
             measurement to fit lengths that the projection then imposes exactly in its own metric; undone in
             proportion to the evidence, AKC+(EKF)'s pooled arm z RMSE fell 0.1-0.25 cm and its lost joints' z
             0.04-0.36 cm on every set (real-motion clips and held-out windows, both detectors and protocols).
-            With a plain KF the excess NIS came as much from the measurement: off (the default).
+            With a plain KF the excess NIS came as much from the measurement. None (the default): set from the
+            filter AKC+ follows (:func:`akc_plus_config` with ``filter_kind``; the evaluation and the diagrams do):
+            on after an EKF, off after a KF; a corrector built with None treats it as off.
     """
 
     consistency_m: float = 0.05
@@ -105,14 +108,14 @@ class AKCPlusConfig:
     nis_floor: float = 0.01
     recent_frames: float = 3.0
     hand_length_m: float = 0.085
-    constrained_filter: bool = False
+    constrained_filter: bool | None = None
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if f.name == "constrained_filter":  # (the one switch; every other field is a number)
-                if not isinstance(v, bool):
-                    raise ValueError(f"AKCPlusConfig.constrained_filter must be True or False, got {v!r}")
+                if v is not None and not isinstance(v, bool):
+                    raise ValueError(f"AKCPlusConfig.constrained_filter must be True, False or None, got {v!r}")
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"AKCPlusConfig.{f.name} must be a finite number >= 0, got {v!r}")
@@ -120,7 +123,43 @@ class AKCPlusConfig:
         for name in ("sigma_filter_m", "sigma_temporal_m"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"AKCPlusConfig.{name} must be > 0, got {getattr(self, name)!r}")
-        if not 0.0 < self.shoulder_alpha <= 1.0:
-            raise ValueError(f"AKCPlusConfig.shoulder_alpha must be in (0, 1], got {self.shoulder_alpha!r}")
+        for name in ("shoulder_alpha", "nis_alpha"):  # (a running mean's weight of the newest frame)
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise ValueError(f"AKCPlusConfig.{name} must be in (0, 1], got {getattr(self, name)!r}")
         if self.elbow_min_deg >= 180.0:
             raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")
+
+
+def akc_plus_config(settings=None, filter_kind: str | None = None) -> AKCPlusConfig:
+    """The :class:`AKCPlusConfig` of ``settings``, its ``constrained_filter`` resolved for the filter it follows.
+
+    Args:
+        settings: None (the defaults), an :class:`AKCPlusConfig`, or a mapping of some of its fields (plain data:
+            what a YAML config's ``akc_plus``, ``--akc-plus`` and the evaluation's workers carry).
+            ``constrained_filter`` there may also be 1 or 0 (a YAML map of numbers).
+        filter_kind: "KF" or "EKF" (the filter AKC+ follows), or None: a ``constrained_filter`` left at None is
+            then set, True after the EKF; one the settings give is kept.
+
+    Raises:
+        ValueError: an unknown field (the known ones listed) or a value :class:`AKCPlusConfig` rejects.
+    """
+    if settings is None:
+        config = AKCPlusConfig()
+    elif isinstance(settings, AKCPlusConfig):
+        config = settings
+    elif isinstance(settings, Mapping):
+        names = [f.name for f in dataclasses.fields(AKCPlusConfig)]
+        unknown = [k for k in settings if k not in names]
+        if unknown:
+            raise ValueError(f"unknown AKC+ setting(s) {', '.join(map(repr, unknown))}; known: {', '.join(names)}")
+        kw = dict(settings)
+        switch = kw.get("constrained_filter")
+        if not isinstance(switch, bool) and isinstance(switch, (int, float)) and switch in (0, 1):
+            kw["constrained_filter"] = bool(switch)
+        config = AKCPlusConfig(**kw)
+    else:
+        raise ValueError(f"AKC+ settings must be an AKCPlusConfig or a mapping of its fields, got "
+                         f"{type(settings).__name__}")
+    if filter_kind is not None and config.constrained_filter is None:
+        config = dataclasses.replace(config, constrained_filter=filter_kind == "EKF")
+    return config

@@ -53,6 +53,16 @@ AXES = ("x", "y", "z")
 Progress = Callable[[int, str], None]
 
 
+def akc_plus_record(settings) -> dict | None:
+    """AKC+ settings as a result records them: the fields given (a dict), every field (an ``AKCPlusConfig``), or
+    None for the defaults."""
+    if settings is None or isinstance(settings, dict):
+        return None if not settings else dict(settings)
+    import dataclasses
+
+    return dataclasses.asdict(settings)
+
+
 @dataclass
 class ExperimentConfig:
     """What to run.
@@ -72,8 +82,8 @@ class ExperimentConfig:
         exclude_first_cycle: leave the first cycle out of the metrics (the paper's protocol).
         weight_study: also run Table VII (AKC(KF) with Wa, Wb, Wc).
         calibration_study: also run Tables VIII-IX (AKC(KF) with each calibration; renders the L-pose).
-        options: occlusion-filter settings (visibility threshold, proximity) and, under ``protocol="ours"``,
-            the filter and COIK settings.
+        options: occlusion-filter settings (visibility threshold, proximity), AKC+'s settings
+            (``akc_plus_config``, ``--akc-plus``) and, under ``protocol="ours"``, the filter and COIK settings.
         protocol: "paper" (the stages and table definitions as the paper describes them) or "ours"
             (:mod:`akc_drake.evaluation.protocol`).
         body: the rendered operator, "primitive" or "skinned" (``--body``).
@@ -141,6 +151,7 @@ class ExperimentConfig:
             method_options(self.protocol),
             visibility_threshold=self.options.visibility_threshold,
             proximity=self.options.proximity,
+            akc_plus_config=self.options.akc_plus_config,
         )
 
     @property
@@ -391,6 +402,7 @@ class Evaluation:
             "excluded_cycles": 1 if cfg.exclude_first_cycle else 0,
             "visibility_threshold": cfg.options.visibility_threshold,
             "proximity": cfg.options.proximity,
+            "akc_plus": akc_plus_record(cfg.options.akc_plus_config),
             "elapsed_s": self.elapsed_s,
             "render_s": self.render_s,
         }

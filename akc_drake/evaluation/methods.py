@@ -273,7 +273,8 @@ class MethodOptions:
         occlusion_rules: extra keyword arguments of the occlusion filter (None: ours; the paper's:
             :data:`akc_drake.core.occlusion.PAPER_RULES`).
         coik_config: COIK configuration (None: the solver's default).
-        akc_plus_config: AKC+ settings (None: the defaults).
+        akc_plus_config: AKC+ settings: an ``AKCPlusConfig``, a dict of some of its fields (plain data, which
+            crosses to the evaluation's workers) or None (the defaults).
     """
 
     visibility_threshold: float = 0.7
@@ -392,16 +393,13 @@ def make_akc(dims: BodyDimensions, weights):
 
 
 def make_akc_plus(dims: BodyDimensions, config=None, filter_kind: str | None = None):
-    """A fresh ``ArmKinematicCorrectorPlus`` (AKC+); ``filter_kind`` ("KF" | "EKF") sets the config's
-    ``constrained_filter`` (the EKFs' posteriors hold bone-length constraints)."""
-    import dataclasses
-
+    """A fresh ``ArmKinematicCorrectorPlus`` (AKC+). ``config``: an ``AKCPlusConfig``, a mapping of some of its
+    fields, or None (:func:`~akc_drake.core.akc_plus_config.akc_plus_config`); ``filter_kind`` ("KF" | "EKF")
+    sets a ``constrained_filter`` the config leaves at None (the EKFs' posteriors hold bone-length constraints)."""
     from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
-    from akc_drake.core.akc_plus_config import AKCPlusConfig
+    from akc_drake.core.akc_plus_config import akc_plus_config
 
-    if filter_kind is not None:
-        config = dataclasses.replace(config or AKCPlusConfig(), constrained_filter=filter_kind == "EKF")
-    return ArmKinematicCorrectorPlus(dims, config)
+    return ArmKinematicCorrectorPlus(dims, akc_plus_config(config, filter_kind))
 
 
 def make_coik(dims: BodyDimensions, config=None):

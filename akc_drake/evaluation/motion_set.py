@@ -14,6 +14,7 @@ joint (the occlusion filter drops or rejects it), the arm-length range and the c
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
@@ -177,8 +178,8 @@ def evaluate_clip(item: dict) -> dict:
         item: ``{"clip": find_clips() entry, "dims": {segment: metres}, "methods": [...], "seed": int,
             "protocol": "paper" | "ours", "weights": "Wa" | "Wb" | "Wc"}``, optionally ``"body"``
             ("primitive" | "skinned"), ``"detector"`` ("sim" | "mediapipe"), ``"cache"`` (None: the default
-            render cache, False: off, or a folder) and ``"frame_progress"`` (a progress bar over the clip's
-            frames as they render, on stderr).
+            render cache, False: off, or a folder), ``"akc_plus"`` (AKC+ settings, field -> value, or None) and
+            ``"frame_progress"`` (a progress bar over the clip's frames as they render, on stderr).
 
     Returns:
         ``{"name", "frames", "duration_s", "lost_share": {joint: share}, "render": {"key", "cached",
@@ -206,7 +207,10 @@ def evaluate_clip(item: dict) -> dict:
         session, hit = render_clip(spec, cache=item.get("cache"))
     render_s = time.perf_counter() - t0
     dims = BodyDimensions(**item["dims"])
-    runner = MethodRunner(session, dims, item.get("weights", "Wb"), method_options(protocol))
+    options = method_options(protocol)
+    if item.get("akc_plus"):
+        options = dataclasses.replace(options, akc_plus_config=dict(item["akc_plus"]))
+    runner = MethodRunner(session, dims, item.get("weights", "Wb"), options)
     accepted, _ = runner.occlusion()
     lost = {j: float(np.mean(~np.isfinite(accepted[:, INDEX[j], 2]))) for j in ARM_JOINTS}
     out = {
@@ -382,6 +386,7 @@ def evaluate_motion_dir(
     tpose_seconds: float = 10.0,
     drive: str = "angles",
     clips: list | None = None,
+    akc_plus: dict | None = None,
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -401,9 +406,11 @@ def evaluate_motion_dir(
         drive: "angles" (the operator's 10 angles) or "rig" (the skinned body driven by each clip bone by bone,
             :mod:`akc_drake.operator.rig_drive`; a clip without CMU bone names fails with a line naming it).
         clips: evaluate these clips (:func:`find_clips` entries) instead of ``motion_dir``'s.
+        akc_plus: AKC+ settings, field -> value (:func:`~akc_drake.core.akc_plus_config.akc_plus_config`;
+            ``--akc-plus``), or None for the defaults.
 
     Returns:
-        ``{"protocol", "seed", "body", "detector", "methods", "dims_cm", "clips": [evaluate_clip results],
+        ``{"protocol", "seed", "body", "detector", "akc_plus", "methods", "dims_cm", "clips": [evaluate_clip results],
         "failures": [...], "pooled_rmse_cm", "worst_regression", "lost_joint_gain", "render_cache": {"dir",
         "hits", "misses"}, "elapsed_s"}``.
     """
@@ -413,6 +420,10 @@ def evaluate_motion_dir(
     from akc_drake.evaluation.protocol import check_protocol, method_options
 
     check_protocol(protocol)
+    if akc_plus:
+        from akc_drake.core.akc_plus_config import akc_plus_config
+
+        akc_plus_config(akc_plus)  # (an unknown or bad setting is an error before anything renders)
     t0 = time.perf_counter()
     clips = find_clips(motion_dir) if clips is None else list(clips)
     from tqdm import tqdm
@@ -425,6 +436,7 @@ def evaluate_motion_dir(
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
+         "akc_plus": dict(akc_plus) if akc_plus else None,
          "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
@@ -440,6 +452,7 @@ def evaluate_motion_dir(
         "body": body,
         "detector": detector,
         "drive": drive,
+        "akc_plus": dict(akc_plus) if akc_plus else None,
         "methods": list(methods),
         "dims_cm": {k: v * 100.0 for k, v in dims.as_dict().items()},
         "clips": results,

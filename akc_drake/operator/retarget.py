@@ -36,6 +36,7 @@ from akc_drake.operator.asf_amc import AMCMotion, ASFSkeleton, read_amc, read_as
 from akc_drake.operator.bvh import BVHMotion, read_bvh
 from akc_drake.operator.model import arm_angles_from_directions
 from akc_drake.operator.motions import OperatorMotion, make_motion
+from akc_drake.option_maps import read_option_map
 
 #: Default camera rate the retargeted motion is sampled at.
 DEFAULT_RATE_HZ = 10.0
@@ -547,34 +548,15 @@ MOTION_FILE_SUFFIXES = (".bvh", ".amc", ".c3d")
 
 def parse_joint_names(text: str) -> dict[str, str]:
     """A joint-name map (role -> the file's joint) from ``--joint-names``: a JSON file holding an object, or
-    ``role=joint[,role=joint...]`` inline (roles: :data:`ROLES`).
+    ``role=joint[,role=joint...]`` inline (roles: :data:`ROLES`; :func:`~akc_drake.option_maps.read_option_map`).
 
     Raises:
         UserError: an unreadable file, not an object of strings, an entry without "=", or an unknown role.
     """
-    text = str(text).strip()
-    if text.lower().endswith(".json"):
-        import json
-
-        try:
-            with open(text, encoding="utf-8") as f:
-                names = json.load(f)
-        except OSError as e:
-            raise UserError(f"--joint-names {text}: cannot read it ({e.strerror or e})") from None
-        except json.JSONDecodeError as e:
-            raise UserError(f"--joint-names {text}: not valid JSON ({e})") from None
-        if not isinstance(names, dict) or not all(isinstance(k, str) and isinstance(v, str)
-                                                  for k, v in names.items()):
-            raise UserError(f"--joint-names {text}: expected a JSON object of role -> joint name strings")
-    else:
-        names = {}
-        for item in filter(None, (t.strip() for t in text.split(","))):
-            role, eq, joint = item.partition("=")
-            if not eq or not role.strip() or not joint.strip():
-                raise UserError(f"--joint-names: {item!r} is not role=joint (e.g. left_shoulder=upper_arm.L)")
-            names[role.strip()] = joint.strip()
-        if not names:
-            raise UserError("--joint-names: empty; give role=joint[,role=joint...] or a JSON file")
+    names = read_option_map(text, "--joint-names", "role=joint", "left_shoulder=upper_arm.L",
+                            "role -> joint name strings")
+    if not all(isinstance(v, str) for v in names.values()):
+        raise UserError(f"--joint-names {str(text).strip()}: expected a JSON object of role -> joint name strings")
     unknown = [k for k in names if k not in ROLES]
     if unknown:
         raise UserError(f"--joint-names: unknown role(s) {', '.join(map(repr, unknown))}; known: {', '.join(ROLES)}")
