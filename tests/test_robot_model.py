@@ -25,6 +25,7 @@ from akc_drake.robot.model import (
     SCENE_MODEL_FILE,
     SIDES,
     TORSO_JOINT,
+    ToolPoint,
     add_dual_arm_robot,
     arm_joint_limits,
     arm_joint_names,
@@ -328,3 +329,22 @@ def test_scene_loads_with_a_free_object():
     table = plant.GetBodyByName("table", scene)
     assert plant.EvalBodyPoseInWorld(context, table).IsNearlyEqualTo(RigidTransform([0.75, 0, 0.70]), 1e-12)
     assert obj.default_mass() == pytest.approx(0.1)
+
+
+def test_tool_point_is_the_ee_origin_in_the_torso_frame_for_any_q(robot):
+    plant, _ = robot
+    ctx = plant.CreateDefaultContext()
+    rng = np.random.default_rng(3)
+    for side in SIDES:
+        tool = ToolPoint(plant, side)
+        lo, hi, _ = arm_joint_limits(side)
+        for _ in range(3):
+            q = plant.GetPositions(ctx).copy()
+            q[arm_position_indices(plant, side)] = rng.uniform(lo, hi)
+            plant.SetPositions(ctx, q)
+            want = ee_frame(plant, side).CalcPose(ctx, torso_frame(plant)).translation()
+            np.testing.assert_allclose(tool(q), want, rtol=0, atol=1e-12)
+        # Its own context: the caller's is untouched.
+        before = plant.GetPositions(ctx).copy()
+        tool(np.zeros(plant.num_positions()))
+        np.testing.assert_array_equal(plant.GetPositions(ctx), before)

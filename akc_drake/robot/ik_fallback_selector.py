@@ -10,7 +10,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from akc_drake.robot.model import ee_frame, torso_frame
+from akc_drake.robot.model import ToolPoint
 
 
 class IKFallbackSelector(LeafSystem):
@@ -41,9 +41,7 @@ class IKFallbackSelector(LeafSystem):
 
     def __init__(self, plant: MultibodyPlant, side: str, time_step: float, min_error_m: float = 0.005):
         super().__init__()
-        self._plant = plant
-        self._ctx = plant.CreateDefaultContext()
-        self._E, self._T = ee_frame(plant, side), torso_frame(plant)
+        self._p = ToolPoint(plant, side)
         self._min_error = float(min_error_m)
         nq = plant.num_positions()
         self._full = self.DeclareVectorInputPort("q_full", nq)
@@ -61,10 +59,6 @@ class IKFallbackSelector(LeafSystem):
             {self._full.ticket(), self._pos.ticket(), self.all_state_ticket()},
         )
         self.DeclarePeriodicDiscreteUpdateEvent(time_step, 0.0, self._update)
-
-    def _p(self, q: np.ndarray) -> np.ndarray:
-        self._plant.SetPositions(self._ctx, q)
-        return self._E.CalcPose(self._ctx, self._T).translation()
 
     def _choose(self, context: Context) -> np.ndarray:
         full, pos = self._full.Eval(context), self._pos.Eval(context)

@@ -23,7 +23,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.solvers import Solve
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from akc_drake.robot.model import check_side, ee_frame, torso_frame
+from akc_drake.robot.model import ToolPoint, check_side
 
 #: Weight of the orientation error in the IK's cost (times 1 - cos(angle)) against the joints' travel (see below).
 ORIENTATION_WEIGHT = 10.0
@@ -105,8 +105,7 @@ class JointSpaceApproach(LeafSystem):
         _check_settings(time_step=time_step, min_error_m=min_error_m, replan_m=replan_m, accel_time_s=accel_time_s,
                         position_tol_m=position_tol_m, min_progress_m=min_progress_m, stuck_steps=stuck_steps,
                         cooldown_steps=cooldown_steps)
-        self._plant, self._ctx = plant, plant.CreateDefaultContext()
-        self._E, self._T = ee_frame(plant, side), torso_frame(plant)
+        self._plant, self._tool = plant, ToolPoint(plant, side)
         self._h, self._nq, self._stuck_steps, self._cool = float(time_step), nq, stuck_steps, cooldown_steps
         self._min_error, self._min_progress, self._replan = float(min_error_m), float(min_progress_m), float(replan_m)
         self._t_acc, self._tol = float(accel_time_s), float(position_tol_m)
@@ -117,13 +116,11 @@ class JointSpaceApproach(LeafSystem):
         self.DeclareVectorOutputPort("q", nq, self._calc, {self._q_in.ticket(), self.all_state_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
 
-    def _tool(self, q: np.ndarray) -> np.ndarray:
-        self._plant.SetPositions(self._ctx, q)
-        return self._E.CalcPose(self._ctx, self._T).translation()
-
     def solve(self, X_target: RigidTransform, q_start: np.ndarray) -> np.ndarray | None:
         """:func:`solve_arm_pose` with this system's plant, bounds and tolerance."""
-        return solve_arm_pose(self._plant, self._E, self._T, X_target, q_start, self._lo, self._hi, self._v, self._tol)
+        t = self._tool
+        return solve_arm_pose(self._plant, t.frame_E, t.frame_T, X_target, q_start, self._lo, self._hi, self._v,
+                              self._tol)
 
     # ---------------------------------------------------------------- system
     def approaching(self, context: Context) -> bool:

@@ -188,6 +188,22 @@ def torso_frame(plant: MultibodyPlant, model: ModelInstanceIndex | None = None) 
     return body.body_frame()
 
 
+class ToolPoint:
+    """The end effector's origin in the torso frame T as a function of the plant's positions ``q``.
+
+    Holds a context of its own, so a system may evaluate it for any ``q`` (its input, its state) without touching
+    the diagram's. ``frame_E`` and ``frame_T`` are the two frames.
+    """
+
+    def __init__(self, plant: MultibodyPlant, side: str):
+        self._plant, self._ctx = plant, plant.CreateDefaultContext()
+        self.frame_E, self.frame_T = ee_frame(plant, side), torso_frame(plant)
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        self._plant.SetPositions(self._ctx, q)
+        return self.frame_E.CalcPose(self._ctx, self.frame_T).translation()
+
+
 def arm_position_indices(
     plant: MultibodyPlant, side: str, model: ModelInstanceIndex | None = None
 ) -> np.ndarray:
