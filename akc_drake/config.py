@@ -191,18 +191,16 @@ def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
     """
     from akc_drake.core.akc_plus_config import akc_plus_config
 
-    inline = not str(text).strip().lower().endswith(".json")
-    settings = read_option_map(text, option, "field=value", "gate_sigma=2.5", "setting -> value")
-    if inline:
-        for name, value in settings.items():
-            switch = {"true": True, "false": False}.get(value.lower())
-            if switch is not None:
-                settings[name] = switch
-                continue
-            try:
-                settings[name] = float(value)
-            except ValueError:
-                raise UserError(f"{option}: {name}={value!r} is not a number") from None
+    def value(name: str, text: str):
+        switch = {"true": True, "false": False}.get(text.lower())
+        if switch is not None:
+            return switch
+        try:
+            return float(text)
+        except ValueError:
+            raise UserError(f"{option}: {name}={text!r} is not a number") from None
+
+    settings = read_option_map(text, option, "field=value", "gate_sigma=2.5", "setting -> value", value)
     try:
         akc_plus_config(settings)
     except (ValueError, TypeError) as e:

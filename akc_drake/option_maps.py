@@ -10,14 +10,16 @@ from __future__ import annotations
 from akc_drake.errors import UserError
 
 
-def read_option_map(text: str, option: str, form: str, example: str, what: str) -> dict:
+def read_option_map(text: str, option: str, form: str, example: str, what: str, inline_value=None) -> dict:
     """A map given on the command line: a JSON file (``*.json``) holding an object, its values as the file has
-    them, or ``key=value[,key=value...]`` inline, its values as strings (stripped).
+    them, or ``key=value[,key=value...]`` inline, its values as strings (stripped), or typed by ``inline_value``.
 
     Args:
         text: the option's value; option: its name (``--joint-names``), which each error names.
         form, example: an entry's form (``role=joint``) and an example (``left_shoulder=upper_arm.L``).
         what: what the JSON object maps (``role -> joint name strings``).
+        inline_value: ``(key, value string) -> value`` for the inline form (a JSON file's values are typed
+            already), raising UserError for a value it cannot read; None keeps the strings.
 
     Raises:
         UserError: an unreadable file, not JSON, not an object, an entry without "=" or an empty map.
@@ -41,7 +43,7 @@ def read_option_map(text: str, option: str, form: str, example: str, what: str) 
         key, eq, value = (x.strip() for x in item.partition("="))
         if not eq or not key or not value:
             raise UserError(f"{option}: {item!r} is not {form} (e.g. {example})")
-        found[key] = value
+        found[key] = value if inline_value is None else inline_value(key, value)
     if not found:
         raise UserError(f"{option}: empty; give {form}[,{form}...] or a JSON file")
     return found

@@ -40,3 +40,18 @@ def test_file_mistakes_name_the_file(tmp_path):
     f.write_text("[1]")
     with pytest.raises(UserError, match="expected a JSON object of key -> value$"):
         read_option_map(str(f), *ARGS)
+
+
+def test_inline_values_may_be_typed_by_the_caller(tmp_path):
+    def number(key, value):
+        try:
+            return float(value)
+        except ValueError:
+            raise UserError(f"{key}={value!r} is not a number") from None
+
+    assert read_option_map("a=1.5,b=2", *ARGS, number) == {"a": 1.5, "b": 2.0}
+    with pytest.raises(UserError, match="b='x' is not a number"):
+        read_option_map("a=1,b=x", *ARGS, number)
+    f = tmp_path / "m.json"
+    f.write_text('{"a": "1.5"}')  # a file's values are its own: not passed through
+    assert read_option_map(str(f), *ARGS, number) == {"a": "1.5"}

@@ -32,6 +32,9 @@ def test_ours_protocol_is_the_default_stages():
     for protocol in ("paper", "ours"):
         run = ExperimentConfig(protocol=protocol, cycles=1, options=tuned).run_options()
         assert run.akc_plus_config == {"gate_sigma": 2.5}
+    # A bad setting fails when the experiment is configured, not later in each worker.
+    with pytest.raises(ValueError, match="unknown AKC\\+ setting.*'gate'"):
+        ExperimentConfig(cycles=1, options=MethodOptions(akc_plus_config={"gate": 2.5}))
 
 
 def test_unknown_protocol():

@@ -138,6 +138,10 @@ class ExperimentConfig:
             raise ValueError(f"--body must be primitive or skinned, got {self.body!r}")
         if self.detector not in ("sim", "mediapipe"):
             raise ValueError(f"--detector must be sim or mediapipe, got {self.detector!r}")
+        if self.options.akc_plus_config is not None:
+            from akc_drake.core.akc_plus_config import akc_plus_config
+
+            akc_plus_config(self.options.akc_plus_config)  # (a bad setting fails here, not in every worker)
 
     def run_options(self) -> MethodOptions:
         """The stage settings the methods run with: the protocol's, with this config's occlusion thresholds."""

@@ -416,7 +416,7 @@ def evaluate_motion_dir(
     """
     from akc_drake.evaluation.cache import _resolve
     from akc_drake.evaluation.executor import TaskFailure, run_tasks
-    from akc_drake.evaluation.experiment import calibrate_session
+    from akc_drake.evaluation.experiment import akc_plus_record, calibrate_session
     from akc_drake.evaluation.protocol import check_protocol, method_options
 
     check_protocol(protocol)
@@ -424,6 +424,7 @@ def evaluate_motion_dir(
         from akc_drake.core.akc_plus_config import akc_plus_config
 
         akc_plus_config(akc_plus)  # (an unknown or bad setting is an error before anything renders)
+    settings = akc_plus_record(akc_plus)  # (plain data: it crosses to the workers)
     t0 = time.perf_counter()
     clips = find_clips(motion_dir) if clips is None else list(clips)
     from tqdm import tqdm
@@ -436,8 +437,7 @@ def evaluate_motion_dir(
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
-         "akc_plus": dict(akc_plus) if akc_plus else None,
-         "frame_progress": bool(progress) and scheduler == "inprocess"}
+         "akc_plus": settings, "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
     raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
@@ -452,7 +452,7 @@ def evaluate_motion_dir(
         "body": body,
         "detector": detector,
         "drive": drive,
-        "akc_plus": dict(akc_plus) if akc_plus else None,
+        "akc_plus": settings,
         "methods": list(methods),
         "dims_cm": {k: v * 100.0 for k, v in dims.as_dict().items()},
         "clips": results,
