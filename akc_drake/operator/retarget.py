@@ -249,6 +249,11 @@ def auto_up_axis(torso) -> str:
     return ("-" if m[k] < 0 else "") + "xyz"[k]
 
 
+def _is_auto(up) -> bool:
+    """Whether ``up`` asks for the up axis found from the torso (:func:`auto_up_axis`)."""
+    return isinstance(up, str) and up.strip().lower() == "auto"
+
+
 @dataclass
 class ArmDirections:
     """Unit arm-segment directions in the operator frame O, per frame.
@@ -320,7 +325,7 @@ def arm_directions_from_positions(
 
     lateral = pos("left_shoulder") - pos("right_shoulder")
 
-    auto = isinstance(up, str) and up.strip().lower() == "auto"
+    auto = _is_auto(up)
     if auto or up is None:  # (the hips-to-shoulders line, only where it is read)
         if roles["left_hip"] and roles["right_hip"]:
             pelvis = 0.5 * (pos("left_hip") + pos("right_hip"))
@@ -491,7 +496,7 @@ def load_motion_file(
             raise UserError(f"{path}: no motion in the file ({data['points'].shape[0]} frames at "
                             f"{data['rate_hz']:g} Hz)")
         positions, joints = c3d_joint_positions(data["labels"], data["points"], names, source=path)
-        if "hips" not in joints and isinstance(up, str) and up.strip().lower() == "auto":
+        if "hips" not in joints and _is_auto(up):
             up = "z"  # (no torso to find it from: the laboratory convention of C3D files)
         return retarget_positions(positions, joints, 1.0 / data["rate_hz"], rate_hz=rate_hz, up=up,
                                   name=os.path.splitext(os.path.basename(path))[0], source=path)
