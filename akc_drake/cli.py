@@ -173,6 +173,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", default=None, help="comma-separated, from: " + ", ".join(METHODS)
                    + " (default: all; with --motion-dir: KF, EKF and the AKC/AKC+ variants)")
     p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"), help="AKC weight preset (paper Table I)")
+    p.add_argument("--rate-hz", type=float, default=10.0, metavar="HZ",
+                   help="the camera's frame rate for --motion / --motion-file (default: 10, the paper's; a "
+                   "RealSense streams at 30)")
     _add_akc_plus(p)
     p.add_argument("--protocol", default="paper", choices=("paper", "ours"),
                    help="paper: the stages and table definitions as the paper describes them; ours: our "

@@ -425,6 +425,23 @@ def test_a_rebuilt_shoulder_is_fused_with_a_filter_of_the_same_configuration():
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
 
 
+def _dropped_shoulder_frame(p, step_m, shoulder_sigma_m):
+    """One frame of an operator ``step_m`` nearer the camera than ``p`` whose left shoulder's depth was dropped: the
+    filter holds the shoulder where it was (its depth's sigma ``shoulder_sigma_m``), its seen elbow is 2 cm deep of
+    the truth and 1 cm towards the shoulder in the image. Returns (truth, filtered, measured, variance)."""
+    truth = p.copy()
+    truth[:, 2] -= step_m
+    f = truth.copy()
+    f[LS, 2] = p[LS, 2]  # the filter holds the dropped shoulder
+    f[LE, 2] += 0.02
+    f[LE, :2] += 0.01 * (p[LS, :2] - p[LE, :2]) / np.linalg.norm(p[LS, :2] - p[LE, :2])
+    var = kf_var()
+    var[LS, 2] = shoulder_sigma_m**2
+    m = f.copy()
+    m[LS, 2] = np.nan
+    return truth, f, m, var
+
+
 def test_a_dropped_shoulder_is_held_on_the_torso_and_moves_with_the_hips():
     # The shoulder's depth dropped for 30 frames (a hand across the chest) while the operator steps 1 cm/frame
     # towards the camera (hips, elbow and wrist seen). The filter holds the shoulder where it was with a variance
@@ -438,16 +455,7 @@ def test_a_dropped_shoulder_is_held_on_the_torso_and_moves_with_the_hips():
         akc = settled_corrector(p, dims, config)
         errs = []
         for k in range(1, 31):
-            truth = p.copy()
-            truth[:, 2] -= 0.01 * k
-            f = truth.copy()
-            f[LS, 2] = p[LS, 2]  # the filter holds the dropped shoulder
-            f[LE, 2] += 0.02
-            f[LE, :2] += 0.01 * (p[LS, :2] - p[LE, :2]) / np.linalg.norm(p[LS, :2] - p[LE, :2])
-            var = kf_var()
-            var[LS, 2] = (0.05 + 0.05 * k) ** 2
-            m = f.copy()
-            m[LS, 2] = np.nan
+            truth, f, m, var = _dropped_shoulder_frame(p, 0.01 * k, 0.05 + 0.05 * k)
             out = akc.correct(f, measured=m, variance=var).pose
             np.testing.assert_array_equal(out[hips], f[hips])
             assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
@@ -916,3 +924,35 @@ def test_a_wrist_its_own_hand_hides_is_put_behind_the_hand():
         err[length] = np.linalg.norm(out[[LE, LW]] - p[[LE, LW]], axis=1)
     assert err[0.085].max() < 0.01
     assert err[0.0].min() > 0.05
+
+
+def _held_shoulder_error(rate_hz, period_s):
+    """The dropped shoulder of :func:`test_a_dropped_shoulder_is_held_on_the_torso_and_moves_with_the_hips`, as a
+    motion in time sampled at ``rate_hz``: the operator steps 0.1 m/s towards the camera for 3 s, the filter's held
+    shoulder's sigma grows 0.5 m/s; AKC+ built for frame period ``period_s``. The shoulder's z error at 0.5, 1, 2
+    and 3 s."""
+    p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.25))
+    akc = ArmKinematicCorrectorPlus(dims, None, period_s)
+    for _ in range(int(round(rate_hz / 2))):  # (settled on the pose for 0.5 s)
+        akc.correct(p, measured=p, variance=kf_var())
+    errs = []
+    for k in range(1, int(round(3 * rate_hz)) + 1):
+        t = k / rate_hz
+        truth, f, m, var = _dropped_shoulder_frame(p, 0.1 * t, 0.05 + 0.5 * t)
+        errs.append(abs(akc.correct(f, measured=m, variance=var).pose[LS, 2] - truth[LS, 2]))
+    n = int(round(rate_hz))
+    return np.array([errs[n // 2 - 1], errs[n - 1], errs[2 * n - 1], errs[3 * n - 1]])
+
+
+def test_per_frame_settings_follow_the_frame_period():
+    # The same motion at 10 Hz and at 30 Hz: with the settings scaled to the period (the random walk of the held
+    # shoulder per frame a third, its running mean's weight per frame smaller) the estimates at the same instants
+    # are the same; with the 10 Hz values per frame, the held shoulder's prior widens three times as fast.
+    at_10 = _held_shoulder_error(10.0, 0.1)
+    assert at_10.max() > 0.005  # (a test of something: eq. 8 from the biased elbow pulls the shoulder off)
+    np.testing.assert_allclose(_held_shoulder_error(30.0, 1.0 / 30.0), at_10, atol=1e-9, rtol=0)
+    assert np.abs(_held_shoulder_error(30.0, None) - at_10).max() > 0.01
+    # None is the reference period, bit for bit.
+    np.testing.assert_array_equal(_held_shoulder_error(10.0, None), at_10)
+    with pytest.raises(ValueError, match="period_s"):
+        ArmKinematicCorrectorPlus(arm_pose()[1], None, 0.0)

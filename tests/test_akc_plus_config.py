@@ -3,7 +3,7 @@ import math
 import pytest
 
 from akc_drake.core.akc_plus import AKCPlusConfig as ReExported
-from akc_drake.core.akc_plus_config import AKCPlusConfig, akc_plus_config
+from akc_drake.core.akc_plus_config import REFERENCE_PERIOD_S, AKCPlusConfig, akc_plus_config, per_frame
 
 
 def test_defaults_are_the_measurement_model_of_the_kf():
@@ -54,3 +54,39 @@ def test_settings_resolve_for_the_filter_they_follow():
 def test_bad_settings_are_one_clear_error(settings, match):
     with pytest.raises(ValueError, match=match):
         akc_plus_config(settings)
+
+
+def test_per_frame_settings_are_the_configs_at_ten_hertz():
+    c = AKCPlusConfig()
+    for period in (None, REFERENCE_PERIOD_S):
+        pf = per_frame(c, period)
+        assert pf.step_sigma_m == c.sigma_temporal_m and pf.temporal_walk_var == c.sigma_temporal_m**2
+        assert pf.shoulder_walk_var == c.sigma_shoulder_m**2
+        assert pf.shoulder_alpha == c.shoulder_alpha and pf.nis_alpha == c.nis_alpha  # exactly, not 1 - (1 - a)
+        assert pf.recent_frames == c.recent_frames and pf.gate_frames == c.gate_frames
+        assert pf.jump_m == c.jump_m and pf.drift_m_per_frame == c.drift_m_per_frame
+
+
+@pytest.mark.parametrize("rate_hz", [30.0, 15.0, 5.0])
+def test_per_frame_settings_mean_the_same_in_seconds(rate_hz):
+    c = AKCPlusConfig(nis_alpha=0.3)
+    pf, n = per_frame(c, 1.0 / rate_hz), rate_hz / 10.0  # n frames at this rate per frame at 10 Hz
+    # A motion between two frames (speed x period), and over one second:
+    assert pf.step_sigma_m * rate_hz == pytest.approx(c.sigma_temporal_m * 10.0)
+    assert pf.jump_m * n == pytest.approx(c.jump_m) and pf.drift_m_per_frame * n == pytest.approx(c.drift_m_per_frame)
+    # A random walk's variance accumulated over one second:
+    assert pf.temporal_walk_var * rate_hz == pytest.approx(c.sigma_temporal_m**2 * 10.0)
+    assert pf.shoulder_walk_var * rate_hz == pytest.approx(c.sigma_shoulder_m**2 * 10.0)
+    # A running mean forgets as much per second: (1 - a')^n == 1 - a.
+    assert (1.0 - pf.nis_alpha) ** n == pytest.approx(1.0 - 0.3)
+    assert (1.0 - pf.shoulder_alpha) ** n == pytest.approx(1.0 - c.shoulder_alpha)
+    assert 0.0 < pf.nis_alpha <= 1.0
+    # Frame counts: as many seconds.
+    assert pf.recent_frames / rate_hz == pytest.approx(c.recent_frames / 10.0)
+    assert pf.gate_frames / rate_hz == pytest.approx(c.gate_frames / 10.0)
+
+
+@pytest.mark.parametrize("period", [0.0, -0.1, math.inf, math.nan, True, "0.1"])
+def test_per_frame_rejects_a_bad_period(period):
+    with pytest.raises(ValueError, match="period_s"):
+        per_frame(AKCPlusConfig(), period)

@@ -128,10 +128,24 @@ def test_akc_plus_system_keeps_a_seen_arm():
         ArmKinematicCorrection(dims, corrector="XYZ")
 
 
+def _plus_with_variance(dims, rate_hz=10.0):
+    """A diagram of the AKC+ system with its three inputs exported (pose, measured, variance) and its corrected
+    pose; returns (diagram, simulator, context)."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    builder = DiagramBuilder()
+    sys_ = builder.AddSystem(ArmKinematicCorrection(dims, corrector="AKC+", rate_hz=rate_hz))
+    for name in ("landmarks_C", "landmarks_C_measured", "landmarks_C_variance"):
+        builder.ExportInput(sys_.GetInputPort(name), name)
+    builder.ExportOutput(sys_.GetOutputPort("landmarks_C_corrected"), "out")
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    return diagram, sim, sim.get_mutable_context()
+
+
 def test_akc_plus_system_uses_the_filter_variance_when_connected():
     """The optional input landmarks_C_variance reaches the core: the system equals the core given the variance,
     and differs from the core without it (a lagging filtered wrist that the variance marks)."""
-    from pydrake.systems.framework import DiagramBuilder
 
     from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
 
@@ -145,14 +159,7 @@ def test_akc_plus_system_uses_the_filter_variance_when_connected():
         q[INDEX["left_wrist"], 2] = 1.66  # the filter's wrist lags 4 cm behind a consistent measurement
     var = np.full((12, 3), 1e-5)
     var[:, 2] = 1.5e-3
-    builder = DiagramBuilder()
-    sys_ = builder.AddSystem(ArmKinematicCorrection(dims, corrector="AKC+"))
-    for name in ("landmarks_C", "landmarks_C_measured", "landmarks_C_variance"):
-        builder.ExportInput(sys_.GetInputPort(name), name)
-    builder.ExportOutput(sys_.GetOutputPort("landmarks_C_corrected"), "out")
-    diagram = builder.Build()
-    sim = Simulator(diagram)
-    ctx = sim.get_mutable_context()
+    diagram, sim, ctx = _plus_with_variance(dims)
     core, blind = ArmKinematicCorrectorPlus(dims), ArmKinematicCorrectorPlus(dims)
     for k in range(6):
         diagram.get_input_port(0).FixValue(ctx, poses[k].ravel())
@@ -164,3 +171,30 @@ def test_akc_plus_system_uses_the_filter_variance_when_connected():
         other = blind.correct(poses[k], measured[k]).pose
         np.testing.assert_allclose(out, want, atol=1e-12, equal_nan=True)
     assert np.nanmax(np.abs(want - other)) > 1e-3
+
+
+def test_akc_plus_system_scales_its_settings_to_the_camera_rate():
+    """At 30 Hz the system's AKC+ is the core built for a 1/30 s frame period (:func:`~akc_drake.core.
+    akc_plus_config.per_frame`), not the one with the 10 Hz settings per frame."""
+
+    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+
+    dims = BodyDimensions.paper_participant()
+    poses = [frame(k) for k in range(12)]
+    measured = [p.copy() for p in poses]
+    for k, q in enumerate(measured):
+        q[INDEX["left_wrist"], 2] += 0.01 * k  # a measurement running away from the filter's wrist
+    var = np.full((12, 3), 1e-5)
+    var[:, 2] = 1.5e-3
+    diagram, sim, ctx = _plus_with_variance(dims, rate_hz=30.0)
+    core, at_10_hz = ArmKinematicCorrectorPlus(dims, None, 1.0 / 30.0), ArmKinematicCorrectorPlus(dims)
+    gap = 0.0
+    for k in range(12):
+        for i, v in enumerate((poses[k], measured[k], var)):
+            diagram.get_input_port(i).FixValue(ctx, v.ravel())
+        sim.AdvanceTo(k / 30.0 + 1.0 / 60.0)
+        out = diagram.get_output_port(0).Eval(ctx).reshape(12, 3)
+        want = core.correct(poses[k], measured[k], var).pose
+        np.testing.assert_allclose(out, want, atol=1e-12, equal_nan=True)
+        gap = max(gap, float(np.nanmax(np.abs(want - at_10_hz.correct(poses[k], measured[k], var).pose))))
+    assert gap > 1e-3

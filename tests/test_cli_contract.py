@@ -189,3 +189,16 @@ def test_record_tells_how_a_primitive_recording_replays():
 
     assert "--body skinned" in replay_note("primitive") and "MediaPipe" in replay_note("primitive")
     assert replay_note("skinned") is None
+
+
+def test_evaluate_rate_reaches_the_experiment_and_is_checked(capsys):
+    from akc_drake.commands.evaluate import build_config
+
+    args = cli.build_parser().parse_args(["evaluate", "--motion", "I", "--rate-hz", "30"])
+    assert build_config(args).rate_hz == 30.0
+    assert build_config(cli.build_parser().parse_args(["evaluate"])).rate_hz == 10.0
+    assert cli.main(["evaluate", "--rate-hz", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--rate-hz must be a frame rate between 1 and 240 Hz, got 0" in err
+    assert cli.main(["evaluate", "--motion-dir", "data/mocap", "--rate-hz", "30"]) == 2
+    assert "--rate-hz: the motion set is rendered at 10 Hz" in capsys.readouterr().err

@@ -57,6 +57,10 @@ def test_built_bundle_detects_exactly_as_the_shipped_one(full_task, astronaut, t
         assert sorted(z.namelist()) == ["pose_detector.tflite", "pose_landmarks_detector.tflite"]
         assert z.read("pose_detector.tflite") == zipfile.ZipFile(full_task).read("pose_detector.tflite")
         assert pm._metadata_entry(z.read("pose_landmarks_detector.tflite")) is not None
+    # The same inputs, the same bytes (the model's SHA-256 is in the render cache's key: a rebuild must keep it).
+    again = pm.build_pose_task(tmp_path / "bare.tflite", full_task, tmp_path / "again.task")
+    assert again.read_bytes() == built.read_bytes()
+    assert {i.date_time for i in zipfile.ZipFile(built).infolist()} == {(1980, 1, 1, 0, 0, 0)}  # (not the build's time)
     with mpd.MediaPipeDetector(model_path=full_task) as a, mpd.MediaPipeDetector(model_path=built) as b:
         da, db = a.detect(astronaut), b.detect(astronaut)
     assert da.person_found and db.person_found

@@ -7,6 +7,7 @@ prints the tables in the paper's layout (ours, the paper's figure in brackets), 
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -77,6 +78,9 @@ def build_config(args):
 
     if args.cycles < 1:
         raise UserError(f"--cycles must be at least 1, got {args.cycles}")
+    rate = getattr(args, "rate_hz", 10.0)
+    if not (math.isfinite(rate) and 1.0 <= rate <= 240.0):
+        raise UserError(f"--rate-hz must be a frame rate between 1 and 240 Hz, got {rate:g}")
     try:
         methods = parse_methods(args.methods if args.methods is not None else METHODS)
     except ValueError as e:
@@ -95,6 +99,7 @@ def build_config(args):
             weights=args.weights,
             width=getattr(args, "width", 640),
             height=getattr(args, "height", 480),
+            rate_hz=rate,
             motion_file=motion_file,
             skeleton=skeleton,
             joint_names=_joint_names(args),
@@ -190,6 +195,8 @@ def run_motion_dir(args) -> int:
     for opt in ("motion_file", "skeleton"):
         if getattr(args, opt, None) and clips is None:
             raise UserError(f"--{opt.replace('_', '-')}: not used with --motion-dir")
+    if getattr(args, "rate_hz", 10.0) != 10.0:
+        raise UserError("--rate-hz: the motion set is rendered at 10 Hz (not with --motion-dir or --drive rig)")
     try:
         methods = DEFAULT_METHODS if args.methods is None else parse_methods(args.methods)
     except ValueError as e:

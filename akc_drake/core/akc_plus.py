@@ -131,7 +131,7 @@ import math
 import numpy as np
 
 from akc_drake.core.akc import AKCResult
-from akc_drake.core.akc_plus_config import AKCPlusConfig
+from akc_drake.core.akc_plus_config import AKCPlusConfig, per_frame
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     fuse_held,
@@ -185,6 +185,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
     Args:
         dims: the calibrated body dimensions.
         config: settings.
+        period_s: the frame period, seconds (None: 10 Hz, the rate the per-frame settings are stated at); the
+            rate-dependent settings are scaled to it (:func:`~akc_drake.core.akc_plus_config.per_frame`).
 
     Missing inputs are handled as the paper's corrector does: a missing wrist holds the arm's last
     output (NaN if none); a missing elbow/shoulder x, y reuses the last output's (held if none).
@@ -196,9 +198,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                  "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
-                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit")
+                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf")
 
-    def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None):
+    def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
             raise ValueError(f"dims must be a BodyDimensions, got {type(dims).__name__}")
         config = AKCPlusConfig() if config is None else config
@@ -211,10 +213,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         self._ls = dims.SW
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
         self._hand = tuple((*o, config.hand_length_m) for o in _HAND if config.hand_length_m > 0)
-        self._inv_t2 = 1.0 / config.sigma_temporal_m**2
-        self._v_t = config.sigma_temporal_m**2
-        self._v_s = config.sigma_shoulder_m**2
-        self._a_s = config.shoulder_alpha
+        self._pf = pf = per_frame(config, period_s)  # (the rate-dependent settings at this frame period)
+        self._inv_t2 = 1.0 / pf.step_sigma_m**2
+        self._v_t = pf.temporal_walk_var
+        self._v_s = pf.shoulder_walk_var
+        self._a_s = pf.shoulder_alpha
         self._t_cap = config.temporal_cap**2
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
@@ -237,7 +240,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         self._no_measurement = [_NAN] * (3 * NUM_LANDMARKS)
         self._gate2 = config.gate_sigma**2
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
-        self._nis_a, self._nis_floor, self._tol = config.nis_alpha, config.nis_floor, config.length_tol_m
+        self._nis_a, self._nis_floor, self._tol = pf.nis_alpha, config.nis_floor, config.length_tol_m
         self._refit = config.constrained_filter is True  # (None: not resolved for a filter, off)
         self._cons, self._xy_tol = config.consistency_m, config.xy_tol_m
         self._occ_r2 = config.occlusion_radius_m**2
@@ -377,7 +380,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
             # (With the filter's covariance the innovation test of ``_measured`` is this test.)
             # Consistent with the prediction (our last output): a seen depth that jumps by more than jump_m in
             # one frame is an occluder's until it fits the arm again or has stayed for gate_frames frames.
-            jump, n = self.config.jump_m, self.config.gate_frames
+            jump, n = self._pf.jump_m, self._pf.gate_frames
             if me and abs(m[o_e + 2] - prev[5]) > jump and not (self._lost[ke] >= n and geo_f):
                 me = False
             if ms and abs(m[o_s + 2] - prev[2]) > jump and not (self._lost[ks] >= n and geo_u):
@@ -390,7 +393,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
             # and our last output (no evidence: the filter prior is then left out) is the better estimate: without
             # the covariance when the filter moved it more than jump_m from it; with it, see ``hold_blind``.
             if vs is None:
-                jump = self.config.jump_m
+                jump = self._pf.jump_m
                 if not exy and _hypot(ex - prev[3], ey - prev[4], ez - prev[5]) > jump:
                     ex, ey, ez = prev[3], prev[4], prev[5]
                     self._no_prior.add(2 * side)
@@ -449,7 +452,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         kn_e, kn_s = me, ms
         if vs is not None and not (me and ms):
             kn_e, kn_s = known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, (sx, sy, ex, ey, wx, wy), self._r_z,
-                                      self._len_var, no_prior, self._lost, self.config.recent_frames)
+                                      self._len_var, no_prior, self._lost, self._pf.recent_frames)
         projected = vs is not None and kn_e and kn_s  # (the projection of the filter's arm, tried)
         if projected:
             # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its

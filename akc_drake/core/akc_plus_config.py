@@ -12,6 +12,10 @@ from dataclasses import dataclass
 class AKCPlusConfig:
     """Settings of AKC+ (see the module docstring). Lengths in metres.
 
+    Settings "per frame" or "between two frames" (and the running means' weights of the newest frame, and the
+    frame counts) are stated at the paper's camera rate, 10 Hz (:data:`REFERENCE_PERIOD_S`); a corrector at
+    another rate scales them to its frame period so that they mean the same in seconds (:func:`per_frame`).
+
     ``consistency_m``, ``jump_m``, ``gate_frames``, ``sigma_filter_m`` and ``drift_m_per_frame`` serve only
     without the filter's covariance; ``depth_sigma_m``, ``image_sigma_m``, ``length_sigma_m``, ``gate_sigma``,
     ``nis_alpha`` and ``nis_floor`` only with it.
@@ -26,7 +30,7 @@ class AKCPlusConfig:
         sigma_width_m: standard deviation of the shoulder-width term (0 turns it off).
         sigma_torso_m: standard deviation of a shoulder's depth about the hips' (torso lean; 0 turns it off).
         sigma_shoulder_m: how far a shoulder may move relative to the hips between two frames, per axis (a torso
-            turning at 0.3 m/s at the shoulder, 30 Hz): the random walk of a shoulder whose depth the occlusion
+            turning at 0.1 m/s at the shoulder): the random walk of a shoulder whose depth the occlusion
             filter dropped (or that the detector lost altogether: then x, y too), held at its seen offset from the
             hips' centre, learnt in frames with both hips' depths measured (with the covariance; 0 turns it off).
         shoulder_alpha: weight of the newest frame in the running mean of that offset (0.2: a time constant of 5
@@ -128,6 +132,75 @@ class AKCPlusConfig:
                 raise ValueError(f"AKCPlusConfig.{name} must be in (0, 1], got {getattr(self, name)!r}")
         if self.elbow_min_deg >= 180.0:
             raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")
+
+
+#: The frame period (s) at which :class:`AKCPlusConfig`'s per-frame settings are stated: 10 Hz, the paper's camera
+#: rate and the evaluation's.
+REFERENCE_PERIOD_S = 0.1
+
+
+@dataclass(frozen=True)
+class PerFrame:
+    """AKC+'s rate-dependent settings for one frame period (:func:`per_frame`).
+
+    Attributes:
+        step_sigma_m: how far a joint may move between two frames (the candidates' temporal term).
+        temporal_walk_var: the random walk's variance per blind frame of a held segment (forearm, upper arm).
+        shoulder_walk_var: the random walk's variance per blind frame of a shoulder held on the torso.
+        shoulder_alpha, nis_alpha: the running means' weights of the newest frame.
+        recent_frames, gate_frames: the frame counts.
+        jump_m: the largest depth jump between two frames (without the covariance).
+        drift_m_per_frame: the filter's drift per frame without a trusted depth (without the covariance).
+    """
+
+    step_sigma_m: float
+    temporal_walk_var: float
+    shoulder_walk_var: float
+    shoulder_alpha: float
+    nis_alpha: float
+    recent_frames: float
+    gate_frames: float
+    jump_m: float
+    drift_m_per_frame: float
+
+
+def per_frame(config: AKCPlusConfig, period_s: float | None = None) -> PerFrame:
+    """``config``'s rate-dependent settings at frame period ``period_s``, the same in seconds as at 10 Hz.
+
+    With ``r = period_s / REFERENCE_PERIOD_S``: a motion between two frames (``sigma_temporal_m``, ``jump_m``,
+    ``drift_m_per_frame``) scales with ``r``; a random walk's variance per frame (``sigma_temporal_m^2`` for a
+    held segment, ``sigma_shoulder_m^2``) with ``r``; a running mean's weight ``a`` becomes ``1 - (1 - a)^r``
+    (the same time constant in seconds); frame counts scale with ``1 / r``. Sampled at 30 Hz with the 10 Hz values,
+    AKC+(KF)'s shoulders and elbows on the bench were 0.2-0.7 cm worse in z (docs/results.md, "Frame rate").
+
+    Args:
+        config: the settings.
+        period_s: the corrector's frame period, seconds (None: :data:`REFERENCE_PERIOD_S`).
+
+    Raises:
+        ValueError: a period that is not a positive, finite number.
+    """
+    if period_s is None:
+        period_s = REFERENCE_PERIOD_S
+    if isinstance(period_s, bool) or not isinstance(period_s, (int, float)) or not 0.0 < period_s < math.inf:
+        raise ValueError(f"AKC+ period_s must be a positive number of seconds, got {period_s!r}")
+    r = period_s / REFERENCE_PERIOD_S
+    return PerFrame(
+        step_sigma_m=config.sigma_temporal_m * r,
+        temporal_walk_var=config.sigma_temporal_m**2 * r,
+        shoulder_walk_var=config.sigma_shoulder_m**2 * r,
+        shoulder_alpha=_weight(config.shoulder_alpha, r),
+        nis_alpha=_weight(config.nis_alpha, r),
+        recent_frames=config.recent_frames / r,
+        gate_frames=config.gate_frames / r,
+        jump_m=config.jump_m * r,
+        drift_m_per_frame=config.drift_m_per_frame * r,
+    )
+
+
+def _weight(a: float, r: float) -> float:
+    """A running mean's weight ``a`` per reference frame, per frame ``r`` times as long (exactly ``a`` at ``r = 1``)."""
+    return a if r == 1.0 else 1.0 - (1.0 - a) ** r
 
 
 def akc_plus_config(settings=None, filter_kind: str | None = None) -> AKCPlusConfig:

@@ -74,7 +74,7 @@ class CandidateSearch:
         # the distance the filter's depth has travelled since it was lost.
         sf = cfg.sigma_filter_m + 2.0 * self._travel[k]
         if k not in self._fits:
-            sf += cfg.drift_m_per_frame * self._lost[k]
+            sf += self._pf.drift_m_per_frame * self._lost[k]
         return 1.0 / (sf * sf)
 
     def _choose(self, cands, fx, fy, fz, prev_p, k_lost, extra=None):

@@ -356,7 +356,7 @@ class MethodRunner:
                 accepted, _ = self.occlusion()
                 var = self.filter_variance(spec.filter)
                 est, t_cor, status = run_akc(
-                    make_akc_plus(self.dims, self.options.akc_plus_config, spec.filter), est, accepted, var
+                    make_akc_plus(self.dims, self.options.akc_plus_config, spec.filter, s.dt), est, accepted, var
                 )
                 times["corrector"] = t_cor
             elif spec.corrector == "COIK":
@@ -392,14 +392,15 @@ def make_akc(dims: BodyDimensions, weights):
     return ArmKinematicCorrector(dims, resolve_weights(weights))
 
 
-def make_akc_plus(dims: BodyDimensions, config=None, filter_kind: str | None = None):
+def make_akc_plus(dims: BodyDimensions, config=None, filter_kind: str | None = None, period_s: float | None = None):
     """A fresh ``ArmKinematicCorrectorPlus`` (AKC+). ``config``: an ``AKCPlusConfig``, a mapping of some of its
     fields, or None (:func:`~akc_drake.core.akc_plus_config.akc_plus_config`); ``filter_kind`` ("KF" | "EKF")
-    sets a ``constrained_filter`` the config leaves at None (the EKFs' posteriors hold bone-length constraints)."""
+    sets a ``constrained_filter`` the config leaves at None (the EKFs' posteriors hold bone-length constraints);
+    ``period_s``: the frame period its per-frame settings are scaled to (None: 10 Hz)."""
     from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
     from akc_drake.core.akc_plus_config import akc_plus_config
 
-    return ArmKinematicCorrectorPlus(dims, akc_plus_config(config, filter_kind))
+    return ArmKinematicCorrectorPlus(dims, akc_plus_config(config, filter_kind), period_s)
 
 
 def make_coik(dims: BodyDimensions, config=None):

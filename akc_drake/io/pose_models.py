@@ -148,6 +148,10 @@ def landmark_networks(tarball: Path) -> dict[str, bytes]:
     return {name: archive_member(tarball, f"package/pose_landmark_{name}.tflite") for name in BUILT_MODELS}
 
 
+#: The timestamp of every entry of a built bundle (the ZIP format's earliest).
+_BUNDLE_TIME = (1980, 1, 1, 0, 0, 0)
+
+
 def build_pose_task(landmarks_tflite, reference_task: Path, out: Path) -> Path:
     """Write a PoseLandmarker ``.task`` bundle from a bare landmark network and the full bundle.
 
@@ -180,8 +184,10 @@ def build_pose_task(landmarks_tflite, reference_task: Path, out: Path) -> Path:
         raise UserError(f"{label}: not a TFLite model")
     data = io.BytesIO()
     with zipfile.ZipFile(data, "w", zipfile.ZIP_STORED) as z:  # stored, as MediaPipe's own bundles
-        z.writestr(_DETECTOR, detector)
-        z.writestr(_LANDMARKS, with_metadata(raw, metadata))
+        # A fixed timestamp: the same inputs give the same bytes, so the render cache's key (which holds the model's
+        # SHA-256) survives a reinstall; with the build's time every `make install` invalidated MediaPipe's renders.
+        for name, payload in ((_DETECTOR, detector), (_LANDMARKS, with_metadata(raw, metadata))):
+            z.writestr(zipfile.ZipInfo(name, date_time=_BUNDLE_TIME), payload)
     from akc_drake.fileio import atomic_write_bytes
 
     atomic_write_bytes(Path(out), data.getvalue())

@@ -55,7 +55,7 @@ class ArmKinematicCorrection(LeafSystem):
     Args:
         dims: the calibrated body dimensions.
         weights: cost weights and shrink factor (default: the paper's ``Wb``).
-        rate_hz: the camera rate.
+        rate_hz: the camera rate (AKC+ scales its per-frame settings to its period).
         stage_offset_s: the per-stage offset of :func:`akc_drake.systems.timing.stage_offset`.
         anatomical_check: hold an arm whose chosen configuration has an impossible elbow angle (see
             :class:`~akc_drake.core.akc.ArmKinematicCorrector`); on in the teleop diagram (paper AKC only).
@@ -85,7 +85,7 @@ class ArmKinematicCorrection(LeafSystem):
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
         # The core object is created once; each update loads the context's state into it and back out.
         if corrector == "AKC+":
-            self._akc = ArmKinematicCorrectorPlus(dims, plus_config)
+            self._akc = ArmKinematicCorrectorPlus(dims, plus_config, period_s=1.0 / float(rate_hz))
         else:
             self._akc = ArmKinematicCorrector(dims, weights, anatomical_check=anatomical_check)
         self._plus = corrector == "AKC+"
