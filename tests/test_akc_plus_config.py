@@ -58,7 +58,7 @@ def test_bad_settings_are_one_clear_error(settings, match):
 
 def test_per_frame_settings_are_the_configs_at_ten_hertz():
     c = AKCPlusConfig()
-    for period in (None, REFERENCE_PERIOD_S):
+    for period in (None, REFERENCE_PERIOD_S, 0.30000000000000004 - 0.2):  # (the last: 0.1 one ulp off)
         pf = per_frame(c, period)
         assert pf.step_sigma_m == c.sigma_temporal_m and pf.temporal_walk_var == c.sigma_temporal_m**2
         assert pf.shoulder_walk_var == c.sigma_shoulder_m**2

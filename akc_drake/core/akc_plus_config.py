@@ -185,6 +185,8 @@ def per_frame(config: AKCPlusConfig, period_s: float | None = None) -> PerFrame:
     if isinstance(period_s, bool) or not isinstance(period_s, (int, float)) or not 0.0 < period_s < math.inf:
         raise ValueError(f"AKC+ period_s must be a positive number of seconds, got {period_s!r}")
     r = period_s / REFERENCE_PERIOD_S
+    if abs(r - 1.0) < 1e-9:  # (10 Hz up to rounding, e.g. a median of sampled times' steps: exactly the settings)
+        r = 1.0
     return PerFrame(
         step_sigma_m=config.sigma_temporal_m * r,
         temporal_walk_var=config.sigma_temporal_m**2 * r,
