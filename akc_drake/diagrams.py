@@ -504,7 +504,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
                          torso_model=None, smoothing: bool = True, workspace: bool = True,
                          hand_dropout=None, hand_apertures=None, hand_detector=None,
-                         hand_knuckles=None, operator=None) -> TeleopDiagram:
+                         hand_knuckles=None, operator=None, motion_limits: bool | tuple = True) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
@@ -537,6 +537,9 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         operator: a :class:`~akc_drake.operator.closed_loop.ClosedLoopOperator` (with ``motion``, its plan, and no
             ``replay``): the rendered operator watches the robot's tool and corrects it
             (:class:`~akc_drake.systems.operator_controller.OperatorController`, on :attr:`TeleopDiagram.operator`).
+        motion_limits: each arm's command within its acceleration and jerk limits too
+            (:class:`~akc_drake.robot.joint_motion_limiter.JointMotionLimiter`; ``(acceleration, jerk)`` arrays
+            for other limits than :func:`~akc_drake.robot.model.arm_motion_limits`, False without).
 
     When ``motion`` has a hand closure (:attr:`~akc_drake.operator.motions.OperatorMotion.hand_closed`, e.g. the
     pick-and-place motion), the grippers are commanded from the hands: a
@@ -587,7 +590,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     ik = {}
     for side in ("left", "right"):
         arm = AddArmDifferentialIK(builder, make_arm_ik_plant(side), side, ik_time_step,
-                                   measured_q_port=station.arm_position_output[side])
+                                   measured_q_port=station.arm_position_output[side], motion_limits=motion_limits)
         arm.integrator.set_name(f"DifferentialIK_{side}")
         builder.Connect(mapper.GetOutputPort(f"X_TE_desired_{side}"), arm.X_TE_desired_input)
         builder.Connect(arm.q_commanded_output, station.arm_position_input[side])

@@ -23,6 +23,7 @@ from akc_drake.robot.diff_ik import (
 from akc_drake.robot.model import (
     NOMINAL_ARM_Q,
     arm_joint_limits,
+    arm_motion_limits,
     arm_position_indices,
     ee_frame,
     nominal_ee_pose,
@@ -38,15 +39,18 @@ def ik_plants():
 
 
 class IKRig:
-    """One arm's IK alone, its target a fixed input value, its commands logged at the IK period."""
+    """One arm's IK alone, its target a fixed input value, its commands logged at the IK period: the guard's
+    (``q``, ``v_log``: the IK's loop) and the motion limiter's (``q_out``: what the robot gets)."""
 
     def __init__(self, plant, side, **kwargs):
         builder = DiagramBuilder()
         self.ik = AddArmDifferentialIK(builder, plant, side, IK_DT, **kwargs)
         self.target_port = builder.ExportInput(self.ik.X_TE_desired_input, "X_TE_desired")
-        self.q_log = LogVectorOutput(self.ik.q_commanded_output, builder, publish_period=IK_DT)
+        guard = self.ik.command_guard
+        self.q_log = LogVectorOutput(guard.GetOutputPort("q_commanded"), builder, publish_period=IK_DT)
         self.raw_log = LogVectorOutput(self.ik.integrator.GetOutputPort("joint_positions"), builder, IK_DT)
-        self.v_log = LogVectorOutput(self.ik.v_commanded_output, builder, publish_period=IK_DT)
+        self.v_log = LogVectorOutput(guard.GetOutputPort("v_commanded"), builder, publish_period=IK_DT)
+        self.out_log = LogVectorOutput(self.ik.q_commanded_output, builder, publish_period=IK_DT)
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
@@ -58,6 +62,9 @@ class IKRig:
 
     def q(self):
         return self.q_log.FindLog(self.context).data().T
+
+    def q_out(self):
+        return self.out_log.FindLog(self.context).data().T
 
 
 def pose_error(X, Y):
@@ -152,6 +159,28 @@ def test_unreachable_target_respects_velocity_and_position_limits(ik_plants):
     # The v_commanded feedforward is the command's finite difference.
     v = rig.v_log.FindLog(rig.context).data().T
     np.testing.assert_allclose(v[1:], np.diff(q, axis=0) / IK_DT, atol=1e-9)
+
+
+def test_the_robot_gets_the_command_within_its_acceleration_limits(ik_plants):
+    side = "left"
+    X0 = nominal_ee_pose(side)
+    target = RigidTransform(X0.rotation(), X0.translation() + [0.15, 0.1, 0.1])
+    rig = IKRig(ik_plants[side], side)
+    assert rig.ik.limiter is not None
+    rig.run(target, 1.5)
+    q, out = rig.q(), rig.q_out()
+    acc, _ = arm_motion_limits(side)
+    # The guard's command starts at the velocity limits (hundreds of rad/s^2); the limiter's stays within them,
+    # and arrives where the IK ended.
+    assert np.max(np.abs(np.diff(q, 2, axis=0)) / IK_DT**2 / acc) > 10.0
+    assert np.max(np.abs(np.diff(out, 2, axis=0)) / IK_DT**2 / acc) <= 1.0 + 1e-9
+    np.testing.assert_allclose(out[-1], q[-1], atol=1e-4)  # (the IK still creeps: the limiter is a step behind)
+    np.testing.assert_allclose(out[0], NOMINAL_ARM_Q, atol=1e-12)
+    # Without it the robot gets the guard's command.
+    plain = IKRig(ik_plants[side], side, motion_limits=False)
+    assert plain.ik.limiter is None
+    plain.run(target, 0.5)
+    np.testing.assert_array_equal(plain.q_out(), plain.q())
 
 
 def test_leaving_home_for_a_target_beside_the_robot_takes_a_joint_space_move(ik_plants):

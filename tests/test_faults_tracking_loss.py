@@ -135,9 +135,11 @@ def _teleop(meas: diagrams.Measurements):
 
 
 def _check_commands(td, h) -> None:
-    """Zero NaN commands and no joint faster than its velocity limit (from the recorded commands)."""
+    """Zero NaN commands and no joint faster than its velocity limit nor accelerating beyond its acceleration
+    limit, also when the person comes back far from where they left (from the recorded commands)."""
     assert td.monitor.nan_commands == 0
     assert td.monitor.max_speed_ratio <= 1.0 + 1e-9
+    assert td.monitor.max_acceleration_ratio <= 1.0 + 1e-9 and td.monitor.acceleration_limit_hits == 0
     dt = np.diff(h["t"])
     for side in ("left", "right"):
         q = h[f"q_{side}"]

@@ -29,6 +29,7 @@ def _check_summary(s: dict, minutes: float) -> None:
     assert s["simulated_s"] == pytest.approx(60.0 * minutes)
     assert s["nan_commands"] == 0
     assert s["max_joint_speed_ratio"] <= 1.0 + 1e-9 and not s["joint_velocity_limit_exceeded"]
+    assert 0.0 < s["max_joint_acceleration_ratio"] <= 1.0 + 1e-9
     assert s["rss_growth_mb"] < 10.0 <= MAX_RSS_GROWTH_MB
     variances = np.asarray(s["max_position_variance_m2"]["value"])
     assert np.isfinite(variances).all() and variances.max() <= MAX_HELD_POSITION_VAR * (1 + 1e-9)

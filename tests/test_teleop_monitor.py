@@ -1,13 +1,15 @@
 """TeleopMonitor: counts NaN commands and limit hits, measures target-to-end-effector distances."""
 
 import numpy as np
+import pytest
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
 
-from akc_drake.robot.model import NOMINAL_ARM_Q, arm_joint_limits, nominal_ee_pose
+from akc_drake.robot.model import NOMINAL_ARM_Q, arm_joint_limits, arm_motion_limits, nominal_ee_pose
 from akc_drake.robot.station import AddRobotStation
 from akc_drake.systems.teleop_monitor import TeleopMonitor
 
@@ -21,7 +23,8 @@ def _run(q_left, target_offset=(0.0, 0.0, 0.0), seconds=0.3):
         X = RigidTransform(X.rotation(), X.translation() + np.asarray(target_offset))
         tgt = builder.AddSystem(ConstantValueSource(AbstractValue.Make(X)))
         builder.Connect(tgt.get_output_port(), mon.GetInputPort(f"X_TE_desired_{side}"))
-        cmd = builder.AddSystem(ConstantVectorSource(q_left if side == "left" else NOMINAL_ARM_Q))
+        q = q_left if side == "left" else NOMINAL_ARM_Q
+        cmd = builder.AddSystem(TrajectorySource(q) if isinstance(q, PiecewisePolynomial) else ConstantVectorSource(q))
         builder.Connect(cmd.get_output_port(), mon.GetInputPort(f"q_commanded_{side}"))
         builder.Connect(station.arm_position_output[side], station.arm_position_input[side])  # hold still
     lost = builder.AddSystem(ConstantVectorSource(np.zeros(2)))
@@ -34,7 +37,7 @@ def _run(q_left, target_offset=(0.0, 0.0, 0.0), seconds=0.3):
 def test_nominal_posture_tracks_its_own_pose_with_no_faults():
     mon = _run(np.asarray(NOMINAL_ARM_Q, dtype=float))
     assert mon.samples == 31 and mon.nan_commands == 0 and mon.position_limit_hits == 0
-    assert mon.max_speed_ratio == 0.0  # constant commands
+    assert mon.max_speed_ratio == 0.0 and mon.max_acceleration_ratio == 0.0  # constant commands
     assert np.max(mon.ee_errors("left")) < 0.01  # the robot holds its nominal pose: target = achieved
     h = mon.history_arrays()
     assert h["q_left"].shape == (31, 7) and h["target_right"].shape == (31, 4, 4)
@@ -54,3 +57,20 @@ def test_counts_nan_commands_limit_hits_and_target_distance():
     assert _run(q).position_limit_hits == 31
     far = _run(np.asarray(NOMINAL_ARM_Q, dtype=float), target_offset=(0.0, 0.0, 0.1))
     np.testing.assert_allclose(far.ee_errors("right"), 0.1, atol=0.01)
+
+
+def test_commanded_acceleration_against_its_limit():
+    n = np.asarray(NOMINAL_ARM_Q, dtype=float)
+    acc = arm_motion_limits("left")[0][0]
+    # Joint 1 at half its acceleration limit from rest (samples of the parabola, exact at the 10 ms knots).
+    t = np.arange(0.0, 0.31, 0.01)
+    q = np.tile(n[:, None], (1, len(t)))
+    q[0] += 0.25 * acc * t**2
+    mon = _run(PiecewisePolynomial.FirstOrderHold(t, q))
+    assert mon.max_acceleration_ratio == pytest.approx(0.5, rel=1e-6) and mon.acceleration_limit_hits == 0
+    # Held, then moving at 0.5 rad/s from one 10 ms step to the next: 50 rad/s^2, once.
+    q = np.tile(n[:, None], (1, 3))
+    q[0, 2] += 0.1
+    mon = _run(PiecewisePolynomial.FirstOrderHold([0.0, 0.1, 0.3], q))
+    assert mon.max_acceleration_ratio == pytest.approx(0.5 / 0.01 / acc, rel=1e-6)
+    assert mon.acceleration_limit_hits == 1

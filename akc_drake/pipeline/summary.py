@@ -105,6 +105,7 @@ def run_summary(cfg, inputs, built, result, *, teleop: bool = False, depth_m: fl
         summary["teleop"] = {
             "nan_commands": m.nan_commands,
             "max_joint_speed_ratio": m.max_speed_ratio,
+            "max_joint_acceleration_ratio": m.max_acceleration_ratio,
             "ee_tracking_error_cm": {
                 s: float(np.median(m.ee_errors(s)) * 100) if len(m.ee_errors(s)) else None for s in ("left", "right")
             },

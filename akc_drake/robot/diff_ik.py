@@ -19,6 +19,11 @@ Two guards make the command safe whatever arrives:
   ``velocity limit * IK period`` from the previous command. The robot is therefore never commanded with NaN nor
   faster than its limits.
   The integrator linearises around this guarded command, so it always starts from a feasible point.
+
+Then, outside the IK's loop, :class:`~akc_drake.robot.joint_motion_limiter.JointMotionLimiter` turns the guard's
+command (a staircase: each camera frame's pose reached at the velocity limits, then held) into one within the
+joints' acceleration and jerk limits too (:func:`~akc_drake.robot.model.arm_motion_limits`), which a real arm's
+controller accepts.
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ from pydrake.systems.primitives import AffineSystem, ConstantValueSource, Consta
 
 from akc_drake.robot.ik_fallback_selector import IKFallbackSelector
 from akc_drake.robot.joint_command_guard import JointCommandGuard
+from akc_drake.robot.joint_motion_limiter import JointMotionLimiter
 from akc_drake.robot.joint_space_approach import JointSpaceApproach
 from akc_drake.robot.model import (
     HEAD_JOINTS,
@@ -51,6 +57,7 @@ from akc_drake.robot.model import (
     add_dual_arm_robot,
     arm_joint_limits,
     arm_joint_names,
+    arm_motion_limits,
     arm_position_indices,
     check_side,
     ee_frame,
@@ -206,8 +213,10 @@ class ArmDifferentialIK:
         X_TE_desired_input: the input port for the desired end-effector pose (AbstractValue RigidTransform,
             in the torso frame T).
         q_commanded_output: the output port of the arm's 7 joint position commands (rad).
-        v_commanded_output: the velocity of the current command step (rad/s), a feedforward for the
-            station's ``arm_velocity_input``.
+        v_commanded_output: the command's velocity (rad/s), a feedforward for the station's
+            ``arm_velocity_input``.
+        limiter: the :class:`JointMotionLimiter` the command goes through (None without it: the command is the
+            guard's, ``v_commanded_output`` its step's velocity).
     """
 
     side: str
@@ -221,6 +230,7 @@ class ArmDifferentialIK:
     v_commanded_output: OutputPort
     fallback: DifferentialInverseKinematicsIntegrator | None = None
     approach: JointSpaceApproach | None = None
+    limiter: JointMotionLimiter | None = None
 
     def status(self, root_context: Context) -> DifferentialInverseKinematicsStatus:
         """The full-pose integrator's most recent status (solution found, no solution, stuck)."""
@@ -259,9 +269,10 @@ def AddArmDifferentialIK(
     workspace_radii: tuple[float, float] = DEFAULT_WORKSPACE_RADII,
     position_fallback: bool = True,
     joint_space_approach: bool = True,
+    motion_limits: bool | tuple = True,
     **parameter_kwargs,
 ) -> ArmDifferentialIK:
-    """Add differential IK for one arm: target guard -> Drake's integrator -> command guard.
+    """Add differential IK for one arm: target guard -> Drake's integrator -> command guard -> motion limiter.
 
     The integrator linearises around the guarded command (its ``robot_state`` input is the command guard's
     output and ``use_robot_state`` is true), so each step starts from a command that is inside the joint
@@ -285,6 +296,10 @@ def AddArmDifferentialIK(
             (:class:`IKFallbackSelector`).
         joint_space_approach: add the :class:`JointSpaceApproach`: when both are stuck far from the target, the
             pose is solved by (global) inverse kinematics and the joints move straight to it.
+        motion_limits: the command goes through a :class:`JointMotionLimiter` (outside the IK's loop: the IK
+            linearises around the guard's command): True with :func:`~akc_drake.robot.model.arm_motion_limits`,
+            ``(acceleration, jerk)`` (rad/s^2, rad/s^3, 7 each) with those, False without (the guard's command
+            goes to the robot: it reaches each camera frame's pose at the velocity limits, then stops).
         **parameter_kwargs: passed to :func:`arm_ik_parameters`.
 
     Returns:
@@ -380,6 +395,14 @@ def AddArmDifferentialIK(
         builder.Connect(use_state.get_output_port(), fallback.GetInputPort("use_robot_state"))
         builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), fallback.GetInputPort("X_AE_desired"))
         builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), chooser.GetInputPort("X_AE_desired"))
+    q_out, v_out, limiter = command_guard.GetOutputPort("q_commanded"), command_guard.GetOutputPort("v_commanded"), None
+    if motion_limits is not False:
+        acc, jerk = arm_motion_limits(side) if motion_limits is True else motion_limits
+        limiter = builder.AddSystem(JointMotionLimiter(q_lo, q_hi, vel, acc, jerk, time_step))
+        limiter.set_name(f"{side}_arm_motion_limiter")
+        builder.Connect(q_out, limiter.GetInputPort("q"))
+        builder.Connect(measured_q_port, limiter.GetInputPort("q_initial"))
+        q_out, v_out = limiter.GetOutputPort("q_commanded"), limiter.GetOutputPort("v_commanded")
     return ArmDifferentialIK(
         side=side,
         time_step=float(time_step),
@@ -388,8 +411,9 @@ def AddArmDifferentialIK(
         pose_guard=pose_guard,
         command_guard=command_guard,
         X_TE_desired_input=pose_guard.GetInputPort("X_TE_desired"),
-        q_commanded_output=command_guard.GetOutputPort("q_commanded"),
-        v_commanded_output=command_guard.GetOutputPort("v_commanded"),
+        q_commanded_output=q_out,
+        v_commanded_output=v_out,
         fallback=fallback,
         approach=approach,
+        limiter=limiter,
     )

@@ -105,6 +105,27 @@ def arm_joint_limits(side: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.deg2rad(_ARM_LOWER_DEG), np.deg2rad(_ARM_UPPER_DEG), _ARM_VEL.copy()
 
 
+# Acceleration (rad/s^2) and jerk (rad/s^3) limits, joints 1-7. PAL publishes none for the TIAGo Pro; these are of
+# the order a collaborative 7-DoF arm's controller accepts (Franka Emika's published limits: 7.5-20 rad/s^2 and
+# 3750-10000 rad/s^3), the shoulder and elbow (1-4) below the wrist (5-7).
+_ARM_ACCEL = np.array([15.0, 15.0, 15.0, 15.0, 20.0, 20.0, 20.0])
+_ARM_JERK = 500.0 * _ARM_ACCEL
+
+
+def arm_motion_limits(side: str) -> tuple[np.ndarray, np.ndarray]:
+    """Acceleration and jerk limits of one arm's joints 1-7, for the command
+    (:class:`~akc_drake.robot.joint_motion_limiter.JointMotionLimiter`).
+
+    Not in the model file (URDF has no field for them) and not published for the TIAGo Pro: values of the order
+    a collaborative 7-DoF arm's controller accepts, the wrist's (5-7) above the shoulder's and the elbow's.
+
+    Returns:
+        ``(acceleration, jerk)``: rad/s^2 and rad/s^3, each of shape ``(7,)``.
+    """
+    check_side(side)
+    return _ARM_ACCEL.copy(), _ARM_JERK.copy()
+
+
 def _weld_joint_in_place(plant: MultibodyPlant, joint_name: str, model: ModelInstanceIndex) -> None:
     """Replace a 1-DoF joint (and its actuator) by a weld at the joint's default position."""
     joint = plant.GetJointByName(joint_name, model)

@@ -7,7 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 
-from akc_drake.robot.model import arm_joint_limits, arm_joint_names, ee_frame, torso_frame
+from akc_drake.robot.model import arm_joint_limits, arm_joint_names, arm_motion_limits, ee_frame, torso_frame
 
 SIDES = ("left", "right")
 
@@ -30,8 +30,9 @@ class TeleopMonitor(LeafSystem):
     History (``keep_history``): per sample the wrist targets, the achieved end-effector poses, the commanded arm
     joints (``q_{side}``) and the measured ones (``q_measured_{side}``, ``v_measured_{side}``: the plant's state).
 
-    Statistics: NaN commands, the largest commanded joint speed as a fraction of its limit, commands at a
-    position or velocity limit, and the distance between the target and the achieved end-effector position.
+    Statistics: NaN commands, the largest commanded joint speed and acceleration (the second difference of three
+    samples) as fractions of their limits, commands at a position or velocity limit or over 1.05 times an
+    acceleration limit, and the distance between the target and the achieved end-effector position.
 
     Args:
         plant: the station's plant (for forward kinematics of the measured state).
@@ -49,6 +50,7 @@ class TeleopMonitor(LeafSystem):
         self._ee = {s: ee_frame(plant, s, robot) for s in SIDES}
         self._torso = torso_frame(plant, robot)
         self._limits = {s: arm_joint_limits(s) for s in SIDES}
+        self._acc = {s: arm_motion_limits(s)[0] * period_s**2 for s in SIDES}  # (per step squared)
         # Where each arm's joints sit in the plant's full q and v (the measured joint state of the history).
         joints = {s: [plant.GetJointByName(n, robot) for n in arm_joint_names(s)] for s in SIDES}
         self._q_index = {s: np.array([j.position_start() for j in joints[s]], dtype=np.intp) for s in SIDES}
@@ -72,8 +74,11 @@ class TeleopMonitor(LeafSystem):
         self.max_speed_ratio = 0.0
         self.position_limit_hits = 0
         self.velocity_limit_hits = 0
+        self.max_acceleration_ratio = 0.0
+        self.acceleration_limit_hits = 0
         self.tracking_lost_samples = 0
         self._prev_q = {s: None for s in SIDES}
+        self._prev_step = {s: None for s in SIDES}
         self._errors = {s: [] for s in SIDES}  # decimated to the camera rate, so tiny even for long runs
         self._error_t = {s: [] for s in SIDES}  # the sample time of each entry of _errors
         self.history = {k: [] for k in ("t", "target_left", "target_right", "ee_left", "ee_right",
@@ -106,6 +111,12 @@ class TeleopMonitor(LeafSystem):
                     self.max_speed_ratio = max(self.max_speed_ratio, ratio)
                     if ratio >= 0.97:
                         self.velocity_limit_hits += 1
+                    step, last = q - prev, self._prev_step[s]
+                    if last is not None:
+                        ratio = float(np.max(np.abs(step - last) / self._acc[s]))
+                        self.max_acceleration_ratio = max(self.max_acceleration_ratio, ratio)
+                        self.acceleration_limit_hits += ratio > 1.05
+                    self._prev_step[s] = step
                 self._prev_q[s] = q
             X_target = self.GetInputPort(f"X_TE_desired_{s}").Eval(context)
             X_ee = self._ee[s].CalcPose(self._plant_context, self._torso)

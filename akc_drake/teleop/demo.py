@@ -405,7 +405,9 @@ def _summary(opts, cfg, cycles, calib, true_dims, calib_err, runs, rendered, ren
             "arm (the command is held), all runs of the demo; ik_orientation_relaxed and ik_joint_space_steps "
             "count the steps the fallback and the joint-space move drove",
             "limit_hits": "IK-period samples with a joint command within 1e-3 rad of a position limit "
-            "(position_limit_hits) or a step at >= 97% of a velocity limit (velocity_limit_hits)",
+            "(position_limit_hits), a step at >= 97% of a velocity limit (velocity_limit_hits) or a change of step "
+            "over 1.05 times an acceleration limit (acceleration_limit_hits; max_joint_speed_ratio and "
+            "max_joint_acceleration_ratio: the largest fractions of a limit, all runs)",
             "realtime_factor": f"{MAIN_CORRECTOR} with the camera rendered in the diagram (S1-S5, robot): "
             "simulated / wall-clock seconds; realtime_factor_replay is per corrector on "
             "replayed measurements (the recorded run draws to Meshcat too)",

@@ -55,7 +55,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         ``_p95_cm``: the error over the frames whose target the workspace did not clip),
         ``target_unreachable_share``, ``jitter`` and ``operator_jitter`` (the true mapped wrist's, for reference;
         each ``angular_rad_s``, ``linear_m_s``); totals:
-        ``position_limit_hits``, ``velocity_limit_hits``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
+        ``position_limit_hits``, ``velocity_limit_hits``, ``acceleration_limit_hits``, ``max_joint_speed_ratio``,
+        ``max_joint_acceleration_ratio``, ``ik_steps``, ``ik_failures``, ``nan_commands``;
         ``tracking_lost_share``, ``dropout_frames``, ``sim_s``, ``wall_s``, ``realtime_factor``.
     """
     if not runs:
@@ -139,6 +140,8 @@ def run_metrics(runs: list[TeleopRun], settling_s: float = SETTLING_S) -> dict:
         "position_limit_hits": int(sum(r.position_limit_hits for r in runs)),
         "velocity_limit_hits": int(sum(r.velocity_limit_hits for r in runs)),
         "max_joint_speed_ratio": float(max(r.max_speed_ratio for r in runs)),
+        "acceleration_limit_hits": int(sum(r.acceleration_limit_hits for r in runs)),
+        "max_joint_acceleration_ratio": float(max(r.max_acceleration_ratio for r in runs)),
         "ik_steps": int(sum(sum(r.ik_steps.values()) for r in runs)),
         "ik_failures": int(sum(sum(r.ik_failures.values()) for r in runs)),
         "ik_failure_kinds": _sum_dicts(r.ik_failure_kinds for r in runs),

@@ -114,9 +114,9 @@ def format_table(summary: dict) -> str:
     """The comparison table of a demo summary, per motion and pooled, as text.
 
     Columns: EE error (median after the settling second, then including it), the error to the operator's true
-    mapped wrist, the control-frame jitter, limit hits (position/velocity), IK steps without a solution, NaN
-    commands, the share of time with tracking lost and the replay's realtime factor. The "(operator)" row is
-    the jitter of the operator's true wrist mapped to the robot: the motion's own speed, for reference.
+    mapped wrist, the control-frame jitter, limit hits (position/velocity/acceleration), IK steps without a
+    solution, NaN commands, the share of time with tracking lost and the replay's realtime factor. The "(operator)"
+    row is the jitter of the operator's true wrist mapped to the robot: the motion's own speed, for reference.
     """
     cols = (
         ("", 10, ""),
@@ -125,7 +125,7 @@ def format_table(summary: dict) -> str:
         ("vs operator", 13, "L/R cm"),
         ("jitter", 13, "L/R rad/s"),
         ("jitter", 13, "L/R m/s"),
-        ("limit hits", 12, "pos/vel"),
+        ("limit hits", 14, "pos/vel/acc"),
         ("IK fail", 9, "steps"),
         ("NaN", 6, "cmds"),
         ("lost", 7, "%"),
@@ -143,7 +143,7 @@ def format_table(summary: dict) -> str:
             _lr(m["ee_operator_error_cm"]),
             _lr(j["angular_rad_s"], ".2f"),
             _lr(j["linear_m_s"], ".3f"),
-            f"{m['position_limit_hits']}/{m['velocity_limit_hits']}",
+            f"{m['position_limit_hits']}/{m['velocity_limit_hits']}/{m.get('acceleration_limit_hits', 0)}",
             str(m["ik_failures"]),
             str(m["nan_commands"]),
             _fmt(None if lost is None else 100.0 * lost, ".0f"),

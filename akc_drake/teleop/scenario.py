@@ -257,7 +257,8 @@ class TeleopRun:
         frames: camera frames run.
         period_s: camera period.
         sim_s, wall_s: simulated and wall-clock seconds of the simulation.
-        nan_commands, position_limit_hits, velocity_limit_hits, max_speed_ratio: from the monitor.
+        nan_commands, position_limit_hits, velocity_limit_hits, max_speed_ratio, acceleration_limit_hits,
+            max_acceleration_ratio: from the monitor.
         tracking_lost_share: share of IK-period samples with either side's tracking lost.
         ik_steps, ik_failures: per side (:class:`IKStatusCounter`); ik_failure_kinds: per status.
         ik_relaxed, ik_joint_space: per side, IK steps the position-only fallback, the joint-space move drove.
@@ -301,6 +302,8 @@ class TeleopRun:
     box_contacts: tuple = ()
     gripper_closed: np.ndarray | None = None
     unsmoothed: dict = field(default_factory=dict)
+    acceleration_limit_hits: int = 0
+    max_acceleration_ratio: float = 0.0
 
     @property
     def realtime_factor(self) -> float:
@@ -550,6 +553,8 @@ def run_teleop(
         position_limit_hits=int(mon.position_limit_hits),
         velocity_limit_hits=int(mon.velocity_limit_hits),
         max_speed_ratio=float(mon.max_speed_ratio),
+        acceleration_limit_hits=int(mon.acceleration_limit_hits),
+        max_acceleration_ratio=float(mon.max_acceleration_ratio),
         tracking_lost_share=float(np.mean(np.any(lost > 0.5, axis=1))) if lost.size else math.nan,
         ik_steps=dict(counter.steps),
         ik_failures=dict(counter.failures),
