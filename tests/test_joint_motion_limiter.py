@@ -116,3 +116,21 @@ def test_bad_arguments(bad):
     args = dict(lower=[-1.0], upper=[1.0], velocity=[1.0], acceleration=[1.0], jerk=[1.0], period=H) | bad
     with pytest.raises(ValueError, match="JointMotionLimiter"):
         JointMotionLimiter(**args)
+
+
+def test_a_move_of_rounding_residue_from_rest():
+    # Seen in the pick-and-place task: Ruckig's time synchronisation failed ("error in step 2") on a move of
+    # 1e-15 rad with velocities of 1e-18 rad/s; the limiter takes such residue as rest, or plans each joint alone.
+    from akc_drake.robot.model import arm_joint_limits, arm_motion_limits
+
+    lo, hi, vel = arm_joint_limits("left")
+    lim = JointMotionLimiter(lo, hi, vel, *arm_motion_limits("left"), H)
+    q = [0.5573932559430769, -0.8727401746534799, -0.3465196945084862, -1.690033214064407, -2.580016986695953,
+         -1.312728570694101, 2.172219925411454]
+    v = [0.0, -8.258571235729428e-19, 3.21630723046312e-18, 1.387778780781446e-17, 0.0, -3.469446951953614e-18, 0.0]
+    a = [0.0, 0.0, -5.551115123125783e-16, 0.0, 0.0, 0.0, 0.0]
+    target = [0.5573932559430776, -0.8727401746534799, -0.3465196945084855, -1.690033214064405, -2.580016986695953,
+              -1.312728570694101, 2.172219925411398]
+    qn, vn, an = lim.step(q, v, a, target)
+    np.testing.assert_allclose(qn, target, atol=1e-12)
+    assert max(map(abs, vn)) < 1e-9 and max(map(abs, an)) < 1e-6

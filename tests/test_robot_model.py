@@ -28,6 +28,7 @@ from akc_drake.robot.model import (
     ToolPoint,
     add_dual_arm_robot,
     arm_joint_limits,
+    arm_motion_limits,
     arm_joint_names,
     arm_position_indices,
     ee_frame,
@@ -348,3 +349,17 @@ def test_tool_point_is_the_ee_origin_in_the_torso_frame_for_any_q(robot):
         before = plant.GetPositions(ctx).copy()
         tool(np.zeros(plant.num_positions()))
         np.testing.assert_array_equal(plant.GetPositions(ctx), before)
+
+
+def test_arm_motion_limits():
+    for side in ("left", "right"):
+        acc, jerk = arm_motion_limits(side)
+        assert acc.shape == jerk.shape == (7,)
+        # A collaborative arm's order (7.5-20 rad/s^2), the wrist's above the shoulder's and the elbow's; the
+        # jerk reaches the acceleration limit in 2 ms.
+        assert np.all((7.5 <= acc) & (acc <= 20.0)) and np.all(acc[4:] > acc[:4].max())
+        np.testing.assert_allclose(acc / jerk, 0.002)
+        acc[0] = 0.0  # a copy
+        assert arm_motion_limits(side)[0][0] > 0.0
+    with pytest.raises(ValueError):
+        arm_motion_limits("middle")

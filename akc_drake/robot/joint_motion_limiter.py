@@ -18,11 +18,14 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
-from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization, Trajectory
 
 # The discrete state: [position (n), velocity (n), acceleration (n), initialised].
 _OK = (Result.Working, Result.Finished)
 _POSITION, _VELOCITY = ControlInterface.Position, ControlInterface.Velocity
+# Time synchronisation (every joint arrives together); where Ruckig fails numerically (seen once, on a move of
+# 1e-15 rad from rest: "error in step 2"), each joint on its own time-optimal profile; failing that, to rest.
+_ATTEMPTS = ((None, Synchronization.Time), (None, Synchronization.No), (_VELOCITY, Synchronization.No))
 
 
 class JointMotionLimiter(LeafSystem):
@@ -32,7 +35,8 @@ class JointMotionLimiter(LeafSystem):
     time-optimal trajectory to ``q`` at rest (all joints arriving together), within the velocity, acceleration
     and jerk limits; the position is then clipped into ``[lower, upper]`` (``q`` is within them: the
     :class:`~akc_drake.robot.joint_command_guard.JointCommandGuard`'s command is). A non-finite ``q`` is no new
-    target: the arm stops where the trajectory brings it to rest. The state starts at ``q_initial`` (clipped),
+    target: the arm stops where the trajectory brings it to rest. Where Ruckig fails numerically, each joint gets
+    its own time-optimal profile, and failing that the arm is brought to rest. The state starts at ``q_initial`` (clipped),
     at rest, by an initialisation event; until then the output is ``q_initial`` (clipped) at rest.
 
     .. pydrake_system::
@@ -113,18 +117,29 @@ class JointMotionLimiter(LeafSystem):
         n, lo, hi = self._n, self._lo, self._hi
         otg, inp, traj = Ruckig(n), InputParameter(n), Trajectory(n)
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = self._limit_lists
-        q, v, a = (list(map(float, x)) for x in (q, v, a))
+        q = list(map(float, q))
+        # (Rounding's residue of a stop, 1e-18 rad/s, is rest: such values made Ruckig's synchronisation fail.)
+        v, a = ([x if abs(x) > 1e-12 else 0.0 for x in map(float, y)] for y in (v, a))
         inp.current_position, inp.current_velocity, inp.current_acceleration = q, v, a
         target = list(map(float, target))
-        if math.isfinite(math.fsum(target)):
+        if all(map(math.isfinite, target)):
             inp.control_interface = _POSITION
             inp.target_position = [min(max(x, lo[i]), hi[i]) for i, x in enumerate(target)]
         else:  # no new target: to rest as soon as the limits allow (velocity control to 0)
             inp.control_interface = _VELOCITY
             inp.target_position = q
         inp.target_velocity = inp.target_acceleration = [0.0] * n
-        result = otg.calculate(inp, traj)
-        if result not in _OK:
+        for interface, sync in _ATTEMPTS:
+            if interface is not None:
+                inp.control_interface = interface
+            inp.synchronization = sync
+            try:
+                result = otg.calculate(inp, traj)
+            except RuckigError as e:
+                result = str(e).strip().splitlines()[0]
+            if result in _OK:
+                break
+        else:
             raise RuntimeError(f"JointMotionLimiter: Ruckig could not plan ({result}) from q={q}, v={v}, a={a}")
         qn, vn, an = traj.at_time(self._period)
         return [min(max(x, lo[i]), hi[i]) for i, x in enumerate(qn)], list(vn), list(an)
