@@ -36,8 +36,8 @@ class JointMotionLimiter(LeafSystem):
     and jerk limits; the position is then clipped into ``[lower, upper]`` (``q`` is within them: the
     :class:`~akc_drake.robot.joint_command_guard.JointCommandGuard`'s command is). A non-finite ``q`` is no new
     target: the arm stops where the trajectory brings it to rest. Where Ruckig fails numerically, each joint gets
-    its own time-optimal profile, and failing that the arm is brought to rest. The state starts at ``q_initial`` (clipped),
-    at rest, by an initialisation event; until then the output is ``q_initial`` (clipped) at rest.
+    its own time-optimal profile, and failing that the arm is brought to rest. The state starts at ``q_initial``
+    (clipped), at rest, by an initialisation event; until then the output is ``q_initial`` (clipped) at rest.
 
     .. pydrake_system::
 
