@@ -181,6 +181,10 @@ def test_the_robot_gets_the_command_within_its_acceleration_limits(ik_plants):
     assert plain.ik.limiter is None
     plain.run(target, 0.5)
     np.testing.assert_array_equal(plain.q_out(), plain.q())
+    with pytest.raises(ValueError, match="motion_limits"):
+        IKRig(ik_plants[side], side, motion_limits=None)
+    with pytest.raises(ValueError, match="JointMotionLimiter: jerk"):
+        IKRig(ik_plants[side], side, motion_limits=(np.full(7, 10.0), np.full(6, 1e3)))
 
 
 def test_leaving_home_for_a_target_beside_the_robot_takes_a_joint_space_move(ik_plants):

@@ -397,6 +397,9 @@ def AddArmDifferentialIK(
         builder.Connect(pose_guard.GetOutputPort("X_AE_desired"), chooser.GetInputPort("X_AE_desired"))
     q_out, v_out, limiter = command_guard.GetOutputPort("q_commanded"), command_guard.GetOutputPort("v_commanded"), None
     if motion_limits is not False:
+        if motion_limits is not True and not (isinstance(motion_limits, (tuple, list)) and len(motion_limits) == 2):
+            raise ValueError(f"AddArmDifferentialIK: motion_limits must be True, False or (acceleration, jerk), "
+                             f"got {motion_limits!r}")
         acc, jerk = arm_motion_limits(side) if motion_limits is True else motion_limits
         limiter = builder.AddSystem(JointMotionLimiter(q_lo, q_hi, vel, acc, jerk, time_step))
         limiter.set_name(f"{side}_arm_motion_limiter")

@@ -31,7 +31,8 @@ class TeleopMonitor(LeafSystem):
     joints (``q_{side}``) and the measured ones (``q_measured_{side}``, ``v_measured_{side}``: the plant's state).
 
     Statistics: NaN commands, the largest commanded joint speed and acceleration (the second difference of three
-    samples) as fractions of their limits, commands at a position or velocity limit or over 1.05 times an
+    samples) as fractions of the model's limits (:func:`~akc_drake.robot.model.arm_joint_limits`,
+    :func:`~akc_drake.robot.model.arm_motion_limits`), commands at a position or velocity limit or over 1.05 times an
     acceleration limit, and the distance between the target and the achieved end-effector position.
 
     Args:
