@@ -125,6 +125,8 @@ def test_a_move_of_rounding_residue_from_rest():
 
     lo, hi, vel = arm_joint_limits("left")
     lim = JointMotionLimiter(lo, hi, vel, *arm_motion_limits("left"), H)
+    for got, want in zip(lim.limits, (vel, *arm_motion_limits("left")), strict=True):
+        np.testing.assert_array_equal(got, want)
     q = [0.5573932559430769, -0.8727401746534799, -0.3465196945084862, -1.690033214064407, -2.580016986695953,
          -1.312728570694101, 2.172219925411454]
     v = [0.0, -8.258571235729428e-19, 3.21630723046312e-18, 1.387778780781446e-17, 0.0, -3.469446951953614e-18, 0.0]

@@ -4,7 +4,7 @@ The camera's targets change ten times a second, in steps, and the differential I
 runs at 100 Hz: it reaches each step's pose within a few IK periods at the joints' velocity limits, then stops.
 Its joint command is a staircase, its speed a train of pulses: replaying Motions I and II (3 cycles, simulated
 detector, AKC(KF)) the commanded accelerations reached 280-750 rad/s^2 (99th percentile 140-450), and the jerk
-4-8 x 10^4 rad/s^3 at the 99th percentile. A real arm's controller refuses such a command (a collaborative arm
+2-8 x 10^4 rad/s^3 at the 99th percentile. A real arm's controller refuses such a command (a collaborative arm
 accepts 7.5-20 rad/s^2); the simulated one followed it only because its actuators have no torque limit. This
 system turns the command into one the arm can follow: each period Ruckig (the time-optimal, jerk-limited
 trajectory generator that robot arms' own motion generators use) plans from the current commanded position,
@@ -20,7 +20,6 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization, Trajectory
 
-# The discrete state: [position (n), velocity (n), acceleration (n), initialised].
 _OK = (Result.Working, Result.Finished)
 _POSITION, _VELOCITY = ControlInterface.Position, ControlInterface.Velocity
 # Time synchronisation (every joint arrives together); where Ruckig fails numerically (seen once, on a move of
@@ -80,7 +79,7 @@ class JointMotionLimiter(LeafSystem):
         self._limit_lists = (vel.tolist(), acc.tolist(), jerk.tolist())
         self._q_in = self.DeclareVectorInputPort("q", n)
         self._q_init = self.DeclareVectorInputPort("q_initial", n)
-        self._state = self.DeclareDiscreteState(3 * n + 1)
+        self._state = self.DeclareDiscreteState(3 * n + 1)  # [position, velocity, acceleration, initialised]
         # The outputs depend on the state only (``q_initial`` is read before the initialisation event alone; it
         # is typically the measured robot state, which changes every plant step).
         deps = {self.xd_ticket()}
