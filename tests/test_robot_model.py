@@ -32,6 +32,7 @@ from akc_drake.robot.model import (
     arm_motion_limits,
     arm_position_indices,
     ee_frame,
+    finite_vectors,
     gripper_joint_names,
     nominal_ee_pose,
     torso_frame,
@@ -363,3 +364,12 @@ def test_arm_motion_limits():
         assert arm_motion_limits(side)[0][0] > 0.0
     with pytest.raises(ValueError):
         arm_motion_limits("middle")
+
+
+def test_finite_vectors():
+    lo, v = finite_vectors("Owner", 2, lower=[[0, -1]], velocity=(1, 2.5))
+    assert lo.dtype == np.float64 and lo.tolist() == [0.0, -1.0] and v.tolist() == [1.0, 2.5]
+    with pytest.raises(ValueError, match=r"Owner: velocity must be 2 finite numbers, got shape \(3,\)"):
+        finite_vectors("Owner", 2, lower=[0, 1], velocity=[1, 2, 3])
+    with pytest.raises(ValueError, match="Owner: lower must be 2 finite numbers"):
+        finite_vectors("Owner", 2, lower=[0, np.nan])

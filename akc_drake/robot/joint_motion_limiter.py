@@ -20,6 +20,8 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization, Trajectory
 
+from akc_drake.robot.model import finite_vectors
+
 _OK = (Result.Working, Result.Finished)
 _POSITION, _VELOCITY = ControlInterface.Position, ControlInterface.Velocity
 # Time synchronisation (every joint arrives together); where Ruckig fails numerically (seen once, on a move of
@@ -60,13 +62,10 @@ class JointMotionLimiter(LeafSystem):
         period: the update period, seconds (> 0).
         """
         super().__init__()
-        arrays = [np.array(a, dtype=float).reshape(-1) for a in (lower, upper, velocity, acceleration, jerk)]
-        n = len(arrays[0])
-        names = ("lower", "upper", "velocity", "acceleration", "jerk")
-        for name, a in zip(names, arrays, strict=True):
-            if a.shape != (n,) or not np.all(np.isfinite(a)):
-                raise ValueError(f"JointMotionLimiter: {name} must be {n} finite numbers, got shape {a.shape}")
-        self._lower, self._upper, vel, acc, jerk = arrays
+        n = np.size(lower)
+        self._lower, self._upper, vel, acc, jerk = finite_vectors("JointMotionLimiter", n, lower=lower, upper=upper,
+                                                                  velocity=velocity, acceleration=acceleration,
+                                                                  jerk=jerk)
         if np.any(self._lower > self._upper):
             raise ValueError(f"JointMotionLimiter: lower limits above upper limits: {self._lower}, {self._upper}")
         if min(vel.min(), acc.min(), jerk.min()) <= 0.0:

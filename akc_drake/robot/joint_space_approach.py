@@ -23,7 +23,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.solvers import Solve
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
-from akc_drake.robot.model import ToolPoint, check_side
+from akc_drake.robot.model import ToolPoint, check_side, finite_vectors
 
 #: Weight of the orientation error in the IK's cost (times 1 - cos(angle)) against the joints' travel (see below).
 ORIENTATION_WEIGHT = 10.0
@@ -175,10 +175,7 @@ class JointSpaceApproach(LeafSystem):
 
 def _check_bounds(nq, q_lower, q_upper, v_max):
     """The bounds and velocity limits as float arrays of ``nq``; ValueError unless finite, ordered, v_max >= 0."""
-    lo, hi, v = (np.array(a, dtype=float).reshape(-1) for a in (q_lower, q_upper, v_max))
-    for name, a in (("q_lower", lo), ("q_upper", hi), ("v_max", v)):
-        if a.shape != (nq,) or not np.all(np.isfinite(a)):
-            raise ValueError(f"JointSpaceApproach: {name} must be {nq} finite numbers, got shape {a.shape}")
+    lo, hi, v = finite_vectors("JointSpaceApproach", nq, q_lower=q_lower, q_upper=q_upper, v_max=v_max)
     if np.any(lo > hi) or np.any(v < 0.0):
         raise ValueError("JointSpaceApproach: need q_lower <= q_upper and v_max >= 0")
     return lo, hi, v

@@ -112,6 +112,18 @@ _ARM_ACCEL = np.array([15.0, 15.0, 15.0, 15.0, 20.0, 20.0, 20.0])
 _ARM_JERK = 500.0 * _ARM_ACCEL
 
 
+def finite_vectors(owner: str, n: int, **arrays) -> list[np.ndarray]:
+    """Each of ``arrays`` (joint limits, bounds) as a flat float array, in order; ValueError naming ``owner`` and
+    the argument unless it holds ``n`` finite numbers."""
+    out = []
+    for name, a in arrays.items():
+        a = np.array(a, dtype=float).reshape(-1)
+        if a.shape != (n,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"{owner}: {name} must be {n} finite numbers, got shape {a.shape}")
+        out.append(a)
+    return out
+
+
 def arm_motion_limits(side: str) -> tuple[np.ndarray, np.ndarray]:
     """Acceleration and jerk limits of one arm's joints 1-7, for the command
     (:class:`~akc_drake.robot.joint_motion_limiter.JointMotionLimiter`).
