@@ -238,6 +238,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_akc_plus(p)
     p.add_argument("--teleop", action="store_true", help="drive the simulated robot too")
     p.add_argument("--meshcat", action="store_true", help="with --teleop: serve Meshcat on localhost")
+    p.add_argument("--arm-limits", metavar="LIMITS",
+                   help="with --teleop: the arms' joint acceleration and jerk limits (rad/s^2, rad/s^3) the commands "
+                        "keep to: acceleration=A,jerk=J (every joint; a field left out is the model's), a JSON file "
+                        "(7 numbers each) or off (no limiter); default: the config's arm_limits, else the model's")
     p.add_argument("--seconds", type=float, metavar="S", help="stop after this long (live sources; default: "
                    "the whole source)")
     p.add_argument("--out", metavar="DIR", help="where to write poses.npz (default: --json's folder, else out/run)")

@@ -67,6 +67,59 @@ class CameraConfig:
 
 
 @dataclass
+class ArmLimitsConfig:
+    """Each arm's command limits beyond the model file's positions and speeds, for the teleop diagram's
+    :class:`~akc_drake.robot.joint_motion_limiter.JointMotionLimiter` (between the differential IK and the robot).
+
+    The defaults are :func:`~akc_drake.robot.model.arm_motion_limits` (of the order a collaborative arm accepts;
+    PAL publishes none for the TIAGo Pro): give your arm's own. Example ``teleop.yaml``::
+
+        arm_limits: {acceleration: [10, 10, 10, 10, 15, 15, 15], jerk: [5000]}
+
+    Attributes:
+        enabled: the command goes through the limiter; false: the IK's command goes to the robot as it is.
+        acceleration: rad/s^2 of joints 1-7 (both arms): empty for the model's, one number for every joint, or 7.
+        jerk: rad/s^3, likewise.
+    """
+
+    enabled: bool = True
+    acceleration: list[float] = field(default_factory=list)
+    jerk: list[float] = field(default_factory=list)
+
+    def validate(self, where: str = "config.arm_limits") -> "ArmLimitsConfig":
+        """Check the values (positive numbers); raises ``UserError`` naming ``where`` and the field. Their count
+        is checked against the arm's joints by :meth:`resolve`."""
+        for name in ("acceleration", "jerk"):
+            values = list(getattr(self, name))
+            if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+                       for v in values):
+                raise UserError(f"{where}: {name} must hold positive numbers, got {values}")
+        return self
+
+    def resolve(self, acceleration, jerk, where: str = "config.arm_limits"):
+        """What the diagram passes on as ``motion_limits``: False when not enabled, else ``(acceleration, jerk)``,
+        lists as long as the defaults given (the model's, one per joint), which a field left empty takes; one
+        number is every joint's.
+
+        Raises:
+            UserError: a field with another count of numbers, or not positive numbers.
+        """
+        self.validate(where)
+        if not self.enabled:
+            return False
+
+        def full(name, default):
+            n = len(default)
+            values = [float(v) for v in getattr(self, name)] or [float(v) for v in default]
+            if len(values) not in (1, n):
+                raise UserError(f"{where}: {name} must be empty (the model's), one number or {n} (joints 1-{n}), "
+                                f"got {len(values)}")
+            return values * n if len(values) == 1 else values
+
+        return full("acceleration", acceleration), full("jerk", jerk)
+
+
+@dataclass
 class PipelineConfig:
     """What ``build_mocap_diagram`` / ``build_teleop_diagram`` build.
 
@@ -99,6 +152,7 @@ class PipelineConfig:
         akc_plus: AKC+ settings, field -> number (:class:`~akc_drake.core.akc_plus_config.AKCPlusConfig`; e.g.
             ``{gate_sigma: 2.5}``); empty: the defaults. ``constrained_filter`` (1 or 0) is otherwise set from
             ``filter``. Used only with ``corrector: AKC+``.
+        arm_limits: the robot arms' acceleration and jerk limits (:class:`ArmLimitsConfig`; teleop diagram).
     """
 
     source: str = "sim"
@@ -121,6 +175,7 @@ class PipelineConfig:
     body: str = "primitive"
     detector: str = "sim"
     akc_plus: dict[str, float] = field(default_factory=dict)
+    arm_limits: ArmLimitsConfig = field(default_factory=ArmLimitsConfig)
 
     def resolved_gate_sigma(self, teleop: bool) -> float | None:
         """The gate the filter gets (None = off): ``gate_sigma`` resolved for the mocap or teleop diagram."""
@@ -162,6 +217,7 @@ class PipelineConfig:
             )
         if self.camera.rate_hz <= 0 or self.camera.width <= 0 or self.camera.height <= 0:
             raise UserError("config.camera: width, height and rate_hz must be positive")
+        self.arm_limits.validate()
         if self.akc_plus:
             from akc_drake.core.akc_plus_config import akc_plus_config
 
@@ -206,6 +262,45 @@ def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
     except (ValueError, TypeError) as e:
         raise UserError(f"{option}: {e}") from None
     return settings
+
+
+def parse_arm_limits(text: str, option: str = "--arm-limits") -> ArmLimitsConfig:
+    """The arms' acceleration and jerk limits (:class:`ArmLimitsConfig`) from the command line: ``off`` (no
+    limiter), ``acceleration=A,jerk=J`` inline (rad/s^2, rad/s^3; one number for every joint, a field left out
+    is the model's) or a JSON file holding an object with those fields (``enabled``, and a number or 7 numbers
+    each).
+
+    Raises:
+        UserError: as :func:`~akc_drake.option_maps.read_option_map`, an unknown field (the known ones listed) or
+            a value that is not a positive number, each naming ``option``.
+    """
+    if str(text).strip().lower() == "off":
+        return ArmLimitsConfig(enabled=False)
+    fields = ("enabled", "acceleration", "jerk")
+
+    def value(name: str, text: str):
+        if name == "enabled":
+            switch = {"true": True, "false": False}.get(text.lower())
+            if switch is None:
+                raise UserError(f"{option}: enabled={text!r} is not true or false")
+            return switch
+        try:
+            return float(text)
+        except ValueError:
+            raise UserError(f"{option}: {name}={text!r} is not a number") from None
+
+    found = read_option_map(text, option, "field=value", "acceleration=10,jerk=5000", "field -> value", value)
+    unknown = sorted(set(found) - set(fields))
+    if unknown:
+        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(fields)}; or off)")
+    enabled = found.get("enabled", True)
+    if not isinstance(enabled, bool):
+        raise UserError(f"{option}: enabled must be true or false, got {enabled!r}")
+    limits = {}
+    for name in ("acceleration", "jerk"):
+        v = found.get(name, [])
+        limits[name] = list(v) if isinstance(v, list) else [v]
+    return ArmLimitsConfig(enabled=enabled, **limits).validate(option)
 
 
 def load_config(path: str | Path, schema=PipelineConfig):

@@ -504,7 +504,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                          keep_history: bool = True, mapping=None, log_stages: bool = True,
                          torso_model=None, smoothing: bool = True, workspace: bool = True,
                          hand_dropout=None, hand_apertures=None, hand_detector=None,
-                         hand_knuckles=None, operator=None, motion_limits: bool | tuple = True) -> TeleopDiagram:
+                         hand_knuckles=None, operator=None, motion_limits: bool | tuple | None = None) -> TeleopDiagram:
     """Build the teleoperation diagram: mocap (S1-S4) -> FrameMapper -> differential IK per arm -> robot.
 
     Args:
@@ -538,8 +538,11 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
             ``replay``): the rendered operator watches the robot's tool and corrects it
             (:class:`~akc_drake.systems.operator_controller.OperatorController`, on :attr:`TeleopDiagram.operator`).
         motion_limits: each arm's command within its acceleration and jerk limits too
-            (:class:`~akc_drake.robot.joint_motion_limiter.JointMotionLimiter`; ``(acceleration, jerk)`` arrays
-            for other limits than :func:`~akc_drake.robot.model.arm_motion_limits`, False without).
+            (:class:`~akc_drake.robot.joint_motion_limiter.JointMotionLimiter`): None for ``cfg.arm_limits``
+            (:class:`~akc_drake.config.ArmLimitsConfig`; by default :func:`~akc_drake.robot.model.arm_motion_limits`),
+            True for the model's, ``(acceleration, jerk)`` arrays for others, False without. The
+            :class:`~akc_drake.systems.teleop_monitor.TeleopMonitor` measures the commands against the same
+            acceleration limits (the model's without the limiter).
 
     When ``motion`` has a hand closure (:attr:`~akc_drake.operator.motions.OperatorMotion.hand_closed`, e.g. the
     pick-and-place motion), the grippers are commanded from the hands: a
@@ -550,7 +553,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     from akc_drake.core import smoothing as sm
     from akc_drake.core.frames import Workspace, calibrated_mapping
     from akc_drake.robot.diff_ik import AddArmDifferentialIK, make_arm_ik_plant
-    from akc_drake.robot.model import nominal_ee_pose
+    from akc_drake.robot.model import arm_motion_limits, nominal_ee_pose
     from akc_drake.robot.station import AddRobotStation
     from akc_drake.systems.frame_mapper import FrameMapper
     from akc_drake.systems.teleop_monitor import TeleopMonitor
@@ -587,10 +590,12 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))
 
     station = AddRobotStation(builder, time_step=time_step, meshcat=meshcat, weld_base=True)
-    ik = {}
+    ik, limits = {}, {}
     for side in ("left", "right"):
+        limits[side] = (cfg.arm_limits.resolve(*arm_motion_limits(side)) if motion_limits is None
+                        else motion_limits)
         arm = AddArmDifferentialIK(builder, make_arm_ik_plant(side), side, ik_time_step,
-                                   measured_q_port=station.arm_position_output[side], motion_limits=motion_limits)
+                                   measured_q_port=station.arm_position_output[side], motion_limits=limits[side])
         arm.integrator.set_name(f"DifferentialIK_{side}")
         builder.Connect(mapper.GetOutputPort(f"X_TE_desired_{side}"), arm.X_TE_desired_input)
         builder.Connect(arm.q_commanded_output, station.arm_position_input[side])
@@ -598,7 +603,9 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
         builder.Connect(arm.v_commanded_output, station.arm_velocity_input[side])
         ik[side] = arm
 
-    monitor = builder.AddSystem(TeleopMonitor(station.plant, station.robot, ik_time_step, keep_history))
+    monitor = builder.AddSystem(TeleopMonitor(
+        station.plant, station.robot, ik_time_step, keep_history,
+        acceleration_limits={s: ik[s].limiter.limits[1] for s in ik if ik[s].limiter is not None}))
     monitor.set_name("TeleopMonitor")
     for side in ("left", "right"):
         builder.Connect(mapper.GetOutputPort(f"X_TE_desired_{side}"), monitor.GetInputPort(f"X_TE_desired_{side}"))

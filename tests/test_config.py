@@ -1,12 +1,13 @@
 import pytest
 
-from akc_drake.config import PipelineConfig, dump_config, load_config, parse_akc_plus
+from akc_drake.config import ArmLimitsConfig, PipelineConfig, dump_config, load_config, parse_akc_plus, parse_arm_limits
 from akc_drake.errors import UserError
 
 
 def test_yaml_round_trip(tmp_path):
     cfg = PipelineConfig(motion="I", cycles=3, filter="EKF", corrector="COIK", dims={"LUA": 0.3, "LLA": 0.28,
-                         "RUA": 0.3, "RLA": 0.27, "SW": 0.33}, akc_plus={"gate_sigma": 2.5, "constrained_filter": 0.0})
+                         "RUA": 0.3, "RLA": 0.27, "SW": 0.33}, akc_plus={"gate_sigma": 2.5, "constrained_filter": 0.0},
+                         arm_limits=ArmLimitsConfig(acceleration=[9.0] * 7, jerk=[4000.0]))
     f = tmp_path / "c.yaml"
     f.write_text(dump_config(cfg))
     back = load_config(f)
@@ -32,6 +33,9 @@ def test_yaml_errors_name_file_and_field(tmp_path):
     f.write_text("akc_plus: {gate_sgima: 2.5}\n")
     with pytest.raises(UserError, match=r"bad.yaml: config.akc_plus: unknown AKC\+ setting.*'gate_sgima'"):
         load_config(f)
+    f.write_text("arm_limits: {jerk: [5000, -1]}\n")
+    with pytest.raises(UserError, match=r"bad.yaml: config.arm_limits: jerk must hold positive numbers"):
+        load_config(f)
     f.write_text("akc_plus: {nis_alpha: 0}\n")
     with pytest.raises(UserError, match=r"config.akc_plus: .*nis_alpha must be in \(0, 1\]"):
         load_config(f)
@@ -55,3 +59,34 @@ def test_akc_plus_settings_from_the_command_line(tmp_path):
     f.write_text("{nope")
     with pytest.raises(UserError, match="not valid JSON"):
         parse_akc_plus(str(f))
+
+
+def test_arm_limits_resolve_against_the_model_defaults():
+    acc, jerk = [15.0] * 4 + [20.0] * 3, [7500.0] * 4 + [1e4] * 3
+    assert ArmLimitsConfig().resolve(acc, jerk) == (acc, jerk)  # empty: the model's
+    assert ArmLimitsConfig(acceleration=[5]).resolve(acc, jerk) == ([5.0] * 7, jerk)  # one number: every joint
+    own = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+    assert ArmLimitsConfig(acceleration=[9.0], jerk=own).resolve(acc, jerk) == ([9.0] * 7, own)
+    assert ArmLimitsConfig(enabled=False, acceleration=[5.0]).resolve(acc, jerk) is False
+    with pytest.raises(UserError, match=r"config.arm_limits: acceleration must be empty .* or 7 .*got 2"):
+        ArmLimitsConfig(acceleration=[5.0, 6.0]).resolve(acc, jerk)
+    for bad in ([0.0], [float("nan")], [float("inf")], [True], ["5"]):
+        with pytest.raises(UserError, match="jerk must hold positive numbers"):
+            ArmLimitsConfig(jerk=bad).resolve(acc, jerk)
+
+
+def test_arm_limits_from_the_command_line(tmp_path):
+    assert parse_arm_limits("off") == ArmLimitsConfig(enabled=False)
+    assert parse_arm_limits("acceleration=10, jerk=5e3") == ArmLimitsConfig(acceleration=[10.0], jerk=[5000.0])
+    assert parse_arm_limits("jerk=5000") == ArmLimitsConfig(jerk=[5000.0])
+    f = tmp_path / "arm.json"
+    f.write_text('{"acceleration": [8, 8, 8, 8, 12, 12, 12], "enabled": true}')
+    assert parse_arm_limits(str(f)) == ArmLimitsConfig(acceleration=[8, 8, 8, 8, 12, 12, 12])
+    for text, match in [("accel=3", r"unknown field\(s\) accel \(known: enabled, acceleration, jerk; or off\)"),
+                        ("jerk=x", "'x' is not a number"), ("acceleration=-1", "acceleration must hold positive"),
+                        ("enabled=maybe", "'maybe' is not true or false"), ("on", "is not field=value")]:
+        with pytest.raises(UserError, match="^--arm-limits: .*" + match):
+            parse_arm_limits(text)
+    f.write_text('{"enabled": "yes"}')
+    with pytest.raises(UserError, match="enabled must be true or false"):
+        parse_arm_limits(str(f))

@@ -283,6 +283,25 @@ def test_run_sim_teleop(tmp_path):
     assert s["latency_ms"]["mapper"]["frames"] == 5 and "latency_note" in s
 
 
+def test_run_teleop_with_the_arms_own_limits(tmp_path):
+    """``--arm-limits`` sets the limiters' limits (and the monitor's), ``off`` removes the limiters; the JSON
+    records them."""
+    out = tmp_path / "t.json"
+    argv = ["run", "--source", "sim", "--teleop", "--seconds", "0.5", "--json", str(out)]
+    assert cli.main([*argv, "--arm-limits", "acceleration=5"]) == 0
+    t = json.loads(out.read_text())["teleop"]
+    for side in ("left", "right"):
+        assert t["arm_limits"][side]["motion_limiter"] is True
+        assert t["arm_limits"][side]["acceleration"] == [5.0] * 7
+        assert t["arm_limits"][side]["jerk"] == [7500.0] * 4 + [10000.0] * 3  # the model's
+    assert 0.0 < t["max_joint_acceleration_ratio"] <= 1.0 + 1e-9
+    assert cli.main([*argv, "--arm-limits", "off"]) == 0
+    t = json.loads(out.read_text())["teleop"]
+    assert t["arm_limits"]["left"] == {"motion_limiter": False, "acceleration": [15.0] * 4 + [20.0] * 3,
+                                       "jerk": None}
+    assert t["max_joint_acceleration_ratio"] > 1.05  # the IK's own command, unlimited
+
+
 def test_run_reads_a_config_and_dims(tmp_path):
     cfg = tmp_path / "small.yaml"
     cfg.write_text("motion: tpose\ncorrector: none\ncamera: {width: 320, height: 240}\n")
@@ -324,6 +343,8 @@ def test_run_a_motion_file_with_a_joint_name_map(tmp_path, capsys):
         (["--seconds", "0"], "--seconds must be a positive number"),
         (["--depth", "2"], "--depth applies to a video:FILE source only"),
         (["--motion", "III"], "unknown motion"),
+        (["--arm-limits", "off"], "--arm-limits: limits the robot's commands, use it with --teleop"),
+        (["--teleop", "--arm-limits", "jerk=-2"], "--arm-limits: jerk must hold positive numbers"),
     ],
 )
 def test_run_option_errors(argv, message, capsys):

@@ -183,3 +183,23 @@ def test_run_teleop_rejects_bad_arguments(session):
         teleop.run_teleop(CFG, DIMS, corrector="AKC2", replay=meas)
     with pytest.raises(ValueError, match="replay"):
         teleop.run_teleop(CFG, DIMS, corrector="KF")
+
+
+def test_arm_limits_from_the_config_and_from_the_argument():
+    """The config's ``arm_limits`` reach both limiters and the monitor; ``motion_limits`` given wins over them."""
+    from akc_drake.config import ArmLimitsConfig
+    from akc_drake.diagrams import build_teleop_diagram
+    from akc_drake.robot.model import arm_motion_limits
+
+    cfg = PipelineConfig(camera=CFG.camera, arm_limits=ArmLimitsConfig(acceleration=[5.0], jerk=[900.0]))
+    td = build_teleop_diagram(cfg)
+    for side in ("left", "right"):
+        _, acc, jerk = td.ik[side].limiter.limits
+        np.testing.assert_array_equal(acc, np.full(7, 5.0))
+        np.testing.assert_array_equal(jerk, np.full(7, 900.0))
+        np.testing.assert_array_equal(td.monitor.acceleration_limits[side], np.full(7, 5.0))
+    td = build_teleop_diagram(cfg, motion_limits=True)
+    np.testing.assert_array_equal(td.ik["left"].limiter.limits[1], arm_motion_limits("left")[0])
+    td = build_teleop_diagram(PipelineConfig(camera=CFG.camera, arm_limits=ArmLimitsConfig(enabled=False)))
+    assert td.ik["left"].limiter is None and td.ik["right"].limiter is None
+    np.testing.assert_array_equal(td.monitor.acceleration_limits["right"], arm_motion_limits("right")[0])

@@ -14,10 +14,11 @@ from akc_drake.robot.station import AddRobotStation
 from akc_drake.systems.teleop_monitor import TeleopMonitor
 
 
-def _run(q_left, target_offset=(0.0, 0.0, 0.0), seconds=0.3):
+def _run(q_left, target_offset=(0.0, 0.0, 0.0), seconds=0.3, acceleration_limits=None):
     builder = DiagramBuilder()
     station = AddRobotStation(builder, time_step=0.005, weld_base=True)
-    mon = builder.AddSystem(TeleopMonitor(station.plant, station.robot, period_s=0.01))
+    mon = builder.AddSystem(TeleopMonitor(station.plant, station.robot, period_s=0.01,
+                                          acceleration_limits=acceleration_limits))
     for side in ("left", "right"):
         X = nominal_ee_pose(side)
         X = RigidTransform(X.rotation(), X.translation() + np.asarray(target_offset))
@@ -74,3 +75,28 @@ def test_commanded_acceleration_against_its_limit():
     mon = _run(PiecewisePolynomial.FirstOrderHold([0.0, 0.1, 0.3], q))
     assert mon.max_acceleration_ratio == pytest.approx(0.5 / 0.01 / acc, rel=1e-6)
     assert mon.acceleration_limit_hits == 1
+
+
+def test_measures_against_the_acceleration_limits_given():
+    n = np.asarray(NOMINAL_ARM_Q, dtype=float)
+    acc = arm_motion_limits("left")[0]
+    t = np.arange(0.0, 0.31, 0.01)
+    q = np.tile(n[:, None], (1, len(t)))
+    q[0] += 0.25 * acc[0] * t**2  # half the model's limit
+    # The left arm's limits halved: the same commands read a full limit; the right arm keeps the model's.
+    mon = _run(PiecewisePolynomial.FirstOrderHold(t, q), acceleration_limits={"left": acc / 2})
+    assert mon.max_acceleration_ratio == pytest.approx(1.0, rel=1e-6) and mon.acceleration_limit_hits == 0
+    np.testing.assert_array_equal(mon.acceleration_limits["left"], acc / 2)
+    np.testing.assert_array_equal(mon.acceleration_limits["right"], arm_motion_limits("right")[0])
+    mon = _run(PiecewisePolynomial.FirstOrderHold(t, q), acceleration_limits={"left": acc / 4})
+    assert mon.max_acceleration_ratio == pytest.approx(2.0, rel=1e-6) and mon.acceleration_limit_hits > 0
+
+
+@pytest.mark.parametrize("limits, match", [({"middle": np.ones(7)}, "sides must be in"),
+                                           ({"left": np.ones(6)}, r"acceleration_limits\['left'\] must be 7 finite"),
+                                           ({"right": np.zeros(7)}, "must be > 0")])
+def test_refuses_bad_acceleration_limits(limits, match):
+    builder = DiagramBuilder()
+    station = AddRobotStation(builder, time_step=0.005, weld_base=True)
+    with pytest.raises(ValueError, match=match):
+        TeleopMonitor(station.plant, station.robot, period_s=0.01, acceleration_limits=limits)

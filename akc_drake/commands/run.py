@@ -58,6 +58,12 @@ def _config(args):
         if cfg.corrector != "AKC+":
             raise UserError(f"--akc-plus: sets AKC+, but the corrector is {cfg.corrector} (add --corrector AKC+)")
         cfg.akc_plus = {**cfg.akc_plus, **parse_akc_plus(args.akc_plus)}
+    if getattr(args, "arm_limits", None):
+        from akc_drake.config import parse_arm_limits
+
+        if not args.teleop:
+            raise UserError("--arm-limits: limits the robot's commands, use it with --teleop")
+        cfg.arm_limits = parse_arm_limits(args.arm_limits)
     return cfg.validate()
 
 

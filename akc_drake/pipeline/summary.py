@@ -106,12 +106,28 @@ def run_summary(cfg, inputs, built, result, *, teleop: bool = False, depth_m: fl
             "nan_commands": m.nan_commands,
             "max_joint_speed_ratio": m.max_speed_ratio,
             "max_joint_acceleration_ratio": m.max_acceleration_ratio,
+            "arm_limits": _arm_limits(built),
             "ee_tracking_error_cm": {
                 s: float(np.median(m.ee_errors(s)) * 100) if len(m.ee_errors(s)) else None for s in ("left", "right")
             },
             "realtime_factor": (result.frames / cfg.camera.rate_hz) / wall if wall > 0 else None,
         }
     return summary
+
+
+def _arm_limits(built) -> dict:
+    """Per side, the limits the commands kept to: ``motion_limiter`` (whether the arm had one) and
+    ``acceleration`` / ``jerk`` (rad/s^2, rad/s^3, joints 1-7; without a limiter the acceleration limits the
+    monitor measured against, and no jerk)."""
+    out = {}
+    for side, arm in built.ik.items():
+        if arm.limiter is not None:
+            _, acc, jerk = arm.limiter.limits
+            out[side] = {"motion_limiter": True, "acceleration": acc.tolist(), "jerk": jerk.tolist()}
+        else:
+            out[side] = {"motion_limiter": False, "acceleration": built.monitor.acceleration_limits[side].tolist(),
+                         "jerk": None}
+    return out
 
 
 def save_poses(out_dir: str | Path, log, dims=None, up_C=None) -> Path:

@@ -7,7 +7,15 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 
-from akc_drake.robot.model import arm_joint_limits, arm_joint_names, arm_motion_limits, ee_frame, torso_frame
+from akc_drake.robot.model import (
+    NUM_ARM_JOINTS,
+    arm_joint_limits,
+    arm_joint_names,
+    arm_motion_limits,
+    ee_frame,
+    finite_vectors,
+    torso_frame,
+)
 
 SIDES = ("left", "right")
 
@@ -31,9 +39,10 @@ class TeleopMonitor(LeafSystem):
     joints (``q_{side}``) and the measured ones (``q_measured_{side}``, ``v_measured_{side}``: the plant's state).
 
     Statistics: NaN commands, the largest commanded joint speed and acceleration (the second difference of three
-    samples) as fractions of the model's limits (:func:`~akc_drake.robot.model.arm_joint_limits`,
-    :func:`~akc_drake.robot.model.arm_motion_limits`), commands at a position or velocity limit or over 1.05 times an
-    acceleration limit, and the distance between the target and the achieved end-effector position.
+    samples) as fractions of the limits (the model's, :func:`~akc_drake.robot.model.arm_joint_limits`; the
+    acceleration limits given, else :func:`~akc_drake.robot.model.arm_motion_limits`), commands at a position or
+    velocity limit or over 1.05 times an acceleration limit, and the distance between the target and the achieved
+    end-effector position.
 
     Args:
         plant: the station's plant (for forward kinematics of the measured state).
@@ -41,9 +50,12 @@ class TeleopMonitor(LeafSystem):
         period_s: sampling period (the IK period).
         keep_history: keep every sample (for plots); off for long runs, where only statistics are kept
             (memory stays flat).
+        acceleration_limits: side -> the arm's joint acceleration limits (rad/s^2, 7 positive numbers) the
+            commands are measured against, e.g. those its limiter was given; a side not given: the model's.
     """
 
-    def __init__(self, plant, robot, period_s: float = 0.01, keep_history: bool = True):
+    def __init__(self, plant, robot, period_s: float = 0.01, keep_history: bool = True,
+                 acceleration_limits: dict | None = None):
         super().__init__()
         self._plant = plant
         self._robot = robot
@@ -51,7 +63,17 @@ class TeleopMonitor(LeafSystem):
         self._ee = {s: ee_frame(plant, s, robot) for s in SIDES}
         self._torso = torso_frame(plant, robot)
         self._limits = {s: arm_joint_limits(s) for s in SIDES}
-        self._acc = {s: arm_motion_limits(s)[0] * period_s**2 for s in SIDES}  # (per step squared)
+        given = dict(acceleration_limits or {})
+        unknown = set(given) - set(SIDES)
+        if unknown:
+            raise ValueError(f"TeleopMonitor: acceleration_limits sides must be in {SIDES}, got {sorted(unknown)}")
+        acc = {s: finite_vectors("TeleopMonitor", NUM_ARM_JOINTS, **{f"acceleration_limits[{s!r}]": given[s]})[0]
+               if s in given else arm_motion_limits(s)[0] for s in SIDES}
+        if min(a.min() for a in acc.values()) <= 0.0:
+            raise ValueError("TeleopMonitor: acceleration limits must be > 0")
+        #: The acceleration limits the commands are measured against, per side (rad/s^2).
+        self.acceleration_limits = {s: a.copy() for s, a in acc.items()}
+        self._acc = {s: acc[s] * period_s**2 for s in SIDES}  # (per step squared)
         # Where each arm's joints sit in the plant's full q and v (the measured joint state of the history).
         joints = {s: [plant.GetJointByName(n, robot) for n in arm_joint_names(s)] for s in SIDES}
         self._q_index = {s: np.array([j.position_start() for j in joints[s]], dtype=np.intp) for s in SIDES}
