@@ -235,6 +235,18 @@ class PipelineConfig:
         return self
 
 
+def _switch_or_number(option: str, name: str, text: str):
+    """An inline ``name=text`` value of ``option``: True / False for true / false (any case), else a float;
+    UserError naming ``option`` for anything else."""
+    switch = {"true": True, "false": False}.get(text.lower())
+    if switch is not None:
+        return switch
+    try:
+        return float(text)
+    except ValueError:
+        raise UserError(f"{option}: {name}={text!r} is not a number (nor true / false)") from None
+
+
 def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
     """AKC+ settings (field -> value, :class:`~akc_drake.core.akc_plus_config.AKCPlusConfig`) from the command
     line: ``field=value[,field=value...]`` inline, or a JSON file holding an object
@@ -247,16 +259,8 @@ def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
     """
     from akc_drake.core.akc_plus_config import akc_plus_config
 
-    def value(name: str, text: str):
-        switch = {"true": True, "false": False}.get(text.lower())
-        if switch is not None:
-            return switch
-        try:
-            return float(text)
-        except ValueError:
-            raise UserError(f"{option}: {name}={text!r} is not a number") from None
-
-    settings = read_option_map(text, option, "field=value", "gate_sigma=2.5", "setting -> value", value)
+    settings = read_option_map(text, option, "field=value", "gate_sigma=2.5", "setting -> value",
+                               lambda name, text: _switch_or_number(option, name, text))
     try:
         akc_plus_config(settings)
     except (ValueError, TypeError) as e:
@@ -277,19 +281,8 @@ def parse_arm_limits(text: str, option: str = "--arm-limits") -> ArmLimitsConfig
     if str(text).strip().lower() == "off":
         return ArmLimitsConfig(enabled=False)
     fields = ("enabled", "acceleration", "jerk")
-
-    def value(name: str, text: str):
-        if name == "enabled":
-            switch = {"true": True, "false": False}.get(text.lower())
-            if switch is None:
-                raise UserError(f"{option}: enabled={text!r} is not true or false")
-            return switch
-        try:
-            return float(text)
-        except ValueError:
-            raise UserError(f"{option}: {name}={text!r} is not a number") from None
-
-    found = read_option_map(text, option, "field=value", "acceleration=10,jerk=5000", "field -> value", value)
+    found = read_option_map(text, option, "field=value", "acceleration=10,jerk=5000", "field -> value",
+                            lambda name, text: _switch_or_number(option, name, text))
     unknown = sorted(set(found) - set(fields))
     if unknown:
         raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(fields)}; or off)")

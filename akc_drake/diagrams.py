@@ -590,12 +590,11 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     builder.Connect(ports.corrected, mapper.GetInputPort("landmarks_C"))
 
     station = AddRobotStation(builder, time_step=time_step, meshcat=meshcat, weld_base=True)
-    ik, limits = {}, {}
+    ik = {}
     for side in ("left", "right"):
-        limits[side] = (cfg.arm_limits.resolve(*arm_motion_limits(side)) if motion_limits is None
-                        else motion_limits)
+        limits = cfg.arm_limits.resolve(*arm_motion_limits(side)) if motion_limits is None else motion_limits
         arm = AddArmDifferentialIK(builder, make_arm_ik_plant(side), side, ik_time_step,
-                                   measured_q_port=station.arm_position_output[side], motion_limits=limits[side])
+                                   measured_q_port=station.arm_position_output[side], motion_limits=limits)
         arm.integrator.set_name(f"DifferentialIK_{side}")
         builder.Connect(mapper.GetOutputPort(f"X_TE_desired_{side}"), arm.X_TE_desired_input)
         builder.Connect(arm.q_commanded_output, station.arm_position_input[side])

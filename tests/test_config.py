@@ -84,7 +84,8 @@ def test_arm_limits_from_the_command_line(tmp_path):
     assert parse_arm_limits(str(f)) == ArmLimitsConfig(acceleration=[8, 8, 8, 8, 12, 12, 12])
     for text, match in [("accel=3", r"unknown field\(s\) accel \(known: enabled, acceleration, jerk; or off\)"),
                         ("jerk=x", "'x' is not a number"), ("acceleration=-1", "acceleration must hold positive"),
-                        ("enabled=maybe", "'maybe' is not true or false"), ("on", "is not field=value")]:
+                        ("enabled=maybe", r"'maybe' is not a number \(nor true / false\)"),
+                        ("enabled=1", "enabled must be true or false, got 1.0"), ("on", "is not field=value")]:
         with pytest.raises(UserError, match="^--arm-limits: .*" + match):
             parse_arm_limits(text)
     f.write_text('{"enabled": "yes"}')
