@@ -237,10 +237,55 @@ def test_bad_bone_names_name_the_file(tmp_path):
     text = BVH.read_text().replace("LeftForeArm", "LeftElbowX")
     bad = tmp_path / "renamed.bvh"
     bad.write_text(text)
-    with pytest.raises(UserError, match=r"renamed\.bvh: no bone LeftForeArm"):
+    with pytest.raises(UserError, match=r"renamed\.bvh: no joint for left_elbow .*pass a name map"):
         read_clip(bad)
+    # ... which --joint-names gives
+    clip = read_clip(bad, roles={"left_elbow": "LeftElbowX"})
+    assert "LeftForeArm" in clip.bones
     with pytest.raises(UserError, match="needs its ASF skeleton"):
         read_clip(AMC)
+
+
+#: The cgspeed clip's joints renamed as the Biovision-era rigs name them (boxing's and MocapBank's BVH files):
+#: the clavicle a "Collar", the upper arm "Shoulder", the forearm "Elbow", the hand "Wrist", the spine "Chest".
+_COLLAR_NAMES = {"LowerBack": "Waist", "Spine": "Ab", "Spine1": "Chest", "Neck1": "Neck2", "LHipJoint": "LPelvis",
+                 "RHipJoint": "RPelvis", **{f"{S}{a}": f"{S}{b}" for S in ("Left", "Right") for a, b in (
+                     ("Shoulder", "Collar"), ("Arm", "Shoulder"), ("ForeArm", "Elbow"), ("Hand", "Wrist"),
+                     ("UpLeg", "Hip"), ("Leg", "Knee"), ("Foot", "Ankle"), ("ToeBase", "Toes"))}}
+
+
+def _renamed(motion: BVHMotion, names: dict, prefix: str = "") -> BVHMotion:
+    joints = [replace(j, name=(j.name if j.end_site else prefix + names.get(j.name, j.name))) for j in motion.joints]
+    return BVHMotion(joints, motion.frame_time, motion.channels, motion.units, "renamed")
+
+
+@pytest.mark.parametrize("scheme", ["collar", "mixamo"])
+def test_a_rig_with_other_names_drives_the_rig_as_cmus_names_do(body, scheme):
+    """The cgspeed clip with its joints renamed as other rigs name them (Biovision-era "Collar"/"Shoulder"/
+    "Elbow"/"Wrist", and Mixamo's namespaced ones) drives the rig exactly as with CMU's names: the joints are
+    found by role and the spine from the chest (where the arms branch) down."""
+    bvh = read_bvh(BVH)
+    bvh = BVHMotion(bvh.joints, bvh.frame_time, bvh.channels[:40], bvh.units, "cmu")
+    ref = RigDrive(clip_rotations(bvh), body)
+    if scheme == "collar":
+        other = _renamed(bvh, _COLLAR_NAMES)
+    else:  # (Mixamo: Spine, Spine1, Spine2 for CMU's LowerBack, Spine, Spine1; the rest as CMU's)
+        other = _renamed(bvh, {"LowerBack": "Spine", "Spine": "Spine1", "Spine1": "Spine2"}, "mixamorig:")
+    clip = clip_rotations(other)
+    assert set(clip.bones) >= {"Hips", "LowerBack", "Spine", "Spine1", "Neck", "Head", "LeftShoulder", "LeftArm",
+                               "LeftForeArm", "LeftHand", "RightUpLeg", "RightLeg", "RightFoot"}
+    drive = RigDrive(clip, body)
+    assert np.max(np.abs(drive.landmarks_O - ref.landmarks_O)) < 1e-9
+
+
+def test_a_rig_without_hands_ends_its_forearms_at_their_end_sites(body):
+    """Blender's rig in bvhtools' clip has no hand bone: its forearm ends at an End Site, which gives the forearm's
+    direction (with --joint-names as the motion set gives them)."""
+    clip = read_clip(MOCAP / "bvhtools_test3.bvh", roles={"left_wrist": "forearm.L_end",
+                                                          "right_wrist": "forearm.R_end"})
+    assert {"LeftForeArm", "RightForeArm", "Spine1", "LeftShoulder"} <= set(clip.bones)
+    assert "LeftHand" not in clip.bones
+    assert np.all(np.isfinite(clip.rest_dirs[clip.bones.index("LeftForeArm")]))
 
 
 def test_render_session_drives_the_rendered_body_and_the_truth(body):

@@ -170,8 +170,9 @@ def _rig_clips(args) -> list | None:
         mf, sk = _motion_file_options(args)
         from akc_drake.operator.rig_drive import read_clip
 
-        read_clip(mf, sk)  # a clip the rig cannot take is one line before the calibration renders
-        return [{"name": Path(mf).stem, "path": mf, "skeleton": sk, "window_s": None, "names": _joint_names(args)}]
+        names = _joint_names(args)
+        read_clip(mf, sk, roles=names)  # a clip the rig cannot take is one line before the calibration renders
+        return [{"name": Path(mf).stem, "path": mf, "skeleton": sk, "window_s": None, "names": names}]
     if not getattr(args, "motion_dir", None):
         raise UserError("--drive rig: give the CMU clip, --motion-file CLIP (or --motion-dir DIR)")
     return None

@@ -166,6 +166,19 @@ _NAN = float("nan")
 _F64 = np.dtype(np.float64)
 
 
+def _learn_offset(held, side, out, anchor, a):
+    """``held[side]``: the running mean (weight ``a``) of the shoulder ``out[0:3]`` minus ``anchor``, its blind
+    frames reset (the first frame starts it)."""
+    h = held[side]
+    if h is None:
+        held[side] = [out[0] - anchor[0], out[1] - anchor[1], out[2] - anchor[2], 0.0]
+    else:
+        h[0] += a * (out[0] - anchor[0] - h[0])
+        h[1] += a * (out[1] - anchor[1] - h[1])
+        h[2] += a * (out[2] - anchor[2] - h[2])
+        h[3] = 0.0
+
+
 def _as_f64(x):
     """``x`` as a float64 array (``np.asarray`` with a dtype costs about 1 µs even when it has nothing to do)."""
     return x if type(x) is np.ndarray and x.dtype == _F64 else np.asarray(x, dtype=np.float64)
@@ -198,7 +211,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                  "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
-                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf")
+                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -249,7 +262,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = self._v = self._v0 = self._axes = self._cur_var = None
-        self._tz, self._inv_tz2, self._hips = _NAN, 0.0, _NO_HIPS
+        self._tz, self._inv_tz2, self._hips, self._anchor = _NAN, 0.0, _NO_HIPS, [None, None]
         self.reset()
 
     @property
@@ -270,8 +283,71 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
         # mean, weight ``shoulder_alpha``), and the frames since the last
         self._held_sh: list[list | None] = [None, None]
+        # per side: the shoulder minus the other shoulder (the filter's, seen) likewise, learnt whenever both
+        # shoulders' depths are measured: the torso's reference when the hips' is not (out of view, or no
+        # consistent depth)
+        self._held_ss: list[list | None] = [None, None]
 
     # ------------------------------------------------------------------ hot path (plain floats)
+    def _hips_consistent(self, v, m):
+        """Whether both hips' measured depths pass the innovation test against the filter (``_arm``'s test of a
+        seen depth). A hip landmark on the body's edge reads the background behind it (the wall, 1.5 m deep), and
+        a filter without a gate follows it for several frames; the held shoulders are carried by the hips'
+        centre and learn their offset from it, so such a frame is no torso reference."""
+        var, rz, g2 = self._var, self._r_z, self._gate2
+        for o in (_LHIP + 2, _RHIP + 2):
+            q = rz - var[o]
+            if (m[o] - v[o]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
+                return False
+        return True
+
+    def _torso_outvotes(self, f, vs, m, side):
+        """A measured shoulder depth that the torso and the seen elbow both contradict (two against one): replaced
+        on its pixel's ray by the shoulder held on the torso (``f``, ``vs`` changed in place); True if so.
+
+        The measurement is off the held shoulder's depth beyond the gate of their variances (the hold's random walk
+        and the measurement's), and the upper arm from it to the elbow (seen: measured, its depth passing the
+        innovation test) misses the calibrated length by more than ``consistency_m`` where the held shoulder at
+        the same pixel fits it better by that much. Such a depth is an occluder's, the arm's own surface read at the
+        shoulder's pixel, and a filter that had no prior for it (a shoulder lost for many frames, then read 26 cm
+        in front: mocapbank driven bone by bone, simulated detector) passes the innovation test by following it.
+        """
+        o_s, o_e = self._offsets[side][0], self._offsets[side][1]
+        mx, my, mz = m[o_s], m[o_s + 1], m[o_s + 2]
+        if not (_isfinite(mx + my + mz) and mz > 0.0 and _isfinite(m[o_e] + m[o_e + 1] + m[o_e + 2])):
+            return False
+        g2, rz = self._gate2, self._r_z
+        q = rz - self._var[o_e + 2]
+        if (m[o_e + 2] - f[5]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
+            return False  # (the elbow not seen)
+        a = self._anchor[side]
+        h = a[1]
+        hz, vh = a[0][2] + h[2], self._v_s * (h[3] + 1.0)
+        if (mz - hz) ** 2 <= g2 * (vh + rz) or hz <= 0.0:
+            return False
+        k = hz / mz  # (the held depth on the measured pixel's ray)
+        hx, hy = mx * k, my * k
+        ex, ey, ez, lu, cons = f[3], f[4], f[5], self._lu[side], self._cons
+        miss = abs(_hypot(mx - ex, my - ey, mz - ez) - lu)
+        if miss <= cons or abs(_hypot(hx - ex, hy - ey, hz - ez) - lu) > miss - cons:
+            return False
+        f[0], f[1], f[2] = hx, hy, hz
+        vs[2] = vh
+        return True
+
+    def _seen_shoulders(self, v, m):
+        """Per side, whether the shoulder was measured this frame (x, y and depth) and its depth passes the innovation
+        test against the filter (the test of ``_arm``'s seen depth)."""
+        var, rz, g2 = self._var, self._r_z, self._gate2
+        out = [False, False]
+        for side in (0, 1):
+            o = self._offsets[side][0]
+            z = m[o + 2]
+            if _isfinite(m[o] + m[o + 1] + z):
+                q = rz - var[o + 2]
+                out[side] = (z - v[o + 2]) ** 2 <= g2 * (q if q > 0.0 else 0.0) + 1e-12
+        return out
+
     def _measured(self, m, o, fz):
         """Without the filter's covariance: whether row ``m[o:o+3]`` was measured this frame and its depth is
         within ``consistency_m`` of the filtered ``fz`` (with it, ``_arm`` runs the innovation test inline)."""
@@ -314,11 +390,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
             if m is not None and m[o_s + 2] != m[o_s + 2]:
                 # A shoulder whose depth was dropped, or lost altogether (no x, y either): the filter's estimate
                 # and the shoulder held on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left
-                # as it is; ``_hips`` NaN: the hold off or the hips' depths not measured).
-                h = self._held_sh[side]
-                if h is not None and _isfinite(self._hips[2]) and vs[2] == vs[2]:
-                    fuse_held(f, vs, h, self._hips, self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
+                # as it is; ``_anchor`` None: the hold off, or neither the hips nor the other shoulder seen).
+                a = self._anchor[side]
+                if a is not None and vs[2] == vs[2]:
+                    fuse_held(f, vs, a[1], a[0], self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
                     s_held = True
+            elif m is not None and self._anchor[side] is not None and vs[2] == vs[2]:
+                s_held = self._torso_outvotes(f, vs, m, side)
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
@@ -498,6 +576,15 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                 w_lost = nearer_wrist_misfit((sx, sy, sz, ex, ey, ez, wx, wy, wz), lu, lf, self._cons)
         if w_lost:
             ts, te = True, False
+        if vs is not None and not sxy and me and not te and prev is not None:
+            # A shoulder the detector lost altogether (its x, y too: held on the torso, a random walk) and a seen
+            # elbow that no wrist confirms (one that fits and is an anchor rebuilds the shoulder, below): the arm
+            # nearest both in their metric with the exact lengths, not the held shoulder kept (a torso that shrugs
+            # or leans while the shoulder and the wrist are lost moved the seen elbow 7 cm to the held shoulder:
+            # mocapbank driven bone by bone, simulated detector).
+            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, _inf, self._off_var)
+            if arm is not None:
+                return arm
         if ts:
             # A seen shoulder is kept. The elbow goes on the circle at l_f from the wrist and l_u from the
             # shoulder, nearest its filtered position (seen elbow) or its Pythagorean candidate (eq. 7) ...
@@ -617,14 +704,29 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         prevs, lost, offsets = self._prev, self._lost, self._offsets
         # The hips' centre for the held shoulders (``fuse_held`` in ``_arm``, the running mean below): with
         # the covariance and ``sigma_shoulder_m`` > 0 only (NaN otherwise), and only with both hips' depths
-        # measured this frame: a filter extrapolating a hip that a hand hides carries the velocity it had, 38 cm in
-        # ten frames, into the held offsets (bvhtools_test 60-120 s, simulated).
+        # measured this frame, each passing the innovation test: a filter extrapolating a hip that a hand hides
+        # carries the velocity it had, 38 cm in ten frames, into the held offsets (bvhtools_test 60-120 s,
+        # simulated), and one that follows a hip read on the wall behind the body's edge (a torso that bends) ran
+        # 50-120 cm off for five frames and taught the held shoulder 20 cm (bvhtools_a1 driven bone by bone).
         hold = (self._v_s and m is not None and self._var is not None and _isfinite(m[_LHIP + 2] + m[_RHIP + 2])
-                and _isfinite(v[_LHIP + 2] + v[_RHIP + 2]))
+                and _isfinite(v[_LHIP + 2] + v[_RHIP + 2]) and self._hips_consistent(v, m))
         hips = self._hips = ((0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]),
                               0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else _NO_HIPS)
-        hz = hips[2]
-        held_sh = self._held_sh
+        held_sh, held_ss = self._held_sh, self._held_ss
+        # The torso's reference of each side's held shoulder (``_anchor``: the anchor point and the held offset
+        # from it): the hips' centre; where the hips' is not (out of the image: an operator at a desk, a camera
+        # close to the chest; or no consistent depth), the other shoulder, seen this frame (measured, and
+        # passing the innovation test), which the clavicles carry with the chest.
+        seen_sh = self._seen_shoulders(v, m) if self._v_s and m is not None and self._var is not None else None
+        anchor = self._anchor
+        for side in (0, 1):
+            o = self._offsets[1 - side][0]
+            if hold and held_sh[side] is not None:
+                anchor[side] = (hips, held_sh[side])
+            elif seen_sh is not None and seen_sh[1 - side] and held_ss[side] is not None:
+                anchor[side] = ((v[o], v[o + 1], v[o + 2]), held_ss[side])
+            else:
+                anchor[side] = None
         for side in (0, 1):
             ke = 2 * side
             lost_e, lost_s = lost[ke], lost[ke + 1]
@@ -638,19 +740,15 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                                          out[3] - out[0], out[4] - out[1], out[5] - out[2]]
                 if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
                     self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
-                if hold:
-                    z = m[o_s + 2]
-                    if z == z:
-                        # The shoulder's depth measured: its offset from the hips', a running mean (the depths read
-                        # as an occluder approaches, just before the occlusion filter drops them, are its own).
-                        h, a_s = held_sh[side], self._a_s
-                        if h is None:
-                            held_sh[side] = [out[0] - hips[0], out[1] - hips[1], out[2] - hz, 0.0]
-                        else:
-                            h[0] += a_s * (out[0] - hips[0] - h[0])
-                            h[1] += a_s * (out[1] - hips[1] - h[1])
-                            h[2] += a_s * (out[2] - hz - h[2])
-                            h[3] = 0.0
+                if seen_sh is not None and m[o_s + 2] == m[o_s + 2]:
+                    # The shoulder's depth measured: its offset from the hips' (and from the other shoulder, seen),
+                    # a running mean (the depths read as an occluder approaches, just before the occlusion filter
+                    # drops them, are its own).
+                    if hold:
+                        _learn_offset(held_sh, side, out, hips, self._a_s)
+                    if seen_sh[1 - side]:
+                        o = self._offsets[1 - side][0]
+                        _learn_offset(held_ss, side, out, (v[o], v[o + 1], v[o + 2]), self._a_s)
                 held[side] = False
                 chosen[side] = 0
                 fallback[side] = lost[ke] > 0 and lost[ke + 1] > 0

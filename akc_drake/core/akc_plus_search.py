@@ -175,10 +175,10 @@ class CandidateSearch:
         return BACKWARDS if bends_backwards(ux / lu, uy / lu, uz / lu, fx, fy, fz, lf, axes) else 0.0
 
     def _held_z(self, side):
-        """The depth of ``side``'s shoulder held on the torso: this frame's hips' depth plus our outputs' running-mean
-        offset (NaN when none is held or the hips' depths are unknown this frame)."""
-        h = self._held_sh[side]
-        return _NAN if h is None else self._hips[2] + h[2]
+        """The depth of ``side``'s shoulder held on the torso: this frame's anchor's depth (the hips', else the other
+        shoulder's) plus our outputs' running-mean offset from it (NaN when none is held or no anchor is seen)."""
+        a = self._anchor[side]
+        return _NAN if a is None else a[0][2] + a[1][2]
 
     def _set_torso(self, side):
         """The torso term of ``side``'s shoulder candidates (``_tz``, ``_inv_tz2``), set before a rebuild.
@@ -190,7 +190,7 @@ class CandidateSearch:
         """
         tz = self._held_z(side)
         if tz == tz:
-            self._tz, self._inv_tz2 = tz, 1.0 / (self._v_s * (self._held_sh[side][3] + 1.0))
+            self._tz, self._inv_tz2 = tz, 1.0 / (self._v_s * (self._anchor[side][1][3] + 1.0))
         else:
             v0 = self._v0
             self._tz, self._inv_tz2 = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z]), self._inv_torso2

@@ -6,7 +6,7 @@ flags ``[18:20]``, four untrusted-frame counters ``[20:24]``, the filter's estim
 last seen ``[24:36]``, the running NIS means ``[36:54]``, then per side (x, y, z, frames) the held forearm
 ``[54:62]``, the held upper arm ``[62:70]`` and the shoulder's offset from the hips' centre ``[70:78]``, and per
 side the upper arm when the held forearm was kept (x, y, z; NaN once the forearm no longer turns with it)
-``[78:84]``.
+``[78:84]``, and per side (x, y, z, frames) the shoulder's offset from the other shoulder ``[84:92]``.
 """
 
 from __future__ import annotations
@@ -15,13 +15,13 @@ import numpy as np
 
 from akc_drake.core.skeleton import SIDES
 
-STATE_SIZE = 84
-_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U = 36, 54, 62, 70, 78
+STATE_SIZE = 92
+_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS = 36, 54, 62, 70, 78, 84
 
 
 class StateVector:
     """:meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``, ``_lost``, ``_f0``,
-    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``)."""
+    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``)."""
 
     __slots__ = ()
 
@@ -29,7 +29,8 @@ class StateVector:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
         filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
         NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
-        its frames, then per side the upper arm the held forearm turns with."""
+        its frames, then per side the upper arm the held forearm turns with, and the shoulder's offset from the
+        other shoulder and its frames."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -41,7 +42,8 @@ class StateVector:
             if self._f0[k] is not None:
                 v[24 + 3 * k : 27 + 3 * k] = self._f0[k]
         v[_NIS:_BLIND] = self._nis
-        for base, per_side in ((_BLIND, self._blind), (_BLIND_E, self._blind_e), (_HELD, self._held_sh)):
+        for base, per_side in ((_BLIND, self._blind), (_BLIND_E, self._blind_e), (_HELD, self._held_sh),
+                               (_HELD_SS, self._held_ss)):
             for side in (0, 1):
                 if per_side[side] is not None:
                     v[base + 4 * side : base + 4 * side + 4] = per_side[side][:4]
@@ -80,7 +82,8 @@ class StateVector:
         if not np.all(np.isfinite(nis) & (nis > 0)):
             raise ValueError(f"AKC+ state vector: NIS means [{_NIS}:{_BLIND}] must be > 0, got {nis.tolist()}")
         blocks = []  # the forearms, the upper arms, the held shoulders: per side 3 floats and a frame count
-        for base, what in ((_BLIND, "blind-frame"), (_BLIND_E, "blind-elbow frame"), (_HELD, "held-shoulder frame")):
+        for base, what in ((_BLIND, "blind-frame"), (_BLIND_E, "blind-elbow frame"), (_HELD, "held-shoulder frame"),
+                           (_HELD_SS, "shoulder-pair frame")):
             per_side: list[list | None] = [None, None]
             for side in (0, 1):
                 b = a[base + 4 * side : base + 4 * side + 4]
@@ -93,7 +96,7 @@ class StateVector:
             if blocks[0][side] is not None:
                 u = a[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3]
                 blocks[0][side] += u.tolist() if np.all(np.isfinite(u)) else [np.nan] * 3
-        self._blind, self._blind_e, self._held_sh = blocks
+        self._blind, self._blind_e, self._held_sh, self._held_ss = blocks
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()

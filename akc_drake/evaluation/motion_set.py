@@ -125,6 +125,8 @@ def clip_spec(
     if drive == "rig":  # the skinned body driven by the clip bone by bone (render_session's rig_clip)
         options["rig_clip"] = {"path": str(Path(clip["path"]).resolve()), "skeleton": clip.get("skeleton") and
                                str(Path(clip["skeleton"]).resolve()), "window_s": motion.get("window_s")}
+        if clip.get("names"):  # (a rig without CMU names: found by role, as the 10-angle path finds its arms)
+            options["rig_clip"]["names"] = dict(clip["names"])
     return render_spec(
         clip["name"],
         motion,
@@ -404,7 +406,8 @@ def evaluate_motion_dir(
         progress: show the progress bars: over the clips, and in-process over each clip's frames too.
         tpose_seconds: length of the calibration T-pose.
         drive: "angles" (the operator's 10 angles) or "rig" (the skinned body driven by each clip bone by bone,
-            :mod:`akc_drake.operator.rig_drive`; a clip without CMU bone names fails with a line naming it).
+            :mod:`akc_drake.operator.rig_drive`; a rig without CMU bone names is mapped by role, and a clip
+            whose arms or spine cannot be found fails with a line naming it).
         clips: evaluate these clips (:func:`find_clips` entries) instead of ``motion_dir``'s.
         akc_plus: AKC+ settings, field -> value (:func:`~akc_drake.core.akc_plus_config.akc_plus_config`;
             ``--akc-plus``), or None for the defaults.

@@ -1,8 +1,10 @@
-"""A CMU clip drives the skinned body's CMU-MB rig directly, bone by bone (numpy + scipy).
+"""A clip drives the skinned body's CMU-MB rig directly, bone by bone (numpy + scipy).
 
 The default path (:mod:`akc_drake.operator.retarget`) reduces a clip to the operator's 10 arm angles with the
 torso fixed, so a real person's spine, clavicle (shrug, protraction), neck and head motion never reaches the
-renderer and the true shoulders never move. Here every bone the clip has turns the rig's bone of the same name:
+renderer and the true shoulders never move. Here every bone the clip has turns the rig's bone of the same name
+(a rig with other names, Mixamo's, the Biovision-era ``LeftCollar``/``LeftShoulder``/``LeftElbow``, Blender's
+``upper_arm.L``..., is mapped onto the rig's by role first: :func:`rig_names_by_role`):
 
 1. *Clip rotations.* A BVH joint's global rotation (cgspeed/CMU names: ``Hips``, ``LowerBack``, ``Spine``,
    ``Spine1``, ``Neck``, ``Neck1``, ``Head``, ``LeftShoulder``, ``LeftArm``, ``LeftForeArm``, ``LeftHand``...)
@@ -68,6 +70,98 @@ BVH_ALIASES = {
     "LeftHandIndex1": "LeftHandFinger1",
     "RightHandIndex1": "RightHandFinger1",
 }
+def rig_names_by_role(joint_names, parents, end_site, roles: dict | None = None, *, source: str = "clip") -> dict:
+    """Clip joint name -> CMU-MB rig bone name for a BVH rig without CMU names (Mixamo, the Biovision-era
+    ``LeftCollar``/``LeftShoulder``/``LeftElbow``/``LeftWrist`` rigs, Blender's ``upper_arm.L``...).
+
+    The arms and hips are found by role as the 10-angle path finds them
+    (:func:`~akc_drake.operator.retarget.find_arm_joints`, ``roles`` as ``--joint-names``): the upper-arm joint
+    drives ``LeftArm``, the elbow's ``LeftForeArm``, the wrist's ``LeftHand`` (a wrist that is an End Site ends
+    the forearm instead); an upper arm's parent below the chest is the clavicle (``LeftShoulder``). The chest is
+    the joint the two arms branch from (``Spine1``); the joints between it and the hips drive ``Spine`` then
+    ``LowerBack``, from the top. A hand's child named "finger" drives ``LeftFingerBase`` (its child
+    ``LeftHandFinger1``), one named "thumb" ``LThumb``; other finger bones move with the hand. The chest's other
+    child (and its children named so) is the neck (``Neck``, ``Neck1``) and a joint named "head" the ``Head``.
+    A leg from its hip role: ``UpLeg``, ``Leg``, ``Foot``, ``ToeBase`` down the first child (an ``UpLeg``'s
+    parent below the hips: ``LHipJoint``).
+
+    Args:
+        joint_names: the clip's joint names (End Sites included); ``parents``: their parents (-1 the root);
+        end_site: whether each joint is an End Site.
+        roles: optional role -> joint name map (``left_shoulder`` ... ``hips``).
+        source: the file, for messages.
+
+    Raises:
+        UserError: an arm or the hips not found (naming the joints), or arms that do not branch above the hips.
+    """
+    from akc_drake.operator.retarget import find_arm_joints
+
+    names = [str(n) for n in joint_names]
+    index = {n: i for i, n in enumerate(names)}
+    r = find_arm_joints(names, roles, source=source)
+
+    def chain(j):  # j and its ancestors, up to the root
+        out = []
+        while j >= 0:
+            out.append(j)
+            j = int(parents[j])
+        return out
+
+    def first_child(j):
+        return next((k for k in range(len(names)) if parents[k] == j and not end_site[k]), None)
+
+    hips = index[r["hips"]]
+    arms = {S: [index[r[f"{side}_{part}"]] for part in ("shoulder", "elbow", "wrist")]
+            for side, S in (("left", "Left"), ("right", "Right"))}
+    left_up = chain(arms["Left"][0])
+    chest = next((j for j in chain(arms["Right"][0]) if j in left_up), None)
+    if chest is None or chest == hips or hips not in chain(chest):
+        raise UserError(f"{source}: the arms do not branch from a chest above the hips ({names[hips]}); "
+                        "the rig drive needs a spine")
+    out = {names[hips]: "Hips", names[chest]: "Spine1"}
+    spine = chain(chest)[1:chain(chest).index(hips)]  # below the chest, above the hips, top first
+    for j, bone in zip(spine, ("Spine", "LowerBack"), strict=False):
+        out[names[j]] = bone
+    for S, (sh, el, wr) in arms.items():
+        out[names[sh]], out[names[el]] = f"{S}Arm", f"{S}ForeArm"
+        if not end_site[wr]:
+            out[names[wr]] = f"{S}Hand"
+            for k in range(len(names)):  # the hand's finger and thumb bones, where named so
+                if parents[k] == wr and not end_site[k]:
+                    n = names[k].lower()
+                    if "thumb" in n:
+                        out[names[k]] = f"{S[0]}Thumb"
+                    elif "finger" in n:
+                        out[names[k]] = f"{S}FingerBase"
+                        c = first_child(k)
+                        if c is not None:
+                            out[names[c]] = f"{S}HandFinger1"
+        if int(parents[sh]) != chest:
+            out[names[int(parents[sh])]] = f"{S}Shoulder"
+    arm_joints = {int(parents[a[0]]) for a in arms.values()} | {a[0] for a in arms.values()}
+    neck = next((k for k in range(len(names)) if parents[k] == chest and not end_site[k] and k not in arm_joints),
+                None)
+    while neck is not None and "neck" in names[neck].lower() and "Neck1" not in out.values():
+        out[names[neck]] = "Neck" if "Neck" not in out.values() else "Neck1"
+        neck = first_child(neck)
+    head = next((n for n in names if "head" in n.lower() and n not in out
+                 and not end_site[index[n]] and chest in chain(index[n])), None)
+    if head is not None:
+        out[head] = "Head"
+    for side, S, s in (("left", "Left", "L"), ("right", "Right", "R")):
+        j = index[r[f"{side}_hip"]] if r.get(f"{side}_hip") else None
+        if j is None or j == hips:
+            continue
+        if int(parents[j]) not in (hips, -1) and names[int(parents[j])] not in out:
+            out[names[int(parents[j])]] = f"{s}HipJoint"
+        for bone in ("UpLeg", "Leg", "Foot", "ToeBase"):
+            if j is None:
+                break
+            out[names[j]] = f"{S}{bone}"
+            j = first_child(j)
+    return out
+
+
 #: Bones a clip must have to drive the rig (the upper body the camera sees).
 REQUIRED_BONES = (
     "Hips",
@@ -81,6 +175,11 @@ REQUIRED_BONES = (
     "RightForeArm",
     "RightHand",
 )
+#: A clip with all of these as joint names has CMU's (cgspeed's) names; another is mapped by role
+#: (:func:`rig_names_by_role`), and needs only these, each hand or its forearm's End Site (a clavicle or a bone
+#: the clip lacks moves rigidly with its parent).
+_ROLE_BONES = frozenset(REQUIRED_BONES)
+_DRIVING_BONES = ("Hips", "Spine1", "LeftArm", "LeftForeArm", "RightArm", "RightForeArm")
 #: Segments shorter than this (metres) have no direction (the root's, a joint at its parent's origin).
 _MIN_SEGMENT_M = 1e-4
 
@@ -137,7 +236,7 @@ def body_frame(up: np.ndarray, left: np.ndarray) -> np.ndarray | None:
     return np.column_stack([np.cross(y, z), y, z])
 
 
-def clip_skeleton(motion, names: dict | None = None):
+def clip_skeleton(motion, names: dict | None = None, roles: dict | None = None, source: str | None = None):
     """A parsed clip as joints: ``(rig_names, parents, R, p, times)``.
 
     ``rig_names`` ``(J,)``: each joint's rig bone name (None: no rig bone; End Sites ``"<name>_end"``);
@@ -148,6 +247,9 @@ def clip_skeleton(motion, names: dict | None = None):
     Args:
         motion: a :class:`~akc_drake.operator.bvh.BVHMotion` or an :class:`~akc_drake.operator.asf_amc.AMCMotion`.
         names: optional clip joint name -> rig bone name overrides.
+        roles: optional role -> joint name map (``--joint-names``) for a BVH rig without CMU names
+            (:func:`rig_names_by_role`).
+        source: the file, for messages (default: the motion's name).
     """
     from akc_drake.operator.asf_amc import AMCMotion
     from akc_drake.operator.bvh import BVHMotion
@@ -156,7 +258,16 @@ def clip_skeleton(motion, names: dict | None = None):
     if isinstance(motion, BVHMotion):
         R, p = motion.global_transforms()
         parents = np.array([j.parent for j in motion.joints])
-        rig = [None if j.end_site else names.get(j.name, BVH_ALIASES.get(j.name, j.name)) for j in motion.joints]
+        own = {BVH_ALIASES.get(j.name, j.name) for j in motion.joints if not j.end_site}
+        if roles or not own.issuperset(_ROLE_BONES):  # (not CMU's names: found by role)
+            by_role = rig_names_by_role([j.name for j in motion.joints], parents,
+                                        [j.end_site for j in motion.joints], roles,
+                                        source=source or getattr(motion, "name", "clip"))
+            names = {**by_role, **names}
+            rig = [None if j.end_site else names.get(j.name) for j in motion.joints]
+        else:
+            rig = [None if j.end_site else names.get(j.name, BVH_ALIASES.get(j.name, j.name))
+                   for j in motion.joints]
         rig = [f"{rig[j.parent]}_end" if j.end_site and rig[j.parent] else r
                for j, r in zip(motion.joints, rig, strict=True)]
     elif isinstance(motion, AMCMotion):
@@ -184,6 +295,7 @@ def clip_rotations(
     up: str = "y",
     source: str | None = None,
     rig_children: dict | None = None,
+    roles: dict | None = None,
 ) -> ClipRotations:
     """The rig bones' rotations of a parsed clip (steps 1-2 of the module's recipe), resampled to ``rate_hz``.
 
@@ -196,6 +308,8 @@ def clip_rotations(
         source: the file, for messages.
         rig_children: ``{bone: child}``: which rig child's joint ends each bone's segment (default:
             :data:`RIG_TAIL_CHILD`, the CMU-MB rig's).
+        roles: optional role -> joint name map (``--joint-names``; a BVH rig without CMU names is mapped by
+            role, :func:`rig_names_by_role`).
 
     Raises:
         UserError: the clip lacks a bone of :data:`REQUIRED_BONES` (naming the file and the bone), or is
@@ -204,9 +318,13 @@ def clip_rotations(
     from akc_drake.operator.retarget import resample_times
 
     source = source or getattr(motion, "name", "clip")
-    rig, parents, R, p, frame_time = clip_skeleton(motion, names)
+    rig, parents, R, p, frame_time = clip_skeleton(motion, names, roles, source)
     index = {r: i for i, r in enumerate(rig) if r}
-    missing = [b for b in REQUIRED_BONES if b not in index]
+    if _ROLE_BONES.issubset(index):
+        missing = []
+    else:
+        missing = [b for b in _DRIVING_BONES if b not in index] + [
+            f"{S}Hand" for S in ("Left", "Right") if f"{S}Hand" not in index and f"{S}ForeArm_end" not in index]
     if missing:
         raise UserError(
             f"{source}: no bone {missing[0]} (nor its CMU ASF name) to drive the CMU-MB rig with; "
@@ -293,8 +411,9 @@ RIG_TAIL_CHILD = {
 
 
 def read_clip(path, skeleton=None, *, rate_hz: float = 10.0, names: dict | None = None, window_s=None,
-              name: str | None = None) -> ClipRotations:
-    """:func:`clip_rotations` of a ``.bvh`` file, or an ``.amc`` file with its ``.asf`` ``skeleton``.
+              name: str | None = None, roles: dict | None = None) -> ClipRotations:
+    """:func:`clip_rotations` of a ``.bvh`` file, or an ``.amc`` file with its ``.asf`` ``skeleton``
+    (``names``, ``roles``: as :func:`clip_rotations`; ``window_s``, ``name``: :meth:`ClipRotations.window`).
 
     Raises:
         UserError: an unreadable file, a wrong suffix, or a clip the rig cannot take (naming the file).
@@ -312,7 +431,7 @@ def read_clip(path, skeleton=None, *, rate_hz: float = 10.0, names: dict | None 
         motion = read_amc(path, read_asf(skeleton))
     else:
         raise UserError(f"{path}: the rig drive reads .bvh, or .amc with an .asf, not {suffix or '(none)'!r}")
-    clip = clip_rotations(motion, rate_hz=rate_hz, names=names, source=path)
+    clip = clip_rotations(motion, rate_hz=rate_hz, names=names, source=path, roles=roles)
     return clip.window(window_s, name) if window_s else clip
 
 

@@ -107,7 +107,8 @@ def make_detector(detector, seed: int = 0, pose_model=None) -> Detector:
 
 def rig_drive_for(rig_clip: dict, motion: OperatorMotion, skinned):
     """The :class:`~akc_drake.operator.rig_drive.RigDrive` of ``rig_clip`` (``{"path", "skeleton",
-    "window_s"}``) on the skinned body, sampled at ``motion``'s frame times.
+    "window_s"}``, optionally ``"names"``: role -> joint, as ``--joint-names``) on the skinned body, sampled at
+    ``motion``'s frame times.
 
     Raises:
         UserError: no skinned body (``--drive rig`` needs ``--body skinned``), or a clip the rig cannot take.
@@ -119,7 +120,7 @@ def rig_drive_for(rig_clip: dict, motion: OperatorMotion, skinned):
         raise UserError(f"{rig_clip.get('path')}: the rig drive needs the skinned body (--body skinned)")
     rate = 1.0 / float(motion.times[1] - motion.times[0])
     clip = read_clip(rig_clip["path"], rig_clip.get("skeleton"), rate_hz=rate, window_s=rig_clip.get("window_s"),
-                     name=motion.name)
+                     name=motion.name, roles=rig_clip.get("names"))
     t = motion.times - motion.start
     if len(clip.times) != len(t) or not np.allclose(clip.times, t, atol=1e-6):
         raise ValueError(f"{rig_clip['path']}: the clip's samples ({len(clip.times)}) are not the motion's ({len(t)})")
