@@ -183,9 +183,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--motion-dir", metavar="DIR", help="evaluate on every real mocap clip of DIR (e.g. data/mocap "
                    "from 'make mocap-data'): per-clip and pooled tables, a plot per clip and method")
     p.add_argument("--drive", default="angles", choices=("angles", "rig"),
-                   help="how a CMU clip (--motion-file or --motion-dir) poses --body skinned: angles (the "
+                   help="how a clip (--motion-file or --motion-dir) poses --body skinned: angles (the "
                    "operator's 10 arm angles, torso fixed; default) or rig (bone by bone: spine, clavicles, neck, "
-                   "head too; the clips' per-clip tables)")
+                   "head too; a rig without CMU's bone names is mapped by role, --joint-names helps it)")
     p.add_argument("--export", metavar="FMT[,FMT]", help="also write every method's skeleton to --out/exports as "
                    "bvh | trc | c3d | csv, and the RTS smoother's gain (rts_gain.json)")
     p.add_argument("--export-frame", default="world", choices=("world", "camera"), help="frame of --export files")

@@ -64,6 +64,7 @@ def test_per_frame_settings_are_the_configs_at_ten_hertz():
         assert pf.shoulder_walk_var == c.sigma_shoulder_m**2
         assert pf.shoulder_alpha == c.shoulder_alpha and pf.nis_alpha == c.nis_alpha  # exactly, not 1 - (1 - a)
         assert pf.recent_frames == c.recent_frames and pf.gate_frames == c.gate_frames
+        assert pf.hips_lost_frames == c.hips_lost_frames
         assert pf.jump_m == c.jump_m and pf.drift_m_per_frame == c.drift_m_per_frame
 
 
@@ -84,6 +85,7 @@ def test_per_frame_settings_mean_the_same_in_seconds(rate_hz):
     # Frame counts: as many seconds.
     assert pf.recent_frames / rate_hz == pytest.approx(c.recent_frames / 10.0)
     assert pf.gate_frames / rate_hz == pytest.approx(c.gate_frames / 10.0)
+    assert pf.hips_lost_frames / rate_hz == pytest.approx(c.hips_lost_frames / 10.0)
 
 
 @pytest.mark.parametrize("period", [0.0, -0.1, math.inf, math.nan, True, "0.1"])

@@ -62,7 +62,23 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   fuse_held`): a constant-velocity filter that holds the landmark claims a variance that grows without
   bound, and the arm rebuilt from the elbow then carried the elbow's depth error into a shoulder the filter held
   well (the bench's Motion I, bvhtools_a1's left shoulder behind the right hand); one that extrapolates a lost
-  shoulder ran 30 cm off in x.
+  shoulder ran 30 cm off in x. The hips count only when both their measured depths pass the innovation test
+  (:meth:`ArmKinematicCorrectorPlus._hips_consistent`: a hip landmark on the body's edge reads the wall behind,
+  and a filter that followed it taught the held shoulder 20 cm; bvhtools_a1 driven bone by bone). Where the
+  hips have not counted for ``hips_lost_frames`` (out of the image, as at a desk), the other shoulder carries the
+  held shoulder instead (seen this frame and agreeing with our last output of it,
+  :meth:`ArmKinematicCorrectorPlus._other_anchor`): our outputs' offset from it, learnt whenever this shoulder's
+  depth is measured (mocapbank driven bone by bone: without the hips, a shoulder lost for 20
+  frames ran 14 cm off in y with the filter).
+* A measured shoulder depth that both the shoulder held on the torso (beyond the gate of the hold's and the
+  measurement's variances) and the seen elbow contradict (the upper arm from it misses its length by more than
+  ``consistency_m``, from the held depth at the same pixel by that much less) is an occluder's: the held depth
+  replaces it on the pixel's ray (:meth:`ArmKinematicCorrectorPlus._torso_outvotes`). A filter with no prior left
+  (a shoulder lost for many frames) passes the innovation test by following such a reading: mocapbank's, 26 cm
+  in front, moved the seen elbow 7-10 cm.
+* A shoulder the detector lost altogether and a seen elbow that no wrist confirms (the wrist lost, or no
+  anchor): the arm nearest both in their metric with the exact lengths, not the held shoulder kept (a torso that
+  leaned while both were lost moved the seen elbow 7 cm onto the held shoulder; mocapbank driven bone by bone).
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
 * A measured wrist its own hand hides: the forearm (the filter's elbow to the measured wrist) toward the camera,
@@ -211,7 +227,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                  "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
-                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor")
+                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -287,6 +303,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         # shoulders' depths are measured: the torso's reference when the hips' is not (out of view, or no
         # consistent depth)
         self._held_ss: list[list | None] = [None, None]
+        self._hips_lost = 0.0  # frames since the hips were last the torso's reference (or since the start)
 
     # ------------------------------------------------------------------ hot path (plain floats)
     def _hips_consistent(self, v, m):
@@ -335,18 +352,25 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         vs[2] = vh
         return True
 
-    def _seen_shoulders(self, v, m):
-        """Per side, whether the shoulder was measured this frame (x, y and depth) and its depth passes the innovation
-        test against the filter (the test of ``_arm``'s seen depth)."""
-        var, rz, g2 = self._var, self._r_z, self._gate2
-        out = [False, False]
-        for side in (0, 1):
-            o = self._offsets[side][0]
-            z = m[o + 2]
-            if _isfinite(m[o] + m[o + 1] + z):
-                q = rz - var[o + 2]
-                out[side] = (z - v[o + 2]) ** 2 <= g2 * (q if q > 0.0 else 0.0) + 1e-12
-        return out
+    def _other_anchor(self, v, m, k):
+        """Shoulder ``k`` as the torso's reference of the other side's held shoulder: the filter's, when its depth
+        is seen this frame (measured, passing the innovation test), was seen when last corrected, and agrees with
+        that output within ``consistency_m`` (a filter that followed an occluder's depth passes the test: the
+        right shoulder read on its own arm 25 cm in front, bvhtools_a1 driven bone by bone); else None."""
+        p = self._prev[k]
+        if p is None or self._lost[2 * k + 1] > 0:
+            return None
+        o = self._offsets[k][0]
+        x, y, z = v[o], v[o + 1], v[o + 2]
+        mz = m[o + 2]
+        if not _isfinite(m[o] + m[o + 1] + mz + x + y + z):
+            return None
+        q = self._r_z - self._var[o + 2]
+        if (mz - z) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12:
+            return None
+        if _hypot(x - p[0], y - p[1], z - p[2]) > self._cons:
+            return None
+        return (x, y, z)
 
     def _measured(self, m, o, fz):
         """Without the filter's covariance: whether row ``m[o:o+3]`` was measured this frame and its depth is
@@ -396,7 +420,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                     fuse_held(f, vs, a[1], a[0], self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
                     s_held = True
             elif m is not None and self._anchor[side] is not None and vs[2] == vs[2]:
-                s_held = self._torso_outvotes(f, vs, m, side)
+                a = self._anchor[side]  # (``_torso_outvotes``'s first test inline: it fails on most frames)
+                h = a[1]
+                if (m[o_s + 2] - a[0][2] - h[2]) ** 2 > self._gate2 * (self._v_s * (h[3] + 1.0) + self._r_z):
+                    s_held = self._torso_outvotes(f, vs, m, side)
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
@@ -714,17 +741,22 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                               0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else _NO_HIPS)
         held_sh, held_ss = self._held_sh, self._held_ss
         # The torso's reference of each side's held shoulder (``_anchor``: the anchor point and the held offset
-        # from it): the hips' centre; where the hips' is not (out of the image: an operator at a desk, a camera
-        # close to the chest; or no consistent depth), the other shoulder, seen this frame (measured, and
-        # passing the innovation test), which the clavicles carry with the chest.
-        seen_sh = self._seen_shoulders(v, m) if self._v_s and m is not None and self._var is not None else None
+        # from it): the hips' centre; where the hips have been no reference for ``hips_lost_frames`` (out of the
+        # image: an operator at a desk, a camera close to the chest), the other shoulder, which the clavicles carry
+        # with the chest (``_other_anchor``). A shorter loss of the hips (an edge's depth, a hand over a hip)
+        # leaves the hold off, as it was: two references taking turns moved the held shoulder.
+        pair = self._v_s and m is not None and self._var is not None
+        self._hips_lost = 0.0 if hold else self._hips_lost + 1.0
+        others = (None, None)
+        if pair:
+            others = (self._other_anchor(v, m, 0), self._other_anchor(v, m, 1))
+        use_pair = self._hips_lost >= self._pf.hips_lost_frames
         anchor = self._anchor
         for side in (0, 1):
-            o = self._offsets[1 - side][0]
             if hold and held_sh[side] is not None:
                 anchor[side] = (hips, held_sh[side])
-            elif seen_sh is not None and seen_sh[1 - side] and held_ss[side] is not None:
-                anchor[side] = ((v[o], v[o + 1], v[o + 2]), held_ss[side])
+            elif use_pair and others[1 - side] is not None and held_ss[side] is not None:
+                anchor[side] = (others[1 - side], held_ss[side])
             else:
                 anchor[side] = None
         for side in (0, 1):
@@ -740,15 +772,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                                          out[3] - out[0], out[4] - out[1], out[5] - out[2]]
                 if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
                     self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
-                if seen_sh is not None and m[o_s + 2] == m[o_s + 2]:
+                if pair and m[o_s + 2] == m[o_s + 2]:
                     # The shoulder's depth measured: its offset from the hips' (and from the other shoulder, seen),
-                    # a running mean (the depths read as an occluder approaches, just before the occlusion filter
-                    # drops them, are its own).
+                    # a running mean (the depths read as an occluder approaches, just before the occlusion
+                    # filter drops them, are its own).
                     if hold:
                         _learn_offset(held_sh, side, out, hips, self._a_s)
-                    if seen_sh[1 - side]:
-                        o = self._offsets[1 - side][0]
-                        _learn_offset(held_ss, side, out, (v[o], v[o + 1], v[o + 2]), self._a_s)
+                    if others[1 - side] is not None:
+                        _learn_offset(held_ss, side, out, others[1 - side], self._a_s)
                 held[side] = False
                 chosen[side] = 0
                 fallback[side] = lost[ke] > 0 and lost[ke + 1] > 0

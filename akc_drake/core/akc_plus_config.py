@@ -76,6 +76,9 @@ class AKCPlusConfig:
             trustworthy error measure only shortly after a measurement (the running NIS was measured then;
             further on, unmodelled motion, or an EKF's bone constraints, which are the rebuild's own lengths,
             dominate it).
+        hips_lost_frames: the hips no torso reference (not measured, or a depth failing the innovation test) for
+            this many frames (1 s at 10 Hz: out of the image, not a hand passing over a hip), the other shoulder,
+            seen, carries a held shoulder instead.
         constrained_filter: the filter's posterior also holds bone-length constraints (our EKF, the paper's
             per-joint EKF; the evaluation and the diagrams set it from the filter): a measured coordinate whose
             running NIS exceeds 1 is fused again with its measurement at the prior variance the NIS shows
@@ -111,6 +114,7 @@ class AKCPlusConfig:
     nis_alpha: float = 0.2
     nis_floor: float = 0.01
     recent_frames: float = 3.0
+    hips_lost_frames: float = 10.0
     hand_length_m: float = 0.085
     constrained_filter: bool | None = None
 
@@ -148,7 +152,7 @@ class PerFrame:
         temporal_walk_var: the random walk's variance per blind frame of a held segment (forearm, upper arm).
         shoulder_walk_var: the random walk's variance per blind frame of a shoulder held on the torso.
         shoulder_alpha, nis_alpha: the running means' weights of the newest frame.
-        recent_frames, gate_frames: the frame counts.
+        recent_frames, gate_frames, hips_lost_frames: the frame counts.
         jump_m: the largest depth jump between two frames (without the covariance).
         drift_m_per_frame: the filter's drift per frame without a trusted depth (without the covariance).
     """
@@ -160,6 +164,7 @@ class PerFrame:
     nis_alpha: float
     recent_frames: float
     gate_frames: float
+    hips_lost_frames: float
     jump_m: float
     drift_m_per_frame: float
 
@@ -195,6 +200,7 @@ def per_frame(config: AKCPlusConfig, period_s: float | None = None) -> PerFrame:
         nis_alpha=_weight(config.nis_alpha, r),
         recent_frames=config.recent_frames / r,
         gate_frames=config.gate_frames / r,
+        hips_lost_frames=config.hips_lost_frames / r,
         jump_m=config.jump_m * r,
         drift_m_per_frame=config.drift_m_per_frame * r,
     )

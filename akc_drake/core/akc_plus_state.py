@@ -6,22 +6,25 @@ flags ``[18:20]``, four untrusted-frame counters ``[20:24]``, the filter's estim
 last seen ``[24:36]``, the running NIS means ``[36:54]``, then per side (x, y, z, frames) the held forearm
 ``[54:62]``, the held upper arm ``[62:70]`` and the shoulder's offset from the hips' centre ``[70:78]``, and per
 side the upper arm when the held forearm was kept (x, y, z; NaN once the forearm no longer turns with it)
-``[78:84]``, and per side (x, y, z, frames) the shoulder's offset from the other shoulder ``[84:92]``.
+``[78:84]``, per side (x, y, z, frames) the shoulder's offset from the other shoulder ``[84:92]``, and the frames
+since the hips were last the torso's reference ``[92]``.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from akc_drake.core.skeleton import SIDES
 
-STATE_SIZE = 92
-_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS = 36, 54, 62, 70, 78, 84
+STATE_SIZE = 93
+_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST = 36, 54, 62, 70, 78, 84, 92
 
 
 class StateVector:
     """:meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``, ``_lost``, ``_f0``,
-    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``)."""
+    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``, ``_hips_lost``)."""
 
     __slots__ = ()
 
@@ -29,8 +32,8 @@ class StateVector:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
         filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
         NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
-        its frames, then per side the upper arm the held forearm turns with, and the shoulder's offset from the
-        other shoulder and its frames."""
+        its frames, then per side the upper arm the held forearm turns with, the shoulder's offset from the
+        other shoulder and its frames, and the frames since the hips were the torso's reference."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -50,6 +53,7 @@ class StateVector:
         for side in (0, 1):
             if self._blind[side] is not None:
                 v[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3] = self._blind[side][4:7]
+        v[_HIPS_LOST] = self._hips_lost
         return v
 
     def set_state_vector(self, v) -> None:
@@ -97,6 +101,10 @@ class StateVector:
                 u = a[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3]
                 blocks[0][side] += u.tolist() if np.all(np.isfinite(u)) else [np.nan] * 3
         self._blind, self._blind_e, self._held_sh, self._held_ss = blocks
+        hl = a[_HIPS_LOST]
+        if not (math.isfinite(hl) and hl >= 0):
+            raise ValueError(f"AKC+ state vector: hips-lost frames [{_HIPS_LOST}] must be >= 0, got {hl!r}")
+        self._hips_lost = float(hl)
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()
