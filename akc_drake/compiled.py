@@ -35,6 +35,7 @@ COMPILED_MODULES = (
     "akc_drake.core.akc_plus_evidence",
     "akc_drake.core.akc_plus_lengths",
     "akc_drake.core.akc_plus_search",
+    "akc_drake.core.akc_plus_torso",
     "akc_drake.core.arm_geometry",
 )
 #: The build's record of the sources it compiled, relative to the package directory.

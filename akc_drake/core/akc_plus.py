@@ -62,20 +62,15 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   fuse_held`): a constant-velocity filter that holds the landmark claims a variance that grows without
   bound, and the arm rebuilt from the elbow then carried the elbow's depth error into a shoulder the filter held
   well (the bench's Motion I, bvhtools_a1's left shoulder behind the right hand); one that extrapolates a lost
-  shoulder ran 30 cm off in x. The hips count only when both their measured depths pass the innovation test
-  (:meth:`ArmKinematicCorrectorPlus._hips_consistent`: a hip landmark on the body's edge reads the wall behind,
-  and a filter that followed it taught the held shoulder 20 cm; bvhtools_a1 driven bone by bone). Where the
-  hips have not counted for ``hips_lost_frames`` (out of the image, as at a desk), the other shoulder carries the
-  held shoulder instead (seen this frame and agreeing with our last output of it,
-  :meth:`ArmKinematicCorrectorPlus._other_anchor`): our outputs' offset from it, learnt whenever this shoulder's
-  depth is measured (mocapbank driven bone by bone: without the hips, a shoulder lost for 20
-  frames ran 14 cm off in y with the filter).
+  shoulder ran 30 cm off in x. The hips count only when both their measured depths pass the innovation test;
+  where they have been no reference for a second (out of the image, as at a desk), the other shoulder carries
+  the held shoulder (:mod:`akc_drake.core.akc_plus_torso`).
 * A measured shoulder depth that both the shoulder held on the torso (beyond the gate of the hold's and the
   measurement's variances) and the seen elbow contradict (the upper arm from it misses its length by more than
   ``consistency_m``, from the held depth at the same pixel by that much less) is an occluder's: the held depth
-  replaces it on the pixel's ray (:meth:`ArmKinematicCorrectorPlus._torso_outvotes`). A filter with no prior left
-  (a shoulder lost for many frames) passes the innovation test by following such a reading: mocapbank's, 26 cm
-  in front, moved the seen elbow 7-10 cm.
+  replaces it on the pixel's ray (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference._torso_outvotes`). A
+  filter with no prior left (a shoulder lost for many frames) passes the innovation test by following such a
+  reading: mocapbank's, 26 cm in front, moved the seen elbow 7-10 cm.
 * A shoulder the detector lost altogether and a seen elbow that no wrist confirms (the wrist lost, or no
   anchor): the arm nearest both in their metric with the exact lengths, not the held shoulder kept (a torso that
   leaned while both were lost moved the seen elbow 7 cm onto the held shoulder; mocapbank driven bone by bone).
@@ -166,6 +161,7 @@ from akc_drake.core.akc_plus_lengths import (
 )
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
+from akc_drake.core.akc_plus_torso import NO_HIPS, TorsoReference, learn_offset
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
@@ -182,19 +178,6 @@ _NAN = float("nan")
 _F64 = np.dtype(np.float64)
 
 
-def _learn_offset(held, side, out, anchor, a):
-    """``held[side]``: the running mean (weight ``a``) of the shoulder ``out[0:3]`` minus ``anchor``, its blind
-    frames reset (the first frame starts it)."""
-    h = held[side]
-    if h is None:
-        held[side] = [out[0] - anchor[0], out[1] - anchor[1], out[2] - anchor[2], 0.0]
-    else:
-        h[0] += a * (out[0] - anchor[0] - h[0])
-        h[1] += a * (out[1] - anchor[1] - h[1])
-        h[2] += a * (out[2] - anchor[2] - h[2])
-        h[3] = 0.0
-
-
 def _as_f64(x):
     """``x`` as a float64 array (``np.asarray`` with a dtype costs about 1 µs even when it has nothing to do)."""
     return x if type(x) is np.ndarray and x.dtype == _F64 else np.asarray(x, dtype=np.float64)
@@ -202,13 +185,11 @@ def _as_f64(x):
 
 _FLAT, _SHAPE = 3 * NUM_LANDMARKS, (NUM_LANDMARKS, 3)
 
-_LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
 _HAND = tuple(tuple(3 * INDEX[f"{s}_{j}"] for j in ("elbow", "wrist", "index", "pinky")) for s in SIDES)
-_NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
 _Z, _XYZ = (2,), (0, 1, 2)  # (the held shoulder's axes: its depth dropped; lost altogether)
 
 
-class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
+class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
     """AKC+ for both arms (see the module docstring); the same interface as the paper's corrector.
 
     Args:
@@ -278,7 +259,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = self._v = self._v0 = self._axes = self._cur_var = None
-        self._tz, self._inv_tz2, self._hips, self._anchor = _NAN, 0.0, _NO_HIPS, [None, None]
+        self._tz, self._inv_tz2, self._hips, self._anchor = _NAN, 0.0, NO_HIPS, [None, None]
         self.reset()
 
     @property
@@ -306,72 +287,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         self._hips_lost = 0.0  # frames since the hips were last the torso's reference (or since the start)
 
     # ------------------------------------------------------------------ hot path (plain floats)
-    def _hips_consistent(self, v, m):
-        """Whether both hips' measured depths pass the innovation test against the filter (``_arm``'s test of a
-        seen depth). A hip landmark on the body's edge reads the background behind it (the wall, 1.5 m deep), and
-        a filter without a gate follows it for several frames; the held shoulders are carried by the hips'
-        centre and learn their offset from it, so such a frame is no torso reference."""
-        var, rz, g2 = self._var, self._r_z, self._gate2
-        for o in (_LHIP + 2, _RHIP + 2):
-            q = rz - var[o]
-            if (m[o] - v[o]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
-                return False
-        return True
-
-    def _torso_outvotes(self, f, vs, m, side):
-        """A measured shoulder depth that the torso and the seen elbow both contradict (two against one): replaced
-        on its pixel's ray by the shoulder held on the torso (``f``, ``vs`` changed in place); True if so.
-
-        The measurement is off the held shoulder's depth beyond the gate of their variances (the hold's random walk
-        and the measurement's), and the upper arm from it to the elbow (seen: measured, its depth passing the
-        innovation test) misses the calibrated length by more than ``consistency_m`` where the held shoulder at
-        the same pixel fits it better by that much. Such a depth is an occluder's, the arm's own surface read at the
-        shoulder's pixel, and a filter that had no prior for it (a shoulder lost for many frames, then read 26 cm
-        in front: mocapbank driven bone by bone, simulated detector) passes the innovation test by following it.
-        """
-        o_s, o_e = self._offsets[side][0], self._offsets[side][1]
-        mx, my, mz = m[o_s], m[o_s + 1], m[o_s + 2]
-        if not (_isfinite(mx + my + mz) and mz > 0.0 and _isfinite(m[o_e] + m[o_e + 1] + m[o_e + 2])):
-            return False
-        g2, rz = self._gate2, self._r_z
-        q = rz - self._var[o_e + 2]
-        if (m[o_e + 2] - f[5]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
-            return False  # (the elbow not seen)
-        a = self._anchor[side]
-        h = a[1]
-        hz, vh = a[0][2] + h[2], self._v_s * (h[3] + 1.0)
-        if (mz - hz) ** 2 <= g2 * (vh + rz) or hz <= 0.0:
-            return False
-        k = hz / mz  # (the held depth on the measured pixel's ray)
-        hx, hy = mx * k, my * k
-        ex, ey, ez, lu, cons = f[3], f[4], f[5], self._lu[side], self._cons
-        miss = abs(_hypot(mx - ex, my - ey, mz - ez) - lu)
-        if miss <= cons or abs(_hypot(hx - ex, hy - ey, hz - ez) - lu) > miss - cons:
-            return False
-        f[0], f[1], f[2] = hx, hy, hz
-        vs[2] = vh
-        return True
-
-    def _other_anchor(self, v, m, k):
-        """Shoulder ``k`` as the torso's reference of the other side's held shoulder: the filter's, when its depth
-        is seen this frame (measured, passing the innovation test), was seen when last corrected, and agrees with
-        that output within ``consistency_m`` (a filter that followed an occluder's depth passes the test: the
-        right shoulder read on its own arm 25 cm in front, bvhtools_a1 driven bone by bone); else None."""
-        p = self._prev[k]
-        if p is None or self._lost[2 * k + 1] > 0:
-            return None
-        o = self._offsets[k][0]
-        x, y, z = v[o], v[o + 1], v[o + 2]
-        mz = m[o + 2]
-        if not _isfinite(m[o] + m[o + 1] + mz + x + y + z):
-            return None
-        q = self._r_z - self._var[o + 2]
-        if (mz - z) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12:
-            return None
-        if _hypot(x - p[0], y - p[1], z - p[2]) > self._cons:
-            return None
-        return (x, y, z)
-
     def _measured(self, m, o, fz):
         """Without the filter's covariance: whether row ``m[o:o+3]`` was measured this frame and its depth is
         within ``consistency_m`` of the filtered ``fz`` (with it, ``_arm`` runs the innovation test inline)."""
@@ -729,36 +644,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
         held = [True, True]
         fallback = [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
-        # The hips' centre for the held shoulders (``fuse_held`` in ``_arm``, the running mean below): with
-        # the covariance and ``sigma_shoulder_m`` > 0 only (NaN otherwise), and only with both hips' depths
-        # measured this frame, each passing the innovation test: a filter extrapolating a hip that a hand hides
-        # carries the velocity it had, 38 cm in ten frames, into the held offsets (bvhtools_test 60-120 s,
-        # simulated), and one that follows a hip read on the wall behind the body's edge (a torso that bends) ran
-        # 50-120 cm off for five frames and taught the held shoulder 20 cm (bvhtools_a1 driven bone by bone).
-        hold = (self._v_s and m is not None and self._var is not None and _isfinite(m[_LHIP + 2] + m[_RHIP + 2])
-                and _isfinite(v[_LHIP + 2] + v[_RHIP + 2]) and self._hips_consistent(v, m))
-        hips = self._hips = ((0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]),
-                              0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else _NO_HIPS)
+        # The torso's references of the held shoulders (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference.
+        # torso_anchors`): the hips' centre, or the other shoulder.
+        hold, hips, others = self._torso_anchors(v, m)
         held_sh, held_ss = self._held_sh, self._held_ss
-        # The torso's reference of each side's held shoulder (``_anchor``: the anchor point and the held offset
-        # from it): the hips' centre; where the hips have been no reference for ``hips_lost_frames`` (out of the
-        # image: an operator at a desk, a camera close to the chest), the other shoulder, which the clavicles carry
-        # with the chest (``_other_anchor``). A shorter loss of the hips (an edge's depth, a hand over a hip)
-        # leaves the hold off, as it was: two references taking turns moved the held shoulder.
-        pair = self._v_s and m is not None and self._var is not None
-        self._hips_lost = 0.0 if hold else self._hips_lost + 1.0
-        others = (None, None)
-        if pair:
-            others = (self._other_anchor(v, m, 0), self._other_anchor(v, m, 1))
-        use_pair = self._hips_lost >= self._pf.hips_lost_frames
-        anchor = self._anchor
-        for side in (0, 1):
-            if hold and held_sh[side] is not None:
-                anchor[side] = (hips, held_sh[side])
-            elif use_pair and others[1 - side] is not None and held_ss[side] is not None:
-                anchor[side] = (others[1 - side], held_ss[side])
-            else:
-                anchor[side] = None
         for side in (0, 1):
             ke = 2 * side
             lost_e, lost_s = lost[ke], lost[ke + 1]
@@ -772,14 +661,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch, StateVector):
                                          out[3] - out[0], out[4] - out[1], out[5] - out[2]]
                 if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
                     self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
-                if pair and m[o_s + 2] == m[o_s + 2]:
+                if self._v_s and m is not None and self._var is not None and m[o_s + 2] == m[o_s + 2]:
                     # The shoulder's depth measured: its offset from the hips' (and from the other shoulder, seen),
                     # a running mean (the depths read as an occluder approaches, just before the occlusion
                     # filter drops them, are its own).
                     if hold:
-                        _learn_offset(held_sh, side, out, hips, self._a_s)
+                        learn_offset(held_sh, side, out, hips, self._a_s)
                     if others[1 - side] is not None:
-                        _learn_offset(held_ss, side, out, others[1 - side], self._a_s)
+                        learn_offset(held_ss, side, out, others[1 - side], self._a_s)
                 held[side] = False
                 chosen[side] = 0
                 fallback[side] = lost[ke] > 0 and lost[ke + 1] > 0

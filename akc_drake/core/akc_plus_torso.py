@@ -1,0 +1,142 @@
+"""AKC+'s torso references: what carries a shoulder held on the torso, and when the torso outvotes a shoulder.
+
+A shoulder whose depth the occlusion filter dropped, or that the detector lost altogether, is held at our outputs'
+running-mean offset from a torso reference (:func:`~akc_drake.core.akc_plus_evidence.fuse_held`):
+
+* the hips' centre, in a frame where both hips' measured depths pass the innovation test (a filter extrapolating a
+  hip that a hand hides carried the velocity it had, 38 cm in ten frames, into the held offsets: bvhtools_test
+  60-120 s, simulated; one that follows a hip read on the wall behind the body's edge, where a bending torso puts
+  the landmark, ran 50-120 cm off for five frames and taught the held shoulder 20 cm: bvhtools_a1 driven bone by
+  bone);
+* where the hips have been no reference for ``hips_lost_frames`` (1 s at 10 Hz: out of the image, an operator at
+  a desk or a camera close to the chest), the other shoulder, which the clavicles carry with the chest: the
+  filter's, seen this frame and agreeing with our last output of it (a filter that followed an occluder's depth
+  passes the innovation test: the right shoulder read on its own arm 25 cm in front, bvhtools_a1 driven bone by
+  bone). A shorter loss of the hips (an edge's depth, a hand over a hip) leaves the hold off: two references
+  taking turns moved the held shoulder. Without the hips, a shoulder lost for 20 frames ran 14 cm off in y with
+  the filter (mocapbank driven bone by bone).
+
+:class:`TorsoReference` is a mixin of :class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`: it reads and
+sets the corrector's per-frame state (``_hips``, ``_anchor``, ``_hips_lost``) and its settings.
+"""
+
+from __future__ import annotations
+
+import math
+
+from akc_drake.core.skeleton import INDEX
+
+_hypot = math.hypot
+_isfinite = math.isfinite
+_NAN = float("nan")
+_LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
+NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
+
+
+def learn_offset(held, side, out, anchor, a):
+    """``held[side]``: the running mean (weight ``a``) of the shoulder ``out[0:3]`` minus ``anchor``, its blind
+    frames reset (the first frame starts it)."""
+    h = held[side]
+    if h is None:
+        held[side] = [out[0] - anchor[0], out[1] - anchor[1], out[2] - anchor[2], 0.0]
+    else:
+        h[0] += a * (out[0] - anchor[0] - h[0])
+        h[1] += a * (out[1] - anchor[1] - h[1])
+        h[2] += a * (out[2] - anchor[2] - h[2])
+        h[3] = 0.0
+
+
+class TorsoReference:
+    """The torso references of AKC+'s held shoulders (a mixin: the corrector holds the state it reads)."""
+
+    __slots__ = ()
+
+    def _torso_anchors(self, v, m):
+        """This frame's torso references: sets ``_hips`` (the hips' centre, NaN when they are none) and
+        ``_anchor`` (per side the anchor point and the held offset from it, or None), counts ``_hips_lost``.
+
+        Returns:
+            ``(hold, hips, others)``: whether the hips are a reference, their centre, and per side the shoulder
+            that may carry the other side's (:meth:`_other_anchor`; None where none).
+        """
+        pair = self._v_s and m is not None and self._var is not None
+        hold = (pair and _isfinite(m[_LHIP + 2] + m[_RHIP + 2]) and _isfinite(v[_LHIP + 2] + v[_RHIP + 2])
+                and self._hips_consistent(v, m))
+        hips = self._hips = ((0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]),
+                              0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else NO_HIPS)
+        self._hips_lost = 0.0 if hold else self._hips_lost + 1.0
+        others = (self._other_anchor(v, m, 0), self._other_anchor(v, m, 1)) if pair else (None, None)
+        use_pair = self._hips_lost >= self._pf.hips_lost_frames
+        held_sh, held_ss, anchor = self._held_sh, self._held_ss, self._anchor
+        for side in (0, 1):
+            if hold and held_sh[side] is not None:
+                anchor[side] = (hips, held_sh[side])
+            elif use_pair and others[1 - side] is not None and held_ss[side] is not None:
+                anchor[side] = (others[1 - side], held_ss[side])
+            else:
+                anchor[side] = None
+        return hold, hips, others
+
+    def _hips_consistent(self, v, m):
+        """Whether both hips' measured depths pass the innovation test against the filter (``_arm``'s test of a
+        seen depth): a hip landmark on the body's edge reads the background behind it (the wall, 1.5 m deep),
+        and a filter without a gate follows it for several frames."""
+        var, rz, g2 = self._var, self._r_z, self._gate2
+        for o in (_LHIP + 2, _RHIP + 2):
+            q = rz - var[o]
+            if (m[o] - v[o]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
+                return False
+        return True
+
+    def _other_anchor(self, v, m, k):
+        """Shoulder ``k`` as the torso's reference of the other side's held shoulder: the filter's, when its depth
+        is seen this frame (measured, passing the innovation test), was seen when last corrected, and agrees with
+        that output within ``consistency_m``; else None."""
+        p = self._prev[k]
+        if p is None or self._lost[2 * k + 1] > 0:
+            return None
+        o = self._offsets[k][0]
+        x, y, z = v[o], v[o + 1], v[o + 2]
+        mz = m[o + 2]
+        if not _isfinite(m[o] + m[o + 1] + mz + x + y + z):
+            return None
+        q = self._r_z - self._var[o + 2]
+        if (mz - z) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12:
+            return None
+        if _hypot(x - p[0], y - p[1], z - p[2]) > self._cons:
+            return None
+        return (x, y, z)
+
+    def _torso_outvotes(self, f, vs, m, side):
+        """A measured shoulder depth that the torso and the seen elbow both contradict (two against one): replaced
+        on its pixel's ray by the shoulder held on the torso (``f``, ``vs`` changed in place); True if so.
+
+        The measurement is off the held shoulder's depth beyond the gate of their variances (the hold's random walk
+        and the measurement's), and the upper arm from it to the elbow (seen: measured, its depth passing the
+        innovation test) misses the calibrated length by more than ``consistency_m`` where the held shoulder at
+        the same pixel fits it better by that much. Such a depth is an occluder's, the arm's own surface read at the
+        shoulder's pixel, and a filter that had no prior for it (a shoulder lost for many frames, then read 26 cm
+        in front: mocapbank driven bone by bone, simulated detector) passes the innovation test by following it.
+        """
+        o_s, o_e = self._offsets[side][0], self._offsets[side][1]
+        mx, my, mz = m[o_s], m[o_s + 1], m[o_s + 2]
+        if not (_isfinite(mx + my + mz) and mz > 0.0 and _isfinite(m[o_e] + m[o_e + 1] + m[o_e + 2])):
+            return False
+        g2, rz = self._gate2, self._r_z
+        q = rz - self._var[o_e + 2]
+        if (m[o_e + 2] - f[5]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
+            return False  # (the elbow not seen)
+        a = self._anchor[side]
+        h = a[1]
+        hz, vh = a[0][2] + h[2], self._v_s * (h[3] + 1.0)
+        if (mz - hz) ** 2 <= g2 * (vh + rz) or hz <= 0.0:
+            return False
+        k = hz / mz  # (the held depth on the measured pixel's ray)
+        hx, hy = mx * k, my * k
+        ex, ey, ez, lu, cons = f[3], f[4], f[5], self._lu[side], self._cons
+        miss = abs(_hypot(mx - ex, my - ey, mz - ez) - lu)
+        if miss <= cons or abs(_hypot(hx - ex, hy - ey, hz - ez) - lu) > miss - cons:
+            return False
+        f[0], f[1], f[2] = hx, hy, hz
+        vs[2] = vh
+        return True

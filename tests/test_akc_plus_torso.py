@@ -1,0 +1,111 @@
+"""akc_drake.core.akc_plus_torso: the torso references of AKC+'s held shoulders (unit tests on one corrector; the
+rules' effects on whole sequences are in test_akc_plus.py)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+from akc_drake.core.akc_plus_torso import learn_offset
+from akc_drake.core.skeleton import INDEX, BodyDimensions
+
+LS, RS, LE = INDEX["left_shoulder"], INDEX["right_shoulder"], INDEX["left_elbow"]
+LH, RH = INDEX["left_hip"], INDEX["right_hip"]
+R_Z = 0.05**2
+
+
+def _pose():
+    p = np.zeros((12, 3))
+    p[:, 2] = 2.0
+    p[LS, :2], p[RS, :2] = [0.18, 0.0], [-0.18, 0.0]
+    p[LE] = [0.2, 0.29, 2.0]
+    p[LH, :2], p[RH, :2] = [0.12, 0.5], [-0.12, 0.5]
+    return p
+
+
+def _corrector(**settings):
+    from akc_drake.core.akc_plus_config import AKCPlusConfig
+
+    dims = BodyDimensions(LUA=0.29, LLA=0.26, RUA=0.29, RLA=0.26, SW=0.36)
+    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(**settings))
+    akc._var = [1.5e-3] * 36  # (a steady KF's depth variance on every coordinate: R - P = 1e-3)
+    return akc
+
+
+def _flat(a):
+    return a.reshape(-1).tolist()
+
+
+def test_learn_offset_starts_at_the_first_frame_then_is_a_running_mean():
+    held = [None, None]
+    learn_offset(held, 1, (1.0, 2.0, 3.0), (0.5, 0.5, 0.5), 0.2)
+    assert held[1] == [0.5, 1.5, 2.5, 0.0] and held[0] is None
+    held[1][3] = 7.0  # blind frames counted by the hold
+    learn_offset(held, 1, (2.0, 2.0, 3.0), (0.5, 0.5, 0.5), 0.2)
+    assert held[1][0] == pytest.approx(0.5 + 0.2 * (1.5 - 0.5)) and held[1][1:] == [1.5, 2.5, 0.0]
+
+
+def test_the_hips_count_only_when_both_depths_pass_the_innovation_test():
+    akc, p = _corrector(), _pose()
+    v, m = _flat(p), _flat(p)
+    assert akc._hips_consistent(v, m)
+    m[3 * LH + 2] += 3.0 * math.sqrt(1e-3) * 0.99  # within the gate (3 sigma of R - P)
+    assert akc._hips_consistent(v, m)
+    m[3 * RH + 2] += 1.5  # the wall behind the body's edge
+    assert not akc._hips_consistent(v, m)
+
+
+def test_the_other_shoulder_is_a_reference_only_seen_and_as_last_corrected():
+    akc, p = _corrector(), _pose()
+    v, m = _flat(p), _flat(p)
+    assert akc._other_anchor(v, m, 1) is None  # never corrected
+    akc._prev[1] = tuple(_flat(p[[RS, INDEX["right_elbow"], INDEX["right_wrist"]]]))
+    assert akc._other_anchor(v, m, 1) == tuple(p[RS])
+    akc._lost[3] = 1.0  # not seen when last corrected
+    assert akc._other_anchor(v, m, 1) is None
+    akc._lost[3] = 0.0
+    m[3 * RS + 2] = float("nan")  # not measured this frame
+    assert akc._other_anchor(v, m, 1) is None
+    # a filter that followed an occluder's depth, 25 cm in front: it passes the innovation test, but is 25 cm from
+    # our last output of that shoulder
+    v[3 * RS + 2] = m[3 * RS + 2] = 1.75
+    assert akc._other_anchor(v, m, 1) is None
+
+
+def test_the_other_shoulder_carries_the_held_one_after_the_hips_are_lost_for_hips_lost_frames():
+    akc, p = _corrector(hips_lost_frames=3.0), _pose()
+    akc._prev = [tuple(_flat(p[[LS, LE, INDEX["left_wrist"]]])),
+                 tuple(_flat(p[[RS, INDEX["right_elbow"], INDEX["right_wrist"]]]))]
+    akc._held_sh = [[0.06, -0.5, 0.0, 0.0], None]
+    akc._held_ss = [[0.36, 0.0, 0.0, 0.0], None]
+    v, m = _flat(p), _flat(p)
+    hold, hips, others = akc._torso_anchors(v, m)
+    assert hold and akc._anchor[0] == (hips, akc._held_sh[0]) and akc._anchor[1] is None
+    assert hips == pytest.approx((0.0, 0.5, 2.0))
+    m[3 * LH + 2] = float("nan")  # the hips lost
+    for k in range(1, 4):
+        hold, hips, others = akc._torso_anchors(v, m)
+        assert not hold and math.isnan(hips[2]) and akc._hips_lost == k
+        assert akc._anchor[0] == ((others[1], akc._held_ss[0]) if k >= 3 else None)
+    assert others[1] == tuple(p[RS])
+
+
+def test_a_shoulder_depth_the_torso_and_the_elbow_contradict_is_put_back_on_its_ray():
+    akc, p = _corrector(), _pose()
+    akc._anchor = [((0.0, 0.5, 2.0), [0.18, -0.5, 0.0, 2.0]), None]  # the held shoulder at 2.0 m deep
+    f = _flat(p[[LS, LE, INDEX["left_wrist"]]])
+    vs = [1e-4] * 9
+    m = _flat(p)
+    k = 1.75 / 2.0  # the shoulder read 25 cm in front on its pixel's ray, the filter following it
+    m[3 * LS : 3 * LS + 3] = f[0:3] = [0.18 * k, 0.0, 1.75]
+    assert akc._torso_outvotes(f, vs, m, 0)
+    assert f[0:3] == pytest.approx([0.18, 0.0, 2.0]) and vs[2] == pytest.approx(1e-4 * 3.0)
+    # read 3 cm in front: within the gate of the hold's and the measurement's variances, kept
+    f2 = _flat(p[[LS, LE, INDEX["left_wrist"]]])
+    m[3 * LS : 3 * LS + 3] = f2[0:3] = [0.18 * 1.97 / 2.0, 0.0, 1.97]
+    assert not akc._torso_outvotes(f2, [1e-4] * 9, m, 0) and f2[2] == 1.97
+    # an elbow not seen (its depth off its filter's by far more than the gate) is no second vote
+    m[3 * LS : 3 * LS + 3] = f[0:3] = [0.18 * k, 0.0, 1.75]
+    m[3 * LE + 2] += 0.5
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 1.75
