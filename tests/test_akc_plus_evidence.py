@@ -2,6 +2,7 @@ import pytest
 
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
+    beyond_reach,
     fuse_held,
     hold_blind,
     known_depths,
@@ -275,3 +276,32 @@ def test_the_nearer_wrist_of_a_too_long_forearm_is_the_odd_one():
     # an upper arm 6 cm off its length: the elbow does not fit its shoulder (one against one)
     assert not nearer_wrist_misfit(f, 0.36, 0.30, 0.05)
     assert nearer_wrist_misfit(f, 0.34, 0.30, 0.05)
+
+
+def test_a_joint_lost_altogether_beyond_the_measured_elbows_reach_is_no_evidence():
+    # The arm: shoulder, elbow, wrist; the elbow measured in 3D, the shoulder and the wrist lost altogether.
+    prev = [0.18, 0.0, 2.0, 0.2, 0.29, 2.0, 0.2, 0.55, 1.95]
+    m = [NAN] * 9
+    m[3:6] = [0.2, 0.3, 2.0]
+    offsets = (0, 3, 6)
+    args = (0.29, 0.26, (1e-4, 1e-4, 2.5e-3), 1e-4, 9.0)
+    # A filter that extrapolates both within reach (its variances growing): left as it is.
+    f = [0.16, 0.02, 2.03, 0.2, 0.3, 2.0, 0.22, 0.52, 1.9]
+    vs = [4e-4] * 9
+    beyond_reach(f, vs, m, offsets, prev, *args)
+    assert f == [0.16, 0.02, 2.03, 0.2, 0.3, 2.0, 0.22, 0.52, 1.9] and vs == [4e-4] * 9
+    # A diverged filter (the paper's per-joint EKF): the shoulder 2.2 m off with a 3 cm sigma, the wrist 1.7 m:
+    # both start from our last output, with 1 m^2 per axis.
+    f = [-2.2, 1.5, 1.8, 0.2, 0.3, 2.0, -1.7, 4.0, 1.2]
+    vs = [1e-3] * 9
+    beyond_reach(f, vs, m, offsets, prev, *args)
+    assert f[0:3] == prev[0:3] and f[6:9] == prev[6:9] and f[3:6] == [0.2, 0.3, 2.0]
+    assert vs == [1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-3, 1.0, 1.0, 1.0]
+    # x, y detected (depths lost: not lost altogether), no measured elbow, or no last output: nothing to do.
+    xy = list(m)
+    xy[0:2], xy[6:8] = [-2.2, 1.5], [-1.7, 4.0]
+    for m2, p2 in ((xy, prev), ([NAN] * 9, prev), (m, None)):
+        f = [-2.2, 1.5, 1.8, 0.2, 0.3, 2.0, -1.7, 4.0, 1.2]
+        vs = [1e-3] * 9
+        beyond_reach(f, vs, m2, offsets, p2, *args)
+        assert f == [-2.2, 1.5, 1.8, 0.2, 0.3, 2.0, -1.7, 4.0, 1.2] and vs == [1e-3] * 9

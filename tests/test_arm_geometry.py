@@ -126,6 +126,11 @@ def test_ray_check_takes_the_measurement_only_off_the_measured_ray():
     f = [0.18, 0.10, 2.02] + m[3:9]
     ray_check(m, offs, f, list(var), *args)
     assert f[:3] == [0.18, 0.10, 2.02]
+    # A diverged filter's shoulder behind the camera (no ray to compare): the measured point replaces it.
+    f = [-0.09, 0.44, -0.035] + m[3:9]
+    vs = list(var)
+    ray_check(m, offs, f, vs, *args)
+    assert f[:3] == m[:3] and vs[:3] == [1e-4, 1e-4, 2.5e-3]
     # A joint without a measured depth is left alone.
     m2 = list(m)
     m2[2] = nan

@@ -145,6 +145,7 @@ from akc_drake.core.akc import AKCResult
 from akc_drake.core.akc_plus_config import AKCPlusConfig, per_frame
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
+    beyond_reach,
     fuse_held,
     hidden_wrist,
     hold_blind,
@@ -208,7 +209,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
-                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost")
+                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost",
+                 "_s_floor")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -259,7 +261,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = self._v = self._v0 = self._axes = self._cur_var = None
-        self._tz, self._inv_tz2, self._hips, self._anchor = _NAN, 0.0, NO_HIPS, [None, None]
+        self._tz, self._inv_tz2, self._hips, self._anchor, self._s_floor = _NAN, 0.0, NO_HIPS, [None, None], _NAN
         self.reset()
 
     @property
@@ -326,6 +328,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2,
                                                self._refit)
+            if m is not None:  # (a joint lost altogether that its filter put beyond the measured elbow's reach)
+                beyond_reach(f, vs, m, offsets, prev, self._lu[side], self._lf[side], self._r_axes, self._len_var,
+                             self._gate2)
             if m is not None and m[o_s + 2] != m[o_s + 2]:
                 # A shoulder whose depth was dropped, or lost altogether (no x, y either): the filter's estimate
                 # and the shoulder held on the torso, fused (``vs[2]`` NaN: a depth the filter does not know, left
@@ -583,6 +588,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
         self._set_torso(side)
+        # The depth measured at the shoulder's pixel, if within the arm's reach of the wrist (not the wall behind):
+        # whatever surface it read (the shoulder's, its upper arm's), the joint is not in front of it.
+        z = _NAN if m is None else m[o_s + 2]
+        self._s_floor = z if abs(z - wz) <= lu + lf else _NAN
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         if te:
             s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,

@@ -84,6 +84,36 @@ def arm_variances(sub_index, var, m, v, f, nis, alpha, floor, g2, refit=False):
     return out
 
 
+def beyond_reach(f, vs, m, offsets, prev, lu, lf, r_axes, length_var, g2):
+    """A shoulder or a wrist lost altogether (no x, y) whose filtered position lies beyond the reach of the elbow
+    measured this frame is no evidence: it starts from our last output of it with a variance of 1 m^2 per axis
+    (``f``, ``vs`` changed in place), so that the holds and the lengths place it.
+
+    Beyond reach: farther from the measured elbow than the segment's length, by more than the gate of the
+    variances (the joint's, the measurement's and the length's). A filter can diverge while it sees nothing of a
+    joint (the paper's per-joint EKF, whose bone constraint pulls a lost shoulder towards a lost wrist: metres
+    off in x and y on mocapbank driven bone by bone), and the seen elbow was then moved 1.5 m to it.
+
+    Args:
+        f, vs: the arm's nine coordinates and their variances (lists; changed in place).
+        m: the flat (36) measurement; offsets: flat indices of the arm's shoulder, elbow and wrist x.
+        prev: our last output of the arm (nine floats) or None; lu, lf: the upper and lower arm lengths.
+        r_axes: the measurement's variances per axis; length_var: the calibrated length's; g2: the gate squared.
+    """
+    o_s, o_e, o_w = offsets
+    mx, my, mz = m[o_e], m[o_e + 1], m[o_e + 2]
+    if prev is None or not math.isfinite(mx + my + mz):
+        return
+    r = r_axes[0] + r_axes[1] + r_axes[2] + length_var
+    for base, o, length in ((0, o_s, lu), (6, o_w, lf)):
+        if m[o] == m[o] or m[o + 1] == m[o + 1]:  # (x, y detected: not lost altogether)
+            continue
+        d = math.hypot(f[base] - mx, f[base + 1] - my, f[base + 2] - mz) - length
+        if d > 0.0 and d * d > g2 * (vs[base] + vs[base + 1] + vs[base + 2] + r):
+            f[base], f[base + 1], f[base + 2] = prev[base], prev[base + 1], prev[base + 2]
+            vs[base] = vs[base + 1] = vs[base + 2] = 1.0
+
+
 def hold_blind(p, vs, base, f0, prev, r_z):
     """A joint the detector lost altogether (no x, y): a depth the filter extrapolates is held at our last output.
 

@@ -217,6 +217,12 @@ class CandidateSearch:
             # shoulder width; one read on its own upper arm, 24 cm in front, is equidistant from both).
             dz = c[2] - tz
             j += dz * dz * self._inv_tz2
+        fl = self._s_floor  # (set by ``_arm`` before a rebuild: the depth measured at the shoulder's pixel)
+        if fl == fl and cz < fl:
+            # No joint is in front of the surface its pixel reads (the arm's own, over a shoulder whose upper arm
+            # points at the camera; the elbow's mirror candidate in front of the wrist put it there: 50 cm, MediaPipe
+            # on bvhtools_a3 driven bone by bone).
+            j += (fl - cz) * (fl - cz) / self._r_z
         if j >= bound:
             return j
         return j + self._penalty(c, e, w, lu, lf)

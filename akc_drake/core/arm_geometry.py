@@ -153,7 +153,9 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate) -> None:
     the image's ``r_xy`` plus the filter's, scaled): a filter whose ray the detector contradicts is wrong about
     the joint (e.g. an EKF whose bone constraint moved a seen joint towards a lost neighbour) and is no evidence:
     the measured point replaces it in ``f``, with the measurement's variances in ``vs`` (both changed in place).
-    A rejected depth on the filter's ray stays rejected (an occluder's).
+    A rejected depth on the filter's ray stays rejected (an occluder's). A filter's point at or behind the camera
+    (no ray to compare; no joint is there: the paper's per-joint EKF diverged so on mocapbank driven bone by bone)
+    is replaced likewise.
 
     Args:
         m: the flat (36) measurement, NaN where missing.
@@ -166,11 +168,15 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate) -> None:
         mz = m[o + 2]
         fz = f[i + 2]
         d, q = mz - fz, r_z - var[o + 2]
-        if d * d > g2 * (q if q > 0.0 else 0.0) + 1e-12 and fz > 0.0:
-            k = mz / fz
+        if d * d > g2 * (q if q > 0.0 else 0.0) + 1e-12:
             mx, my = m[o], m[o + 1]
-            dx, dy, k2 = mx - f[i] * k, my - f[i + 1] * k, k * k
-            if dx * dx / (r_xy + vs[i] * k2) + dy * dy / (r_xy + vs[i + 1] * k2) > gate:
+            if fz > 0.0:
+                k = mz / fz
+                dx, dy, k2 = mx - f[i] * k, my - f[i + 1] * k, k * k
+                off = dx * dx / (r_xy + vs[i] * k2) + dy * dy / (r_xy + vs[i + 1] * k2) > gate
+            else:  # (the filter's point behind the camera, where no joint is: a diverged filter)
+                off = mz > 0.0 and mx == mx and my == my
+            if off:
                 f[i], f[i + 1], f[i + 2] = mx, my, mz
                 vs[i], vs[i + 1], vs[i + 2] = r_xy, r_xy, r_z
 
