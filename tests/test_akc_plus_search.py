@@ -81,6 +81,29 @@ def test_rebuild_from_the_wrist_has_the_calibrated_lengths_and_follows_the_filte
     assert abs(s2[2] - f[2]) == pytest.approx(0.1213, abs=1e-4) and abs(mirror - f[2]) > 0.13
 
 
+def test_a_rebuilt_shoulder_is_not_put_in_front_of_the_depth_its_pixel_reads():
+    # An arm pointing at the camera (shoulder 2.0 m, elbow 1.75, wrist 1.5, nearly on one pixel), the elbow's depth
+    # lost and its previous output in front of the wrist (the mirror configuration), the filter's priors left out:
+    # continuity alone rebuilds the arm folded in front. The depth measured at the shoulder's pixel (2.03 m: its
+    # surface, or its upper arm's) is a floor: the shoulder and so the elbow go behind.
+    akc = corrector()
+    akc._no_prior = {0, 1}
+    w = (0.0, 0.02, 1.5)
+    f = (0.0, 0.0, 2.0, 0.0, 0.01, 1.75)
+    pe, ps = (0.0, 0.01, 1.25), (0.0, 0.0, 1.0)
+    s, e = akc._rebuild_from_wrist(f, w, pe, ps, 0, 1, 0.29, 0.26, True, True, None)
+    assert e[2] < w[2] and s[2] < 1.5  # (continuity: the mirror)
+    akc._s_floor = 2.03
+    s, e = akc._rebuild_from_wrist(f, w, pe, ps, 0, 1, 0.29, 0.26, True, True, None)
+    assert e[2] > w[2] and s[2] > 1.95
+    assert math.dist(e, w) == pytest.approx(0.26, abs=1e-12) and math.dist(s, e) == pytest.approx(0.29, abs=1e-12)
+    # A candidate behind the floor costs nothing more.
+    c = (0.0, 0.0, 2.2)
+    base = akc._shoulder_cost(c, e, w, *f[:3], None, 0.0, 0.29, 0.26, None)
+    akc._s_floor = float("nan")
+    assert akc._shoulder_cost(c, e, w, *f[:3], None, 0.0, 0.29, 0.26, None) == base
+
+
 def test_penalty_is_the_angle_test_and_bends_backwards():
     # _penalty inlines bends_backwards: the same verdict as the reference functions over random arms.
     rng = random.Random(8)

@@ -328,7 +328,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2,
                                                self._refit)
-            if m is not None:  # (a joint lost altogether that its filter put beyond the measured elbow's reach)
+            if m is not None and (m[o_s] != m[o_s] or m[o_w] != m[o_w]):  # (a joint lost altogether that its
+                # filter put beyond the measured elbow's reach)
                 beyond_reach(f, vs, m, offsets, prev, self._lu[side], self._lf[side], self._r_axes, self._len_var,
                              self._gate2)
             if m is not None and m[o_s + 2] != m[o_s + 2]:

@@ -10,7 +10,8 @@ running-mean offset from a torso reference (:func:`~akc_drake.core.akc_plus_evid
   bone);
 * where the hips have been no reference for ``hips_lost_frames`` (1 s at 10 Hz: out of the image, an operator at
   a desk or a camera close to the chest), the other shoulder, which the clavicles carry with the chest: the
-  filter's, seen this frame and agreeing with our last output of it (a filter that followed an occluder's depth
+  filter's, seen this frame and agreeing with our last output of it, the offset from it learnt while the hips are
+  no reference (a filter that followed an occluder's depth
   passes the innovation test: the right shoulder read on its own arm 25 cm in front, bvhtools_a1 driven bone by
   bone). A shorter loss of the hips (an edge's depth, a hand over a hip) leaves the hold off: two references
   taking turns moved the held shoulder. Without the hips, a shoulder lost for 20 frames ran 14 cm off in y with
@@ -65,7 +66,8 @@ class TorsoReference:
         hips = self._hips = ((0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]),
                               0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else NO_HIPS)
         self._hips_lost = 0.0 if hold else self._hips_lost + 1.0
-        others = (self._other_anchor(v, m, 0), self._other_anchor(v, m, 1)) if pair else (None, None)
+        # (the shoulders' offsets from each other are learnt, and used, only while the hips are no reference)
+        others = (self._other_anchor(v, m, 0), self._other_anchor(v, m, 1)) if pair and not hold else (None, None)
         use_pair = self._hips_lost >= self._pf.hips_lost_frames
         held_sh, held_ss, anchor = self._held_sh, self._held_ss, self._anchor
         for side in (0, 1):
