@@ -282,9 +282,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
         # mean, weight ``shoulder_alpha``), and the frames since the last
         self._held_sh: list[list | None] = [None, None]
-        # per side: the shoulder minus the other shoulder (the filter's, seen) likewise, learnt whenever both
-        # shoulders' depths are measured: the torso's reference when the hips' is not (out of view, or no
-        # consistent depth)
+        # per side: the shoulder minus the other shoulder (``TorsoReference._other_anchor``) likewise, learnt while
+        # the hips are no torso reference: the reference after they have been none for ``hips_lost_frames``
         self._held_ss: list[list | None] = [None, None]
         self._hips_lost = 0.0  # frames since the hips were last the torso's reference (or since the start)
 
@@ -341,10 +340,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     fuse_held(f, vs, a[1], a[0], self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
                     s_held = True
             elif m is not None and self._anchor[side] is not None and vs[2] == vs[2]:
-                a = self._anchor[side]  # (``_torso_outvotes``'s first test inline: it fails on most frames)
-                h = a[1]
-                if (m[o_s + 2] - a[0][2] - h[2]) ** 2 > self._gate2 * (self._v_s * (h[3] + 1.0) + self._r_z):
-                    s_held = self._torso_outvotes(f, vs, m, side)
+                s_held = self._torso_outvotes(f, vs, m, side)
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
@@ -654,8 +650,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         held = [True, True]
         fallback = [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
-        # The torso's references of the held shoulders (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference.
-        # torso_anchors`): the hips' centre, or the other shoulder.
+        # The torso's references of the held shoulders (``TorsoReference._torso_anchors``): the hips' centre, or the
+        # other shoulder.
         hold, hips, others = self._torso_anchors(v, m)
         held_sh, held_ss = self._held_sh, self._held_ss
         for side in (0, 1):
@@ -671,7 +667,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                                          out[3] - out[0], out[4] - out[1], out[5] - out[2]]
                 if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
                     self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
-                if self._v_s and m is not None and self._var is not None and m[o_s + 2] == m[o_s + 2]:
+                if (hold or others[1 - side] is not None) and m[o_s + 2] == m[o_s + 2]:
                     # The shoulder's depth measured: its offset from the hips' (and from the other shoulder, seen),
                     # a running mean (the depths read as an occluder approaches, just before the occlusion
                     # filter drops them, are its own).

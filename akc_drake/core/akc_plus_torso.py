@@ -34,6 +34,13 @@ _LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
 NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
 
 
+def _seen(z, f, p, rz, g2):
+    """A measured depth ``z`` passes the innovation test against the filter's ``f`` (posterior variance ``p``; the
+    test of ``_arm``'s seen depth: the residual's variance is ``R - P``). False for a NaN."""
+    q = rz - p
+    return (z - f) ** 2 <= g2 * (q if q > 0.0 else 0.0) + 1e-12
+
+
 def learn_offset(held, side, out, anchor, a):
     """``held[side]``: the running mean (weight ``a``) of the shoulder ``out[0:3]`` minus ``anchor``, its blind
     frames reset (the first frame starts it)."""
@@ -84,11 +91,8 @@ class TorsoReference:
         seen depth): a hip landmark on the body's edge reads the background behind it (the wall, 1.5 m deep),
         and a filter without a gate follows it for several frames."""
         var, rz, g2 = self._var, self._r_z, self._gate2
-        for o in (_LHIP + 2, _RHIP + 2):
-            q = rz - var[o]
-            if (m[o] - v[o]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
-                return False
-        return True
+        o, p = _LHIP + 2, _RHIP + 2
+        return _seen(m[o], v[o], var[o], rz, g2) and _seen(m[p], v[p], var[p], rz, g2)
 
     def _other_anchor(self, v, m, k):
         """Shoulder ``k`` as the torso's reference of the other side's held shoulder: the filter's, when its depth
@@ -100,10 +104,8 @@ class TorsoReference:
         o = self._offsets[k][0]
         x, y, z = v[o], v[o + 1], v[o + 2]
         mz = m[o + 2]
-        if not _isfinite(m[o] + m[o + 1] + mz + x + y + z):
-            return None
-        q = self._r_z - self._var[o + 2]
-        if (mz - z) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12:
+        if not (_isfinite(m[o] + m[o + 1] + mz + x + y + z) and _seen(mz, z, self._var[o + 2], self._r_z,
+                                                                      self._gate2)):
             return None
         if _hypot(x - p[0], y - p[1], z - p[2]) > self._cons:
             return None
@@ -111,7 +113,9 @@ class TorsoReference:
 
     def _torso_outvotes(self, f, vs, m, side):
         """A measured shoulder depth that the torso and the seen elbow both contradict (two against one): replaced
-        on its pixel's ray by the shoulder held on the torso (``f``, ``vs`` changed in place); True if so.
+        on its pixel's ray by the shoulder held on the torso (``f``, ``vs`` changed in place); True if so. Called
+        for a shoulder whose depth was measured, with its ``_anchor``; the cheapest test first, as it fails on most
+        frames.
 
         The measurement is off the held shoulder's depth beyond the gate of their variances (the hold's random walk
         and the measurement's), and the upper arm from it to the elbow (seen: measured, its depth passing the
@@ -121,18 +125,16 @@ class TorsoReference:
         in front: mocapbank driven bone by bone, simulated detector) passes the innovation test by following it.
         """
         o_s, o_e = self._offsets[side][0], self._offsets[side][1]
-        mx, my, mz = m[o_s], m[o_s + 1], m[o_s + 2]
-        if not (_isfinite(mx + my + mz) and mz > 0.0 and _isfinite(m[o_e] + m[o_e + 1] + m[o_e + 2])):
-            return False
         g2, rz = self._gate2, self._r_z
-        q = rz - self._var[o_e + 2]
-        if (m[o_e + 2] - f[5]) ** 2 > g2 * (q if q > 0.0 else 0.0) + 1e-12:
-            return False  # (the elbow not seen)
-        a = self._anchor[side]
-        h = a[1]
-        hz, vh = a[0][2] + h[2], self._v_s * (h[3] + 1.0)
-        if (mz - hz) ** 2 <= g2 * (vh + rz) or hz <= 0.0:
+        h = self._anchor[side][1]
+        hz, vh = self._anchor[side][0][2] + h[2], self._v_s * (h[3] + 1.0)
+        mx, my, mz = m[o_s], m[o_s + 1], m[o_s + 2]
+        if not (mz - hz) ** 2 > g2 * (vh + rz) or hz <= 0.0:  # (NaN: False)
             return False
+        if not (_isfinite(mx + my) and mz > 0.0 and _isfinite(m[o_e] + m[o_e + 1] + m[o_e + 2])):
+            return False
+        if not _seen(m[o_e + 2], f[5], self._var[o_e + 2], rz, g2):
+            return False  # (the elbow not seen)
         k = hz / mz  # (the held depth on the measured pixel's ray)
         hx, hy = mx * k, my * k
         ex, ey, ez, lu, cons = f[3], f[4], f[5], self._lu[side], self._cons
