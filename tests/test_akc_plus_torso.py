@@ -109,3 +109,32 @@ def test_a_shoulder_depth_the_torso_and_the_elbow_contradict_is_put_back_on_its_
     m[3 * LS : 3 * LS + 3] = f[0:3] = [0.18 * k, 0.0, 1.75]
     m[3 * LE + 2] += 0.5
     assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 1.75
+
+
+def test_a_shoulder_depth_read_on_its_own_hand_is_put_back_on_its_ray():
+    # The arm points at the camera: the shoulder's pixel reads the hand, 25 cm in front, and the elbow's depth is
+    # lost. The measured wrist is nearer the measured shoulder than the arm can fold: the hand's depth.
+    akc, p = _corrector(), _pose()
+    akc._anchor = [((0.0, 0.5, 2.0), [0.18, -0.5, 0.0, 2.0]), None]  # the held shoulder at 2.0 m deep
+    lw = INDEX["left_wrist"]
+    p[lw] = [0.12, 0.02, 1.76]
+    p[LE, 2] = np.nan
+    m = _flat(p)
+    k = 1.75 / 2.0
+    fold = math.sqrt(0.29**2 + 0.26**2 - 2 * 0.29 * 0.26 * math.cos(math.radians(40.0))) - 0.05
+    m[3 * LS : 3 * LS + 3] = [0.18 * k, 0.0, 1.75]
+    assert math.dist(m[3 * LS : 3 * LS + 3], p[lw]) < fold
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 2.3] + _flat(p[[lw]])
+    vs = [1e-4] * 9
+    assert akc._torso_outvotes(f, vs, m, 0)
+    assert f[0:3] == pytest.approx([0.18, 0.0, 2.0]) and vs[2] == pytest.approx(1e-4 * 3.0)
+    # the same depth with the wrist as far from the shoulder as the arm reaches (arms in the image plane, a
+    # T-pose at the shoulder's depth): no vote, the elbow lost, the measurement kept
+    m[3 * lw : 3 * lw + 3] = [0.18 * k + 0.5, 0.0, 1.75]
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 2.3] + m[3 * lw : 3 * lw + 3]
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 1.75
+    # a shoulder read behind the held one is no hand's depth (occluders are in front)
+    m[3 * lw : 3 * lw + 3] = [0.18 * 2.3 / 2.0 - 0.05, 0.02, 2.28]
+    m[3 * LS : 3 * LS + 3] = [0.18 * 2.3 / 2.0, 0.0, 2.3]
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 2.3] + m[3 * lw : 3 * lw + 3]
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 2.3

@@ -67,8 +67,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   the held shoulder (:mod:`akc_drake.core.akc_plus_torso`).
 * A measured shoulder depth that both the shoulder held on the torso (beyond the gate of the hold's and the
   measurement's variances) and the seen elbow contradict (the upper arm from it misses its length by more than
-  ``consistency_m``, from the held depth at the same pixel by that much less) is an occluder's: the held depth
-  replaces it on the pixel's ray (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference._torso_outvotes`). A
+  ``consistency_m``, from the held depth at the same pixel by that much less), or one in front of the held depth
+  nearer the measured wrist than the arm can fold (the hand read at the shoulder's pixel), is an occluder's: the
+  held depth replaces it on the pixel's ray (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference._torso_outvotes`). A
   filter with no prior left (a shoulder lost for many frames) passes the innovation test by following such a
   reading: mocapbank's, 26 cm in front, moved the seen elbow 7-10 cm.
 * A shoulder the detector lost altogether and a seen elbow that no wrist confirms (the wrist lost, or no
