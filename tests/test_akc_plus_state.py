@@ -58,3 +58,31 @@ def test_state_round_trips_while_a_held_forearm_turns_with_its_upper_arm():
         var = kf_var()
         var[LW] = 0.09
         np.testing.assert_array_equal(other.correct(f, m, var).pose, akc.correct(f, m, var).pose)
+
+
+def test_state_round_trips_while_a_shoulder_is_held_on_the_other_one():
+    # The left shoulder read 30 cm in front from one frame to the next (``_shoulder_jumped``): the shoulders'
+    # depth difference, the frames held, the last measured depth and the frames since are in [93:101], and a
+    # corrector restored from them holds the shoulder exactly as the original.
+    from tests.test_akc_plus import settled_corrector
+
+    p, dims = arm_pose()
+    akc = settled_corrector(p, dims)
+    f = p.copy()
+    f[LS] *= 1.7 / 2.0
+    f[[INDEX["left_hip"], INDEX["right_hip"]], 2] -= 0.3  # (the hips read as far in front: no torso vote)
+    m = f.copy()
+    m[[LE, LW, INDEX["left_index"], INDEX["left_pinky"]]] = np.nan
+    for _ in range(2):
+        akc.correct(f, measured=m, variance=kf_var())
+    v = akc.get_state_vector()
+    np.testing.assert_allclose(v[93:101], [0.0, 2.0, 1.7, 0.0, 0.0, 0.0, 2.0, 0.0], atol=1e-12)
+    other = ArmKinematicCorrectorPlus(dims)
+    other.set_state_vector(v)
+    np.testing.assert_array_equal(other.get_state_vector(), v)
+    np.testing.assert_array_equal(other.correct(f, m, kf_var()).pose, akc.correct(f, m, kf_var()).pose)
+    assert np.linalg.norm(akc.correct(f, m, kf_var()).pose[LS] - p[LS]) < 0.01
+    bad = v.copy()
+    bad[94] = -1.0
+    with pytest.raises(ValueError, match="shoulder-pair frame count"):
+        other.set_state_vector(bad)

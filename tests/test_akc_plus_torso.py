@@ -138,3 +138,68 @@ def test_a_shoulder_depth_read_on_its_own_hand_is_put_back_on_its_ray():
     m[3 * LS : 3 * LS + 3] = [0.18 * 2.3 / 2.0, 0.0, 2.3]
     f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 2.3] + m[3 * lw : 3 * lw + 3]
     assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 2.3
+
+
+def _jump_frame(akc, p, left_z, right_z=2.0):
+    """One frame of ``_shoulder_jumped`` for the left shoulder: the filter and the measurement agree (the filter
+    followed), the left shoulder read at ``left_z`` on its pixel's ray; returns (held, the left shoulder after)."""
+    q = p.copy()
+    q[LS] *= left_z / q[LS, 2]
+    q[RS] *= right_z / q[RS, 2]
+    akc._v = _flat(q)
+    m = _flat(q)
+    f = _flat(q[[LS, LE, INDEX["left_wrist"]]])
+    vs = [1e-4] * 9
+    held = akc._shoulder_jumped(f, vs, m, 0, False)
+    akc._shoulder_jumped(_flat(q[[RS, INDEX["right_elbow"], INDEX["right_wrist"]]]), [1e-4] * 9, m, 1, False)
+    return held, f[0:3], vs[2]
+
+
+def test_a_shoulder_depth_that_jumps_in_front_of_the_other_shoulders_is_held_until_it_agrees_again():
+    akc, p = _corrector(), _pose()
+    for _ in range(5):
+        assert not _jump_frame(akc, p, 2.0)[0]
+    assert akc._pair_z[0][:2] == [0.0, 0.0] and akc._pair_z[0][2] == 2.0
+    # read 30 cm in front from one frame to the next, the other shoulder where it was: held at the other's depth
+    # plus the learnt difference, on the measured pixel's ray, with the walk's variance
+    for n in range(1, 4):
+        held, s, v = _jump_frame(akc, p, 1.7)
+        assert held and s == pytest.approx([0.18, 0.0, 2.0]) and akc._pair_z[0][1] == n
+        assert v == pytest.approx(0.05**2 + 0.01**2 * n)
+    # the reading back within the gate: the hold ends, the difference learns again
+    held, s, _ = _jump_frame(akc, p, 2.01)
+    assert not held and akc._pair_z[0][1] == 0.0 and akc._pair_z[0][0] == pytest.approx(0.2 * 0.01)
+    # the walk's variance ends a long hold: the frame n held before is held while d^2 > 9 (R + (n + 1) v), d the
+    # 30 cm plus the difference learnt (2 mm): 76 frames
+    frames = 0
+    while _jump_frame(akc, p, 1.7)[0]:
+        frames += 1
+    assert frames == math.floor((0.302**2 / 9.0 - 0.05**2) / 0.01**2) == 76
+
+
+def test_a_difference_without_a_jump_of_its_own_is_not_held():
+    # The right shoulder read 25 cm in front for a long time (a hand over it): the left one's difference from it
+    # learnt +25 cm. The hand leaves: the left shoulder, where it always was, is now 25 cm in front of that
+    # difference, but its own depth did not jump: kept. Nor is a shoulder whose other one is itself held.
+    akc, p = _corrector(), _pose()
+    for _ in range(40):
+        assert not _jump_frame(akc, p, 2.0, right_z=1.75)[0]
+    assert akc._pair_z[0][0] == pytest.approx(0.25)
+    assert not _jump_frame(akc, p, 2.0)[0]
+    akc._pair_z[1][1] = 1.0  # the right shoulder held by the rule: no reference
+    akc._pair_z[0][0] = 0.0
+    assert not _jump_frame(akc, p, 1.7)[0]
+
+
+def test_the_jump_rule_is_off_without_the_shoulder_hold_and_records_a_depth_another_rule_holds():
+    akc, p = _corrector(sigma_shoulder_m=0.0), _pose()
+    for _ in range(3):
+        _jump_frame(akc, p, 2.0)
+    assert not _jump_frame(akc, p, 1.7)[0]
+    akc, p = _corrector(), _pose()
+    m, f = _flat(p), _flat(p[[LS, LE, INDEX["left_wrist"]]])
+    akc._v = _flat(p)
+    assert akc._shoulder_jumped(f, [1e-4] * 9, m, 0, True)  # (held by another rule: True, f unchanged)
+    assert f == _flat(p[[LS, LE, INDEX["left_wrist"]]]) and akc._pair_z[0][2:] == [2.0, 0.0]
+    m[3 * LS + 2] = float("nan")
+    assert not akc._shoulder_jumped(f, [1e-4] * 9, m, 0, False) and akc._pair_z[0][2:] == [2.0, 1.0]

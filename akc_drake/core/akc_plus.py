@@ -72,6 +72,10 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   held depth replaces it on the pixel's ray (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference._torso_outvotes`). A
   filter with no prior left (a shoulder lost for many frames) passes the innovation test by following such a
   reading: mocapbank's, 26 cm in front, moved the seen elbow 7-10 cm.
+* A shoulder depth that jumps towards the camera alone (in front of the other shoulder's plus their running-mean
+  depth difference, and of its own last depth, beyond the gate) is an occluder's too, held at that difference
+  (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference._shoulder_jumped`: MediaPipe's hips, read on a bent body's
+  belly, moved with the shoulder read on the head).
 * A shoulder the detector lost altogether and a seen elbow that no wrist confirms (the wrist lost, or no
   anchor): the arm nearest both in their metric with the exact lengths, not the held shoulder kept (a torso that
   leaned while both were lost moved the seen elbow 7 cm onto the held shoulder; mocapbank driven bone by bone).
@@ -211,7 +215,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost",
-                 "_s_floor")
+                 "_s_floor", "_pair_z")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -287,6 +291,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         # the hips are no torso reference: the reference after they have been none for ``hips_lost_frames``
         self._held_ss: list[list | None] = [None, None]
         self._hips_lost = 0.0  # frames since the hips were last the torso's reference (or since the start)
+        # per side: the measured depth minus the other shoulder's (a running mean; NaN: none yet), the frames it has
+        # held the shoulder, the depth last measured and the frames since (``TorsoReference._shoulder_jumped``)
+        self._pair_z = [[_NAN, 0.0, _NAN, 0.0], [_NAN, 0.0, _NAN, 0.0]]
 
     # ------------------------------------------------------------------ hot path (plain floats)
     def _measured(self, m, o, fz):
@@ -342,6 +349,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     s_held = True
             elif m is not None and self._anchor[side] is not None and vs[2] == vs[2]:
                 s_held = self._torso_outvotes(f, vs, m, side)
+            if m is not None:  # (a depth that jumped towards the camera, alone)
+                s_held = self._shoulder_jumped(f, vs, m, side, s_held)
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
@@ -674,7 +683,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     # filter drops them, are its own).
                     if hold:
                         learn_offset(held_sh, side, out, hips, self._a_s)
-                    if others[1 - side] is not None:
+                    if others[1 - side] is not None and self._pair_z[side][1] == 0.0:
                         learn_offset(held_ss, side, out, others[1 - side], self._a_s)
                 held[side] = False
                 chosen[side] = 0

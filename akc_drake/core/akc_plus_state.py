@@ -7,7 +7,9 @@ last seen ``[24:36]``, the running NIS means ``[36:54]``, then per side (x, y, z
 ``[54:62]``, the held upper arm ``[62:70]`` and the shoulder's offset from the hips' centre ``[70:78]``, and per
 side the upper arm when the held forearm was kept (x, y, z; NaN once the forearm no longer turns with it)
 ``[78:84]``, per side (x, y, z, frames) the shoulder's offset from the other shoulder ``[84:92]``, and the frames
-since the hips were last the torso's reference ``[92]``.
+since the hips were last the torso's reference ``[92]``, and per side the measured depth's running-mean difference
+from the other shoulder's (NaN: none yet), the frames it has held the shoulder, the depth last measured and the
+frames since ``[93:101]``.
 """
 
 from __future__ import annotations
@@ -18,13 +20,13 @@ import numpy as np
 
 from akc_drake.core.skeleton import SIDES
 
-STATE_SIZE = 93
-_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST = 36, 54, 62, 70, 78, 84, 92
+STATE_SIZE = 101
+_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST, _PAIR_Z = 36, 54, 62, 70, 78, 84, 92, 93
 
 
 class StateVector:
     """:meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``, ``_lost``, ``_f0``,
-    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``, ``_hips_lost``)."""
+    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``, ``_hips_lost``, ``_pair_z``)."""
 
     __slots__ = ()
 
@@ -33,7 +35,8 @@ class StateVector:
         filter's estimate of each elbow/shoulder in the last frame its depth was seen (NaN if none), the running
         NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
         its frames, then per side the upper arm the held forearm turns with, the shoulder's offset from the
-        other shoulder and its frames, and the frames since the hips were the torso's reference."""
+        other shoulder and its frames, the frames since the hips were the torso's reference, and per side the
+        shoulders' measured depth difference, its held frames, the depth last measured and the frames since."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -54,6 +57,7 @@ class StateVector:
             if self._blind[side] is not None:
                 v[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3] = self._blind[side][4:7]
         v[_HIPS_LOST] = self._hips_lost
+        v[_PAIR_Z:STATE_SIZE] = self._pair_z[0] + self._pair_z[1]
         return v
 
     def set_state_vector(self, v) -> None:
@@ -105,6 +109,12 @@ class StateVector:
         if not (math.isfinite(hl) and hl >= 0):
             raise ValueError(f"AKC+ state vector: hips-lost frames [{_HIPS_LOST}] must be >= 0, got {hl!r}")
         self._hips_lost = float(hl)
+        pz = a[_PAIR_Z:STATE_SIZE].tolist()
+        for i in (1, 3, 5, 7):
+            if not (math.isfinite(pz[i]) and pz[i] >= 0):
+                raise ValueError(f"AKC+ state vector: shoulder-pair frame count [{_PAIR_Z + i}] must be >= 0, "
+                                 f"got {pz[i]!r}")
+        self._pair_z = [pz[0:4], pz[4:8]]
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()

@@ -47,7 +47,7 @@ class ArmKinematicCorrection(LeafSystem):
     :class:`~akc_drake.core.akc.AKCResult`; chosen is -1 and cost NaN for a held arm).
 
     State (discrete, three groups): the corrector's state (previous corrected arm joints and validity
-    flags: 20 for AKC, 93 for AKC+), the last corrected pose (36) and the last diagnostics (8). A periodic
+    flags: 20 for AKC, 101 for AKC+), the last corrected pose (36) and the last diagnostics (8). A periodic
     discrete update at the camera period, offset by ``timing.stage_offset("corrector")``, reads the input and
     the corrector state, runs :meth:`ArmKinematicCorrector.correct` and writes all three groups; the outputs are the
     state, so the system has no direct feedthrough. Before the first update the pose is NaN.
