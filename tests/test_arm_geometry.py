@@ -139,6 +139,32 @@ def test_ray_check_takes_the_measurement_only_off_the_measured_ray():
     assert f[:3] == [0.18, 0.10, 2.3]
 
 
+def test_ray_check_takes_the_measurement_that_agrees_with_our_last_output_against_a_filter_that_jumped():
+    # An EKF whose constraints swing a seen shoulder 30 cm deeper in one frame, on the measured ray: the measured
+    # depth agrees with our last output (within ``agree``), the filter is beyond the gate of R from it, so the
+    # measurement replaces it. Without our last output, or with a measurement off it, the on-ray rule keeps it.
+    from akc_drake.core.arm_geometry import ray_check
+
+    offs = (0, 3, 6)
+    nan = float("nan")
+    m = [0.18, 0.0, 2.0, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7] + [nan] * 27
+    var = [1e-4, 1e-4, 1e-3] * 3
+    args = (var + [1e-4] * 27, 1e-4, 2.5e-3, 9.0, 11.8)
+    prev = (0.18, 0.0, 2.02, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7)
+    f = [0.18 * 2.3 / 2.0, 0.0, 2.3] + m[3:9]
+    vs = list(var)
+    ray_check(m, offs, f, vs, *args, prev, 0.05)
+    assert f[:3] == m[:3] and vs[:3] == [1e-4, 1e-4, 2.5e-3]
+    for p, agree in ((None, 0.05), ((0.18, 0.0, 2.1, *prev[3:]), 0.05)):
+        f = [0.18 * 2.3 / 2.0, 0.0, 2.3] + m[3:9]
+        ray_check(m, offs, f, list(var), *args, p, agree)
+        assert f[2] == 2.3
+    # a filter within the gate of our last output (3 sigma of R = 15 cm) has not jumped: kept too
+    f = [0.18 * 2.12 / 2.0, 0.0, 2.12] + m[3:9]
+    ray_check(m, offs, f, list(var), *args, prev, 0.05)
+    assert f[2] == 2.12
+
+
 def test_behind_hand_puts_a_wrist_its_hand_hides_a_hands_length_behind_the_knuckles():
     # The forearm points straight at the camera; the wrist's pixel reads the hand at 2.00 m, the knuckles' midpoint
     # 3 cm aside in the image at 1.98 m: the wrist is sqrt(8.5^2 - 3^2) = 7.953 cm behind the knuckles.

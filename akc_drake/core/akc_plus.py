@@ -18,7 +18,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   measures the joint's ray (x / z, y / z), and an occluder's depth moves the measured point along it, not off
   it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
   (chi2, 2 dof) is the filter's error (e.g. the paper's per-joint EKF, whose bone constraint moves a seen
-  joint towards a lost neighbour), and the measured point replaces it, with the measurement's variance.
+  joint towards a lost neighbour), and the measured point replaces it, with the measurement's variance; so does
+  an EKF's depth that jumped from our last output when the measurement agrees with it (``ray_check``).
 * *Reach*: a measured point that replaced the filter's (ray test, covariance matching) farther from another
   joint measured this frame than the arm's calibrated lengths reach (chi2 of the stretch) is no reading of the
   joint (the background behind a landmark off the body's edge, 1-1.5 m deep with MediaPipe): the filter's point
@@ -351,6 +352,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 s_held = self._torso_outvotes(f, vs, m, side)
             if m is not None:  # (a depth that jumped towards the camera, alone)
                 s_held = self._shoulder_jumped(f, vs, m, side, s_held)
+                # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False); before
+                # the held segments carry a lost joint (a diverged EKF's shoulder flipped a lost wrist 40 cm a frame).
+                g2, rz = self._gate2, self._r_z
+                d0, d1, d2 = m[o_s + 2] - f[2], m[o_e + 2] - f[5], m[o_w + 2] - f[8]
+                if (d0 * d0 > g2 * (rz - var[o_s + 2]) or d1 * d1 > g2 * (rz - var[o_e + 2])
+                        or d2 * d2 > g2 * (rz - var[o_w + 2])):
+                    ray_check(m, offsets, f, vs, var, self._r_axes[0], rz, g2, self._chi2_gate,
+                              prev if self._refit else None, self._cons)
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
@@ -371,18 +380,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                              b[3]]
                 fuse_held(f, vs, b, f[3:6], self._v_t, 6)
                 self._blind[side][3] = b[3]
-            if m is not None:
-                # A depth the innovation test rejects: the ray test decides (inlined pre-test; NaN is False).
-                g2, rz = self._gate2, self._r_z
-                d0, d1, d2 = m[o_s + 2] - f[2], m[o_e + 2] - f[5], m[o_w + 2] - f[8]
-                if (d0 * d0 > g2 * (rz - var[o_s + 2]) or d1 * d1 > g2 * (rz - var[o_e + 2])
-                        or d2 * d2 > g2 * (rz - var[o_w + 2])):
-                    ray_check(m, offsets, f, vs, var, self._r_axes[0], rz, self._gate2, self._chi2_gate)
-                if f[2] != sz or f[5] != ez or f[8] != wz:
-                    # A measured point that replaced the filter's must be within the arm's reach of its neighbours.
-                    unreachable_replacements(f, vs, (sx, sy, sz, ex, ey, ez, wx, wy, wz), m, offsets,
-                                             self._sub_index[side], var, self._nis, self._nis_floor, self._lu[side],
-                                             self._lf[side], self._r_axes, self._len_var, g2, s_held)
+            if m is not None and (f[2] != sz or f[5] != ez or f[8] != wz):
+                # A measured point that replaced the filter's must be within the arm's reach of its neighbours.
+                unreachable_replacements(f, vs, (sx, sy, sz, ex, ey, ez, wx, wy, wz), m, offsets, self._sub_index[side],
+                                         var, self._nis, self._nis_floor, self._lu[side], self._lf[side],
+                                         self._r_axes, self._len_var, self._gate2, s_held)
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             vs = self._cur_var = None

@@ -143,7 +143,7 @@ def arm_inputs(v, offsets, prev):
     return sx, sy, sz, ex, ey, ez, wx, wy, wz
 
 
-def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate) -> None:
+def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate, prev=None, agree=0.0) -> None:
     """Measured depths the innovation test rejects: an occluder's, or the filter's error? The ray decides.
 
     The image measures a joint's ray (x / z, y / z); an occluder's depth read at the joint's pixel moves the
@@ -153,9 +153,12 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate) -> None:
     the image's ``r_xy`` plus the filter's, scaled): a filter whose ray the detector contradicts is wrong about
     the joint (e.g. an EKF whose bone constraint moved a seen joint towards a lost neighbour) and is no evidence:
     the measured point replaces it in ``f``, with the measurement's variances in ``vs`` (both changed in place).
-    A rejected depth on the filter's ray stays rejected (an occluder's). A filter's point at or behind the camera
-    (no ray to compare; no joint is there: the paper's per-joint EKF diverged so on mocapbank driven bone by bone)
-    is replaced likewise.
+    A rejected depth on the filter's ray stays rejected (an occluder's), unless ``prev`` (our last output of the
+    arm, given for a filter whose constraints move seen joints: an EKF) agrees with it within ``agree`` while the
+    filter's depth is beyond the gate of ``r_z`` from that output: two against one, the filter jumped (the paper's
+    per-joint EKF swung mocapbank's seen shoulder 23 cm behind and 28 in front on alternate frames, on the ray).
+    A filter's point at or behind the camera (no ray to compare; no joint is there: the paper's per-joint EKF
+    diverged so on mocapbank driven bone by bone) is replaced likewise.
 
     Args:
         m: the flat (36) measurement, NaN where missing.
@@ -163,6 +166,7 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate) -> None:
         f, vs: the arm's nine filtered coordinates and their variances (lists).
         var: the filter's flat (36) posterior variances (the innovation test's ``P``).
         r_xy, r_z: the measurement's variances; g2: the innovation gate squared; gate: the largest chi2 accepted.
+        prev: our last output of the arm (9 floats) or None; agree: the largest |measured - last output| depth.
     """
     for i, o in ((0, offsets[0]), (3, offsets[1]), (6, offsets[2])):
         mz = m[o + 2]
@@ -174,6 +178,9 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate) -> None:
                 k = mz / fz
                 dx, dy, k2 = mx - f[i] * k, my - f[i + 1] * k, k * k
                 off = dx * dx / (r_xy + vs[i] * k2) + dy * dy / (r_xy + vs[i + 1] * k2) > gate
+                if not off and prev is not None and mx == mx and my == my:
+                    pz = prev[i + 2]
+                    off = abs(mz - pz) <= agree and (fz - pz) ** 2 > g2 * r_z
             else:  # (the filter's point behind the camera, where no joint is: a diverged filter)
                 off = mz > 0.0 and mx == mx and my == my
             if off:
