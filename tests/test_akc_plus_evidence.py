@@ -261,6 +261,39 @@ def test_a_replacement_beyond_the_arms_reach_gets_the_filters_point_and_variance
                                     1e-4, 9.0) == 0
 
 
+def test_a_wrist_read_on_the_wall_behind_a_seen_shoulder_and_elbow_is_the_odd_one():
+    # The shoulder and the elbow replaced the filter's (an EKF that had followed the wall) and fit each other; the
+    # wrist reads the wall 1.4 m behind and its filter agrees (not replaced). Two against one: the wrist is the odd
+    # joint, nothing replaced is undone. (Sequentially, the elbow-wrist pair blamed the replaced elbow, then the
+    # shoulder-wrist pair the replaced shoulder.)
+    m = [0.0, 0.0, 2.0, 0.0, 0.3, 2.0, 0.0, 0.58 * 3.4 / 2.0, 3.4]
+    f0 = [0.0, 0.0, 2.6, 0.0, 0.3, 3.0, 0.0, 0.58 * 3.4 / 2.0, 3.35]
+    f = m[:6] + f0[6:]
+    vs = [R_XY, R_XY, R_Z] * 2 + [1e-4] * 3
+    args = (f0, m, (0, 3, 6), SUB, [1e-5] * 9, [2.0] * 9, 0.01, 0.3, 0.28, (R_XY, R_XY, R_Z), 1e-4, 9.0)
+    assert unreachable_replacements(f, vs, *args) == 0 and f[:6] == m[:6]
+    # The same joints with the wrist replaced too: only the wrist's replacement is undone.
+    f = list(m)
+    assert unreachable_replacements(f, vs, *args) == 1 and f[:6] == m[:6] and f[6:] == f0[6:]
+    # The odd joint read in front of the two that fit each other (an elbow and a wrist both on the wall, 1.5 m
+    # behind, 28 cm apart; the shoulder seen): no majority; the pairs in order undo the elbow's replacement (the
+    # outer joint of the stretched shoulder-elbow pair), then, the elbow no reading, the wrist's against the
+    # shoulder; the shoulder's stands.
+    m2 = [0.0, 0.0, 2.0, 0.0, 0.3, 3.5, 0.0, 0.58, 3.5]
+    f0 = [0.0, 0.0, 2.6, 0.0, 0.3, 2.1, 0.0, 0.58, 2.1]
+    f = list(m2)
+    args = (f0, m2) + args[2:]
+    assert unreachable_replacements(f, [R_XY, R_XY, R_Z] * 3, *args) == 2 and f[:3] == m2[:3] and f[3:] == f0[3:]
+    # The wrist on the wall alone, with everything replaced and the shoulder read in front of the elbow (no joint
+    # odd from both others): the elbow's replacement undone against the shoulder; the wrist's pair with the elbow,
+    # no reading now, is not tested; the shoulder-wrist pair undoes the wrist's, and the shoulder's stands.
+    m3 = [0.0, 0.0, 1.6, 0.0, 0.3, 2.0, 0.0, 0.58, 3.4]
+    f0 = [0.0, 0.0, 2.6, 0.0, 0.3, 2.1, 0.0, 0.58, 2.1]
+    f = list(m3)
+    args = (f0, m3) + args[2:]
+    assert unreachable_replacements(f, [R_XY, R_XY, R_Z] * 3, *args) == 2 and f[:3] == m3[:3] and f[3:] == f0[3:]
+
+
 def test_the_nearer_wrist_of_a_too_long_forearm_is_the_odd_one():
     # shoulder at the origin, elbow 0.30 m below it (lu = 0.30), wrist 0.40 m from the elbow along -z (towards the
     # camera): a forearm 0.10 m too long (lf = 0.30) whose wrist is its nearer end

@@ -259,9 +259,12 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     joint of the arm, measurement against measurement (the filter's neighbour may be the one that is wrong, e.g.
     a per-joint EKF's lost joint): a pair farther apart than the arm reaches (its segment's calibrated length,
     or both lengths for the shoulder and the wrist) by more than the gate (``(d - l)^2 > g2 (u^T (R_a + R_b) u +
-    length_var)``, ``u`` the direction, ``R`` the measurement's variances) undoes the replacement of the outer
-    joint of the pair if it was replaced, else the inner one's: it gets back the filter's point and its
-    covariance-matched variances (:func:`arm_variances`' before the replacement). Only a stretch is tested: a
+    length_var)``, ``u`` the direction, ``R`` the measurement's variances) undoes a replacement: it gets back the
+    filter's point and its covariance-matched variances (:func:`arm_variances`' before the replacement). Which
+    one: a joint stretched from both others, which fit each other, and read behind both (the background past the
+    silhouette) is the odd one, and only its replacement is undone, if any; otherwise, pair by pair, the outer
+    joint's if it was replaced, else the inner one's, and a measurement so undone is tested no further (a wrist
+    on the wall blamed the seen shoulder's and elbow's replacements too). Only a stretch is tested: a
     pair nearer than its length is a foreshortened depth error either way, and a real measurement's (the
     design half: testing both ways undid the ray test's fixes of the `ours` EKF's seen joints, worst increase
     +0.25 -> +0.55 cm with the simulated detector). A shoulder held on the torso (``s_held``: its depth dropped,
@@ -296,27 +299,33 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     else:
         z = m[o_s + 2]
         r0 = f[2] == z and f0[2] != z
+    if not (r0 or r1 or r2):
+        return 0
+    # The odd joint, two against one, whatever its filter says (a wrist read on the wall, which the paper's EKF had
+    # followed, undid the seen shoulder's and elbow's replacements: bvhtools_c's shoulder 66 cm behind); one read
+    # in front of two that fit each other may be the one right (an elbow and a wrist both on the wall).
+    s01 = _stretched(m, o_s, o_e, lu, r_axes, length_var, g2)
+    s12 = _stretched(m, o_e, o_w, lf, r_axes, length_var, g2)
+    s02 = _stretched(m, o_s, o_w, lu + lf, r_axes, length_var, g2)
+    odd = 2 if s12 and s02 and not s01 else 0 if s01 and s02 and not s12 else 1 if s01 and s12 and not s02 else -1
+    z3 = (m[o_s + 2], m[o_e + 2], m[o_w + 2])
+    if odd >= 0 and z3[odd] > z3[odd - 1] and z3[odd] > z3[odd - 2]:
+        if (r0, r1, r2)[odd]:
+            _restore(odd, f, vs, f0, sub_index, var, nis, floor)
+            return 1
+        return 0
     out = 0
-    # The pairs in order (shoulder-elbow, elbow-wrist, shoulder-wrist); the outer joint's replacement undone first.
-    if (r0 or r1) and _stretched(m, o_s, o_e, lu, r_axes, length_var, g2):
-        if r1:
-            r1 = False
-            _restore(1, f, vs, f0, sub_index, var, nis, floor)
-        else:
-            r0 = False
-            _restore(0, f, vs, f0, sub_index, var, nis, floor)
-        out += 1
-    if (r1 or r2) and _stretched(m, o_e, o_w, lf, r_axes, length_var, g2):
-        if r2:
-            r2 = False
-            _restore(2, f, vs, f0, sub_index, var, nis, floor)
-        else:
-            r1 = False
-            _restore(1, f, vs, f0, sub_index, var, nis, floor)
-        out += 1
-    if (r0 or r2) and _stretched(m, o_s, o_w, lu + lf, r_axes, length_var, g2):
-        _restore(2 if r2 else 0, f, vs, f0, sub_index, var, nis, floor)
-        out += 1
+    # Otherwise the pairs in order (shoulder-elbow, elbow-wrist, shoulder-wrist); the outer joint's replacement
+    # undone first. A measurement so undone is no reading of its joint: no later pair is tested against it.
+    bad = [False, False, False]
+    for a, b, stretched in ((0, 1, s01), (1, 2, s12), (0, 2, s02)):
+        replaced = (r0, r1, r2)
+        if stretched and (replaced[a] or replaced[b]) and not (bad[a] or bad[b]):
+            k = b if replaced[b] else a
+            _restore(k, f, vs, f0, sub_index, var, nis, floor)
+            bad[k] = True
+            r0, r1, r2 = r0 and k != 0, r1 and k != 1, r2 and k != 2
+            out += 1
     return out
 
 
