@@ -32,11 +32,14 @@ class AKCPlusConfig:
         sigma_shoulder_m: how far a shoulder may move relative to the hips between two frames, per axis (a torso
             turning at 0.1 m/s at the shoulder): the random walk of a shoulder whose depth the occlusion
             filter dropped (or that the detector lost altogether: then x, y too), held at its seen offset from the
-            hips' centre, learnt in frames with both hips' depths measured (with the covariance; 0 turns it off).
-        shoulder_alpha: weight of the newest frame in the running mean of that offset (0.2: a time constant of 5
-            frames, as ``nis_alpha``): the depths read in the last frames before an occlusion are partly the
-            occluder's (the bench's Motion I: 3-7 cm in front over the 2-3 frames before the forearm covers the
-            shoulder; held at the last one, the shoulder's z RMSE was 3.3 cm against 2.15 without the hold).
+            hips' centre, learnt in frames with both hips' depths measured (with the covariance; 0 turns it off,
+            and with it every torso rule: the other shoulder's hold, the torso's outvotes, the jump against the
+            other shoulder, whose held depth difference walks by the same amount).
+        shoulder_alpha: weight of the newest frame in the running means of that offset and of the shoulders' depth
+            difference (0.2: a time constant of 5 frames, as ``nis_alpha``): the depths read in the last frames
+            before an occlusion are partly the occluder's (the bench's Motion I: 3-7 cm in front over the 2-3
+            frames before the forearm covers the shoulder; held at the last one, the shoulder's z RMSE was 3.3 cm
+            against 2.15 without the hold).
         temporal_cap: the temporal term is capped at this many standard deviations (squared): continuity breaks
             ties and resists single-frame evidence, but persistent evidence (filter, torso) can undo a wrong
             configuration instead of locking it in.
