@@ -309,8 +309,9 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     s02 = _stretched(m, o_s, o_w, lu + lf, r_axes, length_var, g2)
     odd = 2 if s12 and s02 and not s01 else 0 if s01 and s02 and not s12 else 1 if s01 and s12 and not s02 else -1
     z3 = (m[o_s + 2], m[o_e + 2], m[o_w + 2])
+    replaced = [r0, r1, r2]
     if odd >= 0 and z3[odd] > z3[odd - 1] and z3[odd] > z3[odd - 2]:
-        if (r0, r1, r2)[odd]:
+        if replaced[odd]:
             _restore(odd, f, vs, f0, sub_index, var, nis, floor)
             return 1
         return 0
@@ -319,12 +320,10 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     # undone first. A measurement so undone is no reading of its joint: no later pair is tested against it.
     bad = [False, False, False]
     for a, b, stretched in ((0, 1, s01), (1, 2, s12), (0, 2, s02)):
-        replaced = (r0, r1, r2)
         if stretched and (replaced[a] or replaced[b]) and not (bad[a] or bad[b]):
             k = b if replaced[b] else a
             _restore(k, f, vs, f0, sub_index, var, nis, floor)
-            bad[k] = True
-            r0, r1, r2 = r0 and k != 0, r1 and k != 1, r2 and k != 2
+            bad[k], replaced[k] = True, False
             out += 1
     return out
 

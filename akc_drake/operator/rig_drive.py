@@ -119,7 +119,8 @@ def rig_names_by_role(joint_names, parents, end_site, roles: dict | None = None,
         raise UserError(f"{source}: the arms do not branch from a chest above the hips ({names[hips]}); "
                         "the rig drive needs a spine")
     out = {names[hips]: "Hips", names[chest]: "Spine1"}
-    spine = chain(chest)[1:chain(chest).index(hips)]  # below the chest, above the hips, top first
+    up = chain(chest)
+    spine = up[1:up.index(hips)]  # below the chest, above the hips, top first
     for j, bone in zip(spine, ("Spine", "LowerBack"), strict=False):
         out[names[j]] = bone
     for S, (sh, el, wr) in arms.items():
