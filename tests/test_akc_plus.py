@@ -1135,3 +1135,29 @@ def test_an_ekf_that_swings_a_seen_shoulder_each_frame_does_not_swing_the_lost_w
         if prev_w is not None:
             assert np.linalg.norm(out[LW] - prev_w) < 0.08
         prev_w = out[LW]
+
+
+def test_after_an_ekf_the_lengths_test_is_of_the_arm_as_measured():
+    # MediaPipe's 2D wrist 6 cm off the joint towards the elbow (at the wrist's depth) reads the forearm 5 cm short;
+    # an EKF's bone constraint moved the seen wrist 6.5 cm in depth until its forearm is 1 cm short, and that arm
+    # passes the lengths' test. After an EKF the test is of the arm as measured, which fails it: the arm is rebuilt
+    # from the seen shoulder, kept where it was read (a KF's posterior, which holds no lengths, is projected and
+    # moves it 1.5 mm), and the wrist stays nearer its measured depth.
+    p, dims = arm_pose(wrist_dir_l=(0.5, -0.75, -0.45))
+    m = p.copy()
+    d = p[LE, :2] - p[LW, :2]
+    m[LW, :2] += 0.06 * d / np.linalg.norm(d)
+    f = m.copy()
+    dxy = np.linalg.norm(f[LW, :2] - f[LE, :2])
+    f[LW, 2] = f[LE, 2] + math.copysign(math.sqrt((dims.LLA - 0.01) ** 2 - dxy**2), f[LW, 2] - f[LE, 2])
+    for k in ("left_index", "left_pinky"):  # (the hand read with the wrist)
+        m[INDEX[k]] += m[LW] - p[LW]
+        f[INDEX[k]] += f[LW] - p[LW]
+    assert dims.LLA - np.linalg.norm(m[LE] - m[LW]) > 0.05 and m[LW, 2] - f[LW, 2] > 0.06
+    out = {}
+    for constrained in (True, False):
+        akc = settled_corrector(p, dims, AKCPlusConfig(constrained_filter=constrained))
+        out[constrained] = akc.correct(f, measured=m, variance=kf_var(z=2e-4)).pose
+        assert np.linalg.norm(out[constrained][LE] - out[constrained][LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    assert np.linalg.norm(out[True][LS] - p[LS]) < 1e-12 and np.linalg.norm(out[False][LS] - p[LS]) > 1e-3
+    assert abs(out[True][LW, 2] - m[LW, 2]) < abs(out[False][LW, 2] - m[LW, 2]) - 0.005

@@ -7,6 +7,7 @@ from scipy.optimize import minimize
 
 from akc_drake.core.akc_plus_lengths import (
     circle_pair,
+    measured_arm,
     project_arm,
     project_forearm,
     same_configuration,
@@ -117,6 +118,34 @@ def test_arm_projection_meets_the_lengths_and_moves_the_uncertain_depths():
     # 1.5 and 0.4 cm short: chi2 0.47 with a 1 cm calibration sigma (passes 0.5, not 0.4)
     assert project_arm((*s, *e, *w), var, 0.29, 0.26, 1e-4, 0.5) is not None
     assert project_arm((*s, *e, *w), var, 0.29, 0.26, 1e-4, 0.4) is None
+
+
+def test_a_tested_arm_decides_the_lengths_test_and_the_filter_arm_is_projected():
+    # The filter's arm fits the lengths (an EKF's bone constraint moved its wrist 6 cm in depth to fit them); the
+    # arm as measured, its 2D wrist 8 cm off the joint towards the elbow, reads the forearm 7.3 cm short: tested, it
+    # fails the gate that the filter's arm passes. A tested arm that fits passes and the projection is the filter
+    # arm's, bit for bit.
+    s, e = np.array([0.18, 0.0, 2.0]), np.array([0.25, 0.25, 1.9])
+    w = e + np.array([0.15, -0.2, -0.09])
+    lu, lf = float(np.linalg.norm(s - e)), float(np.linalg.norm(e - w))
+    var = [1e-5, 1e-5, 2e-4] * 3
+    m = w.copy()
+    m[:2] += 0.08 * (e - w)[:2] / np.linalg.norm((e - w)[:2])
+    assert lf - np.linalg.norm(e - m) > 0.07
+    f = (*s, *e, *w)
+    assert project_arm(f, var, lu, lf, 1e-4, 11.8, 5e-5) is not None
+    assert project_arm(f, var, lu, lf, 1e-4, 11.8, 5e-5, (*s, *e, *m)) is None
+    g = list(f)
+    g[8] += 0.01  # (the filter's wrist 1 cm off in depth: the arm it projects)
+    assert project_arm(g, var, lu, lf, 1e-4, 11.8, 5e-5, f) == project_arm(g, var, lu, lf, 1e-4, 11.8, 5e-5)
+
+
+def test_measured_arm_is_the_whole_arm_or_none():
+    m = [float(i) for i in range(36)]
+    assert measured_arm(m, (0, 6, 12)) == [0.0, 1.0, 2.0, 6.0, 7.0, 8.0, 12.0, 13.0, 14.0]
+    m[14] = float("nan")
+    assert measured_arm(m, (0, 6, 12)) is None and measured_arm(m, (3, 9, 15)) is not None
+    assert measured_arm(None, (0, 6, 12)) is None
 
 
 def test_offset_variance_is_added_to_each_variance():

@@ -35,13 +35,14 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   well as a measurement would know them or, dropped at most ``recent_frames`` ago, better than eq. 7-8 would
   rebuild them from their neighbours: :func:`~akc_drake.core.arm_geometry.rebuild_variance`, which is large
   for a segment near the image plane, plus the risk of choosing the mirror candidate under the filter's
-  depth variance), and the arm passes the chi2 test against the calibrated lengths
-  (``length_sigma_m``), the output is the arm nearest the filter's in its covariance metric with the exact
-  lengths (:func:`~akc_drake.core.akc_plus_lengths.project_arm`): the joint the filter is least sure of moves,
-  mostly in depth. The metric adds each landmark's offset from its joint centre (isotropic, ``length_sigma_m^2
-  / 2`` per axis: what makes a measured segment's length differ from the calibrated one), so that a length
-  mismatch of a segment near the image plane is shared with the x, y instead of becoming a depth error several
-  times as large. A shoulder so known is kept when the elbow is rebuilt.
+  depth variance), and the arm passes the chi2 test against the calibrated lengths (``length_sigma_m``;
+  after an EKF, whose bone constraint fitted its arm to them already, the arm as measured when measured whole:
+  :func:`~akc_drake.core.akc_plus_lengths.measured_arm`), the output is the arm nearest the filter's in its
+  covariance metric with the exact lengths (:func:`~akc_drake.core.akc_plus_lengths.project_arm`): the joint
+  the filter is least sure of moves, mostly in depth. The metric adds each landmark's offset from its joint
+  centre (isotropic, ``length_sigma_m^2 / 2`` per axis: what makes a measured segment's length differ from the
+  calibrated one), so that a length mismatch of a segment near the image plane is shared with the x, y instead
+  of becoming a depth error several times as large. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm
   as our output last had it, carried by this frame's elbow (a random walk of ``sigma_temporal_m^2`` per blind
   frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity extrapolation runs on
@@ -161,6 +162,7 @@ from akc_drake.core.akc_plus_evidence import (
 )
 from akc_drake.core.akc_plus_lengths import (
     circle_pair,
+    measured_arm,
     project_arm,
     project_forearm,
     same_configuration,
@@ -300,12 +302,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
     def _measured(self, m, o, fz):
         """Without the filter's covariance: whether row ``m[o:o+3]`` was measured this frame and its depth is
         within ``consistency_m`` of the filtered ``fz`` (with it, ``_arm`` runs the innovation test inline)."""
-        if m is None:
+        if m is None or not _isfinite(m[o] + m[o + 1] + m[o + 2]):
             return False
-        mx, my, mz = m[o], m[o + 1], m[o + 2]
-        if not _isfinite(mx + my + mz):
-            return False
-        return abs(mz - fz) <= self.config.consistency_m
+        return abs(m[o + 2] - fz) <= self.config.consistency_m
 
     def _arm(self, v, m, side):
         """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
@@ -489,17 +488,17 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                                       self._len_var, no_prior, self._lost, self._pf.recent_frames)
         projected = vs is not None and kn_e and kn_s  # (the projection of the filter's arm, tried)
         if projected:
-            # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its
-            # covariance), the arm nearest it in that metric with the exact lengths (the joints move least
-            # where the filter is surest, and mostly in depth).
+            # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its covariance),
+            # the arm nearest it in that metric with the exact lengths (least where it is surest, mostly in depth).
             # The metric: the filter's variances plus each landmark's offset from its joint centre (isotropic,
             # persistent, variance ``_off_var`` per axis), which is what makes a measured segment's length differ
             # from the calibrated one (variance ``_len_var`` = 2 ``_off_var``): a length mismatch is then shared
             # with the precise x, y instead of going wholly into the depth of the joint the filter is least sure
             # of (a segment near the image plane turned 1-2 cm of length into 5-10 cm of a seen shoulder's depth).
-            # The chi2 test uses the same model (the offsets stand for the calibration's variance).
-            # (project_arm adds the offsets' variance to each of vs.)
-            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var)
+            # The chi2 test uses the same model (project_arm adds the offsets' variance to each of vs); after an
+            # EKF, whose posterior already holds the lengths, it tests the arm as measured (when measured whole).
+            t = measured_arm(m, offsets) if self._refit else None
+            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var, t)
             if arm is not None:
                 return arm
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None

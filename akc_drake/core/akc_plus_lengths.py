@@ -23,6 +23,7 @@ import math
 _hypot = math.hypot
 _sqrt = math.sqrt
 _inf = math.inf
+_isfinite = math.isfinite
 #: A segment shorter than this (m) has no direction.
 _MIN_SEGMENT_M = 1e-12
 
@@ -51,7 +52,7 @@ def _circle(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
     return (sx, sy, sz, cx + qx * f, cy + qy * f, cz + qz * f, wx, wy, wz)
 
 
-def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
+def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0, tested=None):
     """The arm nearest ``f`` in the filter's metric whose segments have exactly the lengths ``lu`` and ``lf``.
 
     Minimises ``sum (p - f)^2 / var`` over the nine coordinates (shoulder, elbow, wrist) subject to
@@ -67,7 +68,11 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
 
     Before any step, ``chi2 = g^T (J V J^T + length_var I)^-1 g`` of the length residuals ``g`` tests whether
     the filter's arm is consistent with the calibrated lengths (2 degrees of freedom; ``length_var`` is the
-    calibration's variance): above ``gate`` nothing is projected.
+    calibration's variance): above ``gate`` nothing is projected. With ``tested``, ``g`` is that arm's residuals
+    (``J`` still at ``f``): after a filter whose posterior already holds the lengths (an EKF's bone constraint,
+    which moves a seen joint off its measurement to fit them), its arm passes the test by construction, and the
+    arm as measured is the evidence (:func:`measured_arm`; MediaPipe's 2D wrist 4-6 cm off the joint read a
+    forearm 6 cm short, the EKF moved the seen wrist 6 cm in depth to fit it and the projection finished the job).
 
     Args:
         f: nine floats, the filter's shoulder, elbow and wrist.
@@ -76,6 +81,7 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
         length_var: the variance of each calibrated length (m^2).
         gate: the largest chi2 accepted.
         offset_var: added to each variance (AKC+'s landmark offsets), as ``[x + offset_var for x in var]``.
+        tested: nine floats, the arm whose lengths the chi2 test judges (None: ``f``).
 
     Returns:
         The arm (nine floats), or None when chi2 > gate (or is NaN) or no arm with these lengths exists near
@@ -101,7 +107,12 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
     b1, b2 = n1 - lu, n2 - lf
     c11, c22 = a11 + length_var, a22 + length_var
     det = c11 * c22 - a12 * a12
-    chi2 = (c22 * b1 * b1 - 2.0 * a12 * b1 * b2 + c11 * b2 * b2) / det if det > 0.0 else _inf
+    if tested is None:
+        chi2 = (c22 * b1 * b1 - 2.0 * a12 * b1 * b2 + c11 * b2 * b2) / det if det > 0.0 else _inf
+    else:
+        t1 = _hypot(tested[0] - tested[3], tested[1] - tested[4], tested[2] - tested[5]) - lu
+        t2 = _hypot(tested[3] - tested[6], tested[4] - tested[7], tested[5] - tested[8]) - lf
+        chi2 = (c22 * t1 * t1 - 2.0 * a12 * t1 * t2 + c11 * t2 * t2) / det if det > 0.0 else _inf
     if not chi2 <= gate:
         return None
     det = a11 * a22 - a12 * a12
@@ -138,6 +149,15 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0):
         ez = fez - vez * (bz * l2 - az * l1)
         wx, wy, wz = fwx + vwx * bx * l2, fwy + vwy * by * l2, fwz + vwz * bz * l2
     return _circle(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
+
+
+def measured_arm(m, offsets):
+    """The arm as measured this frame: the nine coordinates of ``m`` (flat) at the shoulder's, the elbow's and the
+    wrist's ``offsets``, or None when ``m`` is None or any of them was not measured (NaN)."""
+    if m is None:
+        return None
+    t = [m[o + k] for o in offsets for k in range(3)]
+    return t if _isfinite(sum(t)) else None
 
 
 def project_forearm(s, f, v, lu, lf, offset_var=0.0):
