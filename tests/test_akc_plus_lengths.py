@@ -121,8 +121,8 @@ def test_arm_projection_meets_the_lengths_and_moves_the_uncertain_depths():
 
 
 def test_a_tested_arm_decides_the_lengths_test_and_the_filter_arm_is_projected():
-    # The filter's arm fits the lengths (an EKF's bone constraint moved its wrist 6 cm in depth to fit them); the
-    # arm as measured, its 2D wrist 8 cm off the joint towards the elbow, reads the forearm 7.3 cm short: tested, it
+    # The filter's arm fits the lengths (as an EKF's bone constraint makes it); the arm as measured, its 2D
+    # wrist 8 cm off the joint towards the elbow at the same depth, reads the forearm 7.3 cm short: tested, it
     # fails the gate that the filter's arm passes. A tested arm that fits passes and the projection is the filter
     # arm's, bit for bit.
     s, e = np.array([0.18, 0.0, 2.0]), np.array([0.25, 0.25, 1.9])

@@ -8,6 +8,7 @@
   inf)``, bit-identical). AKC+ runs it on the frames where a lost elbow cannot close the arm at its image x, y
   from a kept shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of some clips.
 * :func:`circle_pair`: ``circle_point`` for the two Pythagorean elbow candidates, the circle computed once.
+* :func:`measured_arm`: the arm as measured this frame, whose lengths ``project_arm`` tests after an EKF.
 
 Both projections take two steps of sequential quadratic programming (fewer once the lengths are met to 0.01 mm)
 written out, with :func:`~akc_drake.core.arm_geometry.circle_point` inlined: a loop over the steps, its branches on
@@ -107,12 +108,11 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0, tested=None):
     b1, b2 = n1 - lu, n2 - lf
     c11, c22 = a11 + length_var, a22 + length_var
     det = c11 * c22 - a12 * a12
-    if tested is None:
-        chi2 = (c22 * b1 * b1 - 2.0 * a12 * b1 * b2 + c11 * b2 * b2) / det if det > 0.0 else _inf
-    else:
-        t1 = _hypot(tested[0] - tested[3], tested[1] - tested[4], tested[2] - tested[5]) - lu
-        t2 = _hypot(tested[3] - tested[6], tested[4] - tested[7], tested[5] - tested[8]) - lf
-        chi2 = (c22 * t1 * t1 - 2.0 * a12 * t1 * t2 + c11 * t2 * t2) / det if det > 0.0 else _inf
+    g1, g2 = b1, b2
+    if tested is not None:
+        g1 = _hypot(tested[0] - tested[3], tested[1] - tested[4], tested[2] - tested[5]) - lu
+        g2 = _hypot(tested[3] - tested[6], tested[4] - tested[7], tested[5] - tested[8]) - lf
+    chi2 = (c22 * g1 * g1 - 2.0 * a12 * g1 * g2 + c11 * g2 * g2) / det if det > 0.0 else _inf
     if not chi2 <= gate:
         return None
     det = a11 * a22 - a12 * a12
