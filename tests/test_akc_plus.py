@@ -1161,3 +1161,51 @@ def test_after_an_ekf_the_lengths_test_is_of_the_arm_as_measured():
         assert np.linalg.norm(out[constrained][LE] - out[constrained][LW]) == pytest.approx(dims.LLA, abs=1e-12)
     assert np.linalg.norm(out[True][LS] - p[LS]) < 1e-12 and np.linalg.norm(out[False][LS] - p[LS]) > 1e-3
     assert abs(out[True][LW, 2] - m[LW, 2]) < abs(out[False][LW, 2] - m[LW, 2]) - 0.005
+
+
+def test_a_seen_elbow_projected_in_front_of_its_reading_is_put_behind_it():
+    # The elbow 9 cm behind the shoulder, the forearm toward the camera; the elbow read (and filtered) 15 cm in
+    # front, on a surface before it, the wrist 4 cm behind: the forearm nearly parallel to the image plane, 8 cm
+    # short. The projection tipped to the mirror (the elbow 23 cm in front of the truth, the wrist 7 cm behind);
+    # a camera reads the first surface on the ray, so the elbow is put behind its reading, in the configuration
+    # our last output had. With our last output's elbow in front, the mirror stays (no switch without evidence).
+    p, dims = arm_pose(elbow_dir_l=(-0.15, 0.94, 0.31), wrist_dir_l=(-0.15, 0.6, -0.78))
+    f = p.copy()
+    f[LE, 2] -= 0.15
+    f[LW, 2] += 0.04
+    hand_follows(f, p)
+    out = settled_corrector(p, dims).correct(f, measured=f, variance=kf_var()).pose
+    assert np.linalg.norm(out[LE] - p[LE]) < 0.02 and np.linalg.norm(out[LW] - p[LW]) < 0.025
+    assert out[LE, 2] > f[LE, 2] + 0.1
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    akc = settled_corrector(p, dims)
+    state = akc.get_state_vector()
+    state[5] = p[LE, 2] - 0.25  # (the left elbow's depth in our last output)
+    akc.set_state_vector(state)
+    out = akc.correct(f, measured=f, variance=kf_var()).pose
+    assert out[LE, 2] < f[LE, 2] - 0.05
+
+
+def test_after_an_ekf_a_long_lost_wrist_counts_the_filter_no_surer_than_the_hold():
+    # The hand stops while the detector loses it; an EKF's wrist runs on at 3 cm a frame in x, claiming 7 cm on
+    # each axis (its bone constraints shrink the posterior of a joint nothing measures). For recent_frames (3)
+    # frames its variance is believed, as a KF's; then it counts no surer than the forearm held at the seen elbow:
+    # the eighth frame 10 cm off, not 16.
+    p, dims = arm_pose()
+    m = p.copy()
+    m[LW] = np.nan
+    err = {}
+    for constrained in (True, False):
+        akc = settled_corrector(p, dims, AKCPlusConfig(constrained_filter=constrained))
+        err[constrained] = []
+        for k in range(1, 9):
+            f = p.copy()
+            f[LW, 0] += 0.03 * k
+            var = kf_var()
+            var[LW] = 0.07**2
+            out = akc.correct(f, measured=m, variance=var).pose
+            err[constrained].append(np.linalg.norm(out[LW] - p[LW]))
+            assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    assert err[True][:3] == err[False][:3]
+    assert err[False][7] == pytest.approx(0.160, abs=0.005) and err[True][7] == pytest.approx(0.101, abs=0.005)

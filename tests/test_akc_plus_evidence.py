@@ -152,6 +152,32 @@ def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_
     assert f2[6] == pytest.approx((0.1 * 1.0 + 0.06 * 0.1) / 0.16, rel=1e-12)
 
 
+
+def test_after_honest_frames_the_filter_counts_no_surer_than_the_hold():
+    # A constrained filter's wrist, lost altogether: it claims 1 cm (1e-4) on each axis. Up to ``honest_frames``
+    # blind frames it is believed (weight 0.02 / 0.0201 on it at the second frame); after them its variance
+    # counts as at least the hold's (the fifth frame: 0.05 on each axis), so the two are averaged; an axis the filter
+    # claims less sure of than the hold keeps its variance, and an unknown one stays as it is.
+    def fused(n_before, vz):
+        f = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
+        vs = [1e-4] * 6 + [1e-4, 1e-4, vz]
+        fuse_held(f, vs, [0.0, 0.3, 0.0, n_before], f[3:6], 0.01, 6, (0, 1, 2), 3.0)
+        return f, vs
+
+    f, vs = fused(1.0, 1e-4)  # the second blind frame: the filter's variance as it claims
+    assert f[6] == pytest.approx((0.02 * 1.0 + 1e-4 * 0.1) / 0.0201, rel=1e-12)
+    assert vs[6] == pytest.approx(1e-4 * 0.02 / 0.0201, rel=1e-12)
+    f, vs = fused(4.0, 0.2)  # the fifth
+    assert f[6] == pytest.approx((1.0 + 0.1) / 2, rel=1e-12) and f[7] == pytest.approx((2.0 + 0.3) / 2, rel=1e-12)
+    assert vs[6] == pytest.approx(0.025, rel=1e-12) and vs[7] == pytest.approx(0.025, rel=1e-12)
+    assert f[8] == pytest.approx((0.05 * 3.0 + 0.2 * 2.0) / 0.25, rel=1e-12)  # 0.2 > 0.05: its own variance
+    f, vs = fused(4.0, NAN)
+    assert f[8] == 3.0 and vs[8] != vs[8]
+    # The default (inf): the filter's variance whatever the blind frames.
+    g = [0.0, 0.0, 2.0, 0.1, 0.0, 2.0, 1.0, 2.0, 3.0]
+    fuse_held(g, [1e-4] * 9, [0.0, 0.3, 0.0, 40.0], g[3:6], 0.01, 6)
+    assert g[6] == pytest.approx((0.41 * 1.0 + 1e-4 * 0.1) / 0.4101, rel=1e-12)
+
 def test_a_blind_elbow_is_the_product_of_the_filter_and_the_upper_arm_held_at_the_shoulder():
     # The shoulder at (0.2, 0, 2); the upper arm last seen as (0.1, 0.3, -0.1) from it; the first blind frame:
     # the held upper arm's variance is v_t = 0.01 per axis. The wrist (base 6) is not this call's.

@@ -6,6 +6,7 @@ import pytest
 from scipy.optimize import minimize
 
 from akc_drake.core.akc_plus_lengths import (
+    behind_surface,
     circle_pair,
     measured_arm,
     project_arm,
@@ -219,3 +220,52 @@ def test_sphere_point_with_equal_variances_is_radial():
     # an anisotropic metric moves the surer axes less: depth sigma 10x the image's
     q = sphere_point(0.0, 0.0, 2.0, 0.3, 0.0, 2.2, 1e-4, 1e-4, 1e-2, 0.25)
     assert abs(q[0] - 0.3) < abs(0.3 * 0.25 / math.hypot(0.3, 0.2) - 0.3)
+
+
+def _arm_with_the_elbow_read_in_front():
+    """An arm 2 m away, the elbow 9 cm behind the shoulder and the forearm toward the camera (20 cm in depth); the
+    elbow read 15 cm in front and the wrist 4 cm behind: (truth, read, variances, lu, lf). The forearm as read is
+    nearly parallel to the image plane and 8.5 cm short."""
+    lu, lf = 0.29, 0.26
+    s = np.array([0.18, 0.0, 2.0])
+    e = s + lu * np.array([-0.15, 0.94, 0.31]) / np.linalg.norm([-0.15, 0.94, 0.31])
+    w = e + lf * np.array([-0.15, 0.6, -0.78]) / np.linalg.norm([-0.15, 0.6, -0.78])
+    truth = (*s, *e, *w)
+    read = (*s, e[0], e[1], e[2] - 0.15, w[0], w[1], w[2] + 0.04)
+    v = (1e-5, 1e-5, 1e-4) + (1e-5, 1e-5, 1.5e-3) * 2  # (the shoulder's depth better known than the others')
+    return tuple(map(float, truth)), tuple(map(float, read)), v, lu, lf
+
+
+def test_an_elbow_projected_in_front_of_its_reading_takes_the_configuration_behind_it():
+    truth, read, v, lu, lf = _arm_with_the_elbow_read_in_front()
+    arm = project_arm(read, v, lu, lf, 0.0, math.inf, 5e-5)
+    assert arm[5] < truth[5] - 0.2 and arm[5] < arm[2]  # the mirror: the elbow 22 cm off, in front of the shoulder
+    alt = behind_surface(arm, read, v, lu, lf, read[5], 0.05, truth[5], 5e-5)
+    assert alt[5] >= read[5] - 0.05 and alt[5] > alt[2]  # behind its reading, behind the shoulder
+    assert math.dist(alt[3:6], truth[3:6]) < 0.015 and math.dist(alt[6:9], truth[6:9]) < 0.02
+    assert math.dist(alt[0:3], alt[3:6]) == pytest.approx(lu, abs=1e-12)
+    assert math.dist(alt[3:6], alt[6:9]) == pytest.approx(lf, abs=1e-12)
+    # The shoulder kept (AKC+ starts the forearm's projection from the elbow at the upper arm's length from it,
+    # radially): the projection from the candidate behind, the shoulder where it was.
+    s, e = np.array(read[0:3]), np.array(read[3:6])
+    start = (*read[0:5], float((s + 0.29 * (e - s) / np.linalg.norm(e - s))[2]), *read[6:9])
+    fore = project_forearm(start[0:3], start[3:9], v[3:9], lu, lf, 5e-5)
+    assert fore[5] < truth[5] - 0.2
+    kept = behind_surface(fore, start, v, lu, lf, read[5], 0.05, truth[5], 5e-5, shoulder_kept=True)
+    assert kept[0:3] == read[0:3] and kept[5] >= read[5] - 0.05
+    assert math.dist(kept[3:6], truth[3:6]) < 0.015
+    assert math.dist(kept[3:6], kept[6:9]) == pytest.approx(lf, abs=1e-12)
+
+
+def test_behind_surface_switches_only_with_evidence():
+    truth, read, v, lu, lf = _arm_with_the_elbow_read_in_front()
+    arm = project_arm(read, v, lu, lf, 0.0, math.inf, 5e-5)
+    # Our last elbow in front (nearer this arm's than the other configuration's): no switch.
+    assert behind_surface(arm, read, v, lu, lf, read[5], 0.05, arm[5] - 0.02, 5e-5) is arm
+    nan = float("nan")
+    assert behind_surface(arm, read, v, lu, lf, nan, 0.05, truth[5], 5e-5) is arm  # no reading
+    assert behind_surface(arm, read, v, lu, lf, read[5], 0.05, nan, 5e-5) is arm  # no last output
+    assert behind_surface(arm, read, v, lu, lf, arm[5] + 0.05, 0.05, truth[5], 5e-5) is arm  # within the noise
+    # The elbow's image position beyond the upper arm's reach of the shoulder: no candidate behind it.
+    far = (*read[0:3], read[3] + 0.3, *read[4:9])
+    assert behind_surface(arm, far, v, lu, lf, read[5], 0.05, truth[5], 5e-5) is arm

@@ -1,4 +1,5 @@
 import json
+import math
 import shutil
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from akc_drake.evaluation.motion_set import (
     plot_errors_per_clip,
     pooled,
     worst_regression,
+    worst_regression_3d,
 )
 
 DATA = Path(__file__).parent / "data" / "mocap"
@@ -147,6 +149,30 @@ def test_a_corrector_is_compared_with_its_filter_on_the_frames_both_estimate():
     assert g["only_frames"] == 2 and g["only_z_cm"] == pytest.approx(10.0)
     g = lost_joint_gain([clip(False)], "AKC+(KF)", "KF")
     assert g["only_frames"] is None and g["corrected_z_cm"] == pytest.approx(np.sqrt(204 / 6))
+
+
+def test_the_3d_figures_weigh_a_trade_of_one_axis_for_the_others():
+    # A lost joint whose corrector is 2 cm worse in z and 6 cm better in y: the worst per-axis increase is +2 cm, the
+    # 3D RMSE (the root of the three axes' mean squared errors) falls from sqrt(1 + 64 + 9) to sqrt(1 + 4 + 25).
+    def clip(name, ls_corr, ls_filt):
+        corr = {k: [1.0, 1.0, 1.0] for k in ARM_JOINTS}
+        filt = {k: [1.0, 1.0, 1.0] for k in ARM_JOINTS}
+        corr["left_shoulder"], filt["left_shoulder"] = ls_corr, ls_filt
+        lost = {k: 0.0 for k in ARM_JOINTS}
+        lost["left_shoulder"] = 0.5
+        return {"name": name, "lost_share": lost,
+                "methods": {"AKC+(EKF)": {"rmse_cm": corr}, "EKF": {"rmse_cm": filt}}}
+
+    clips = [clip("a", [1.0, 2.0, 5.0], [1.0, 8.0, 3.0]), clip("b", [1.0, 1.0, 1.5], [1.0, 1.0, 1.0])]
+    w = worst_regression(clips, "AKC+(EKF)", "EKF")
+    assert (w["clip"], w["joint"], w["axis"]) == ("a", "left_shoulder", "z") and w["delta_cm"] == pytest.approx(2.0)
+    w3 = worst_regression_3d(clips, "AKC+(EKF)", "EKF")
+    assert (w3["clip"], w3["joint"]) == ("b", "left_shoulder")
+    assert w3["delta_cm"] == pytest.approx(math.sqrt(4.25) - math.sqrt(3.0))
+    g = lost_joint_gain(clips, "AKC+(EKF)", "EKF")
+    assert g["pairs"] == 2
+    assert g["filter_3d_cm"] == pytest.approx((math.sqrt(74.0) + math.sqrt(3.0)) / 2)
+    assert g["corrected_3d_cm"] == pytest.approx((math.sqrt(30.0) + math.sqrt(4.25)) / 2)
 
 
 def test_evaluate_clip_returns_plain_metrics_and_pooling_is_exact():

@@ -56,7 +56,12 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
 * An elbow lost altogether likewise: the filter's extrapolation times the upper arm held at this frame's shoulder,
   and a wrist lost with it moves with that elbow (MediaPipe lost bvhtools_a2's left arm for 20 frames: the filter's
-  elbow ran 25 cm off in depth, and the elbow rebuilt between it and the held wrist 37 cm).
+  elbow ran 25 cm off in depth, and the elbow rebuilt between it and the held wrist 37 cm). After an EKF
+  (``constrained_filter``), a joint lost for more than ``recent_frames`` counts its filter's extrapolation as no
+  surer than the hold (each axis's variance at least the hold's): the bone constraints shrink the posterior of a
+  joint nothing measures (mocapbank's right wrist, MediaPipe, lost 74 frames: 7-17 cm claimed in x, y while 25-37
+  cm off), and the fusion followed the drift (AKC+(EKF)'s mean 3D arm RMSE fell on all nine evaluation sets, 7.97
+  -> 7.08 cm on the rig with MediaPipe).
 * A shoulder whose depth the occlusion filter dropped, or that the detector lost altogether: its depth (then its
   x, y too) is the filter's fused with the shoulder held on the torso, our outputs' offset from the hips' centre
   while it was seen (a running mean, weight ``shoulder_alpha``, both hips' depths measured) carried by this
@@ -83,6 +88,13 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   leaned while both were lost moved the seen elbow 7 cm onto the held shoulder; mocapbank driven bone by bone).
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
+* A seen elbow that the arm nearest the filter's (the lengths' projections) puts more than ``consistency_m`` in
+  front of the depth its pixel read: a camera reads the first surface on the ray, so the joint is at or behind it.
+  The filter followed an elbow read on a surface in front (MediaPipe on the skinned body, bvhtools_a2: 12-19 cm),
+  and the projection tipped to the mirror configuration, the elbow in front of the wrist. The projection from the
+  elbow's Pythagorean candidate behind the shoulder replaces it when that leaves the elbow behind its reading and
+  nearer our last output's (:func:`~akc_drake.core.akc_plus_lengths.behind_surface`; AKC+(KF)'s worst increase on
+  the MediaPipe windows +1.15 -> +0.80 cm).
 * A measured wrist its own hand hides: the forearm (the filter's elbow to the measured wrist) toward the camera,
   the wrist's pixel reads the hand, up to a hand's length in front (the elbow's depth is dropped then, its pixel
   near the wrist's). The measured knuckles (index and pinky; their midpoint lies ``hand_length_m`` from the
@@ -161,6 +173,7 @@ from akc_drake.core.akc_plus_evidence import (
     unreachable_replacements,
 )
 from akc_drake.core.akc_plus_lengths import (
+    behind_surface,
     circle_pair,
     measured_arm,
     project_arm,
@@ -218,7 +231,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost",
-                 "_s_floor", "_pair_z")
+                 "_s_floor", "_pair_z", "_blind_honest")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -262,6 +275,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
         self._nis_a, self._nis_floor, self._tol = pf.nis_alpha, config.nis_floor, config.length_tol_m
         self._refit = config.constrained_filter is True  # (None: not resolved for a filter, off)
+        # A constrained filter's variance of a joint lost altogether is no error measure after ``recent_frames``.
+        self._blind_honest = pf.recent_frames if self._refit else _inf
         self._cons, self._xy_tol = config.consistency_m, config.xy_tol_m
         self._occ_r2 = config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
@@ -275,28 +290,6 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
     @property
     def dims(self) -> BodyDimensions:
         return self._dims
-
-    def reset(self) -> None:
-        """Forget the previous output and the untrusted-frame counters."""
-        self._prev: list[tuple | None] = [None, None]
-        self._lost = [0.0, 0.0, 0.0, 0.0]  # frames without a trusted depth: (left elbow, left shoulder, right ...)
-        self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when last seen
-        self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
-        self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
-        # per side: the forearm (wrist - elbow) of our last output with the wrist detected, the frames since, and
-        # the upper arm (elbow - shoulder) of that output, which the held forearm turns with (NaN: no longer turns)
-        self._blind: list[list | None] = [None, None]
-        self._blind_e: list[list | None] = [None, None]  # the upper arm (elbow - shoulder) likewise
-        # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
-        # mean, weight ``shoulder_alpha``), and the frames since the last
-        self._held_sh: list[list | None] = [None, None]
-        # per side: the shoulder minus the other shoulder (``TorsoReference._other_anchor``) likewise, learnt while
-        # the hips are no torso reference: the reference after they have been none for ``hips_lost_frames``
-        self._held_ss: list[list | None] = [None, None]
-        self._hips_lost = 0.0  # frames since the hips were last the torso's reference (or since the start)
-        # per side: the measured depth minus the other shoulder's (a running mean; NaN: none yet), the frames it has
-        # held the shoulder, the depth last measured and the frames since (``TorsoReference._shoulder_jumped``)
-        self._pair_z = [[_NAN, 0.0, _NAN, 0.0], [_NAN, 0.0, _NAN, 0.0]]
 
     # ------------------------------------------------------------------ hot path (plain floats)
     def _measured(self, m, o, fz):
@@ -362,7 +355,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
-                fuse_held(f, vs, self._blind_e[side], f[0:3], self._v_t, 3)
+                fuse_held(f, vs, self._blind_e[side], f[0:3], self._v_t, 3, _XYZ, self._blind_honest)
                 e_fused = True
             b = self._blind[side]
             if m is not None and b is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:
@@ -377,7 +370,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                         # its own error (MediaPipe boxing, +3.3 cm).
                         b = [*_turn_with(b[0], b[1], b[2], b[4], b[5], b[6], f[3] - f[0], f[4] - f[1], f[5] - f[2]),
                              b[3]]
-                fuse_held(f, vs, b, f[3:6], self._v_t, 6)
+                fuse_held(f, vs, b, f[3:6], self._v_t, 6, _XYZ, self._blind_honest)
                 self._blind[side][3] = b[3]
             if m is not None and (f[2] != sz or f[5] != ez or f[8] != wz):
                 # A measured point that replaced the filter's must be within the arm's reach of its neighbours.
@@ -498,8 +491,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             # The chi2 test uses the same model (project_arm adds the offsets' variance to each of vs); after an
             # EKF, whose posterior already holds the lengths, it tests the arm as measured (when measured whole).
             t = measured_arm(m, offsets) if self._refit else None
-            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var, t)
-            if arm is not None:
+            a9 = (sx, sy, sz, ex, ey, ez, wx, wy, wz)
+            arm = project_arm(a9, vs, lu, lf, 0.0, self._chi2_gate, self._off_var, t)
+            if arm is not None:  # (an elbow not in front of the surface its pixel read: ``behind_surface``)
+                if me and arm[5] < m[o_e + 2] - self._cons and prev is not None:
+                    return behind_surface(arm, a9, vs, lu, lf, m[o_e + 2], self._cons, prev[5], self._off_var)
                 return arm
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
         w = (wx, wy, wz)
@@ -585,7 +581,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     # shoulder fixed), mostly in depth.
                     # (The landmark offsets' variance added, as in the projection above.)
                     arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), vs[3:], lu, lf, self._off_var)
-                    if arm is not None:
+                    if arm is not None:  # (as after the projection above)
+                        if me and arm[5] < m[o_e + 2] - self._cons and pe is not None:
+                            return behind_surface(arm, (*s, ex, ey, e[2], wx, wy, wz), vs, lu, lf, m[o_e + 2],
+                                                  self._cons, pe[2], self._off_var, True)
                         return arm
                 if w_lost and vs is not None:
                     # A wrist that is no anchor: its nearest point at l_f from the elbow in its own metric (its

@@ -78,7 +78,9 @@ class AKCPlusConfig:
             is below the variance eq. 7-8 would rebuild it with counts as known: the filter's variance is a
             trustworthy error measure only shortly after a measurement (the running NIS was measured then;
             further on, unmodelled motion, or an EKF's bone constraints, which are the rebuild's own lengths,
-            dominate it).
+            dominate it). After a constrained filter, a joint lost altogether for longer counts the filter's
+            extrapolation as no surer than the segment held at its neighbour
+            (:func:`~akc_drake.core.akc_plus_evidence.fuse_held`'s ``honest_frames``).
         hips_lost_frames: the hips no torso reference (not measured, or a depth failing the innovation test) for
             this many frames (1 s at 10 Hz: out of the image, not a hand passing over a hip), the other shoulder,
             seen, carries a held shoulder instead.

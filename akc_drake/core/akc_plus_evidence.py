@@ -135,7 +135,7 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     return p, False
 
 
-def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2)):
+def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2), floor_after=math.inf):
     """A joint not measured this frame: the filter's estimate fused with the joint held at an offset from an anchor.
 
     Two Gaussian priors of the joint ``f[base:base + 3]``: the filter's (its covariance-matched variances
@@ -167,6 +167,9 @@ def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2)):
         v_step: the held joint's variance per axis and blind frame.
         base: the joint's offset in the arm (0 the shoulder, 3 the elbow, 6 the wrist).
         axes: the axes fused.
+        honest_frames: after this many blind frames the filter's variance is no error measure (a constrained
+            filter's, whose bone constraints shrink the posterior of a joint nothing measures): each axis counts
+            it at least the hold's variance (inf: always the filter's).
     """
     n = held[3] = held[3] + 1.0
     vh = v_step * n
@@ -174,6 +177,8 @@ def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2)):
         i = base + k
         v = vs[i]
         if v == v:  # (a variance the filter does not know: NaN, left as it is)
+            if n > floor_after and v < vh:
+                v = vh
             s = v + vh
             f[i] = (vh * f[i] + v * (anchor[k] + held[k])) / s
             vs[i] = v * vh / s

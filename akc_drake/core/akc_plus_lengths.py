@@ -228,6 +228,49 @@ def project_forearm(s, f, v, lu, lf, offset_var=0.0):
     return _circle(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey, ez)
 
 
+def behind_surface(arm, f, v, lu, lf, z_read, tol, z_prev, offset_var=0.0, shoulder_kept=False):
+    """``arm`` (a projection of ``f``), or the other configuration when ``arm`` puts the elbow in front of the
+    surface its pixel read.
+
+    A depth camera reads the first surface on a joint's pixel ray: the joint is at that depth (the depth offset
+    removes the limb's radius) or behind it (an occluder in front), never in front. When the filter followed an
+    elbow read on a surface in front of it (MediaPipe on the skinned body, bvhtools_a2: 12-19 cm in front), the
+    arm's lengths contradict its depths, and the projection from the filter's elbow can tip to the mirror
+    configuration: the elbow in front of the wrist, farther in front of its reading. The projection is then run
+    again from the elbow's Pythagorean candidate behind the shoulder (eq. 8 at the elbow's image x, y), and its
+    arm is taken when it leaves the elbow behind the surface and nearer our previous output's elbow: no switch of
+    configuration without that evidence too (an elbow in front of its reading because its 2D position is off the
+    joint, the upper arm toward the camera, must not jump behind the shoulder).
+
+    Args:
+        arm: the projected arm (nine floats); its elbow's depth is ``arm[5]``.
+        f: the nine coordinates (shoulder, elbow, wrist) the projection started from; the elbow's x, y are its
+            image position.
+        v: their nine variances.
+        lu, lf: the upper and lower arm lengths.
+        z_read: the depth read at the elbow's pixel (NaN: none; ``arm`` is returned).
+        tol: how far in front of it an elbow may be (the reading's noise).
+        z_prev: our previous output's elbow depth (NaN: none; ``arm`` is returned).
+        offset_var: the projections' landmark-offset variance (:func:`project_arm`).
+        shoulder_kept: the shoulder is kept (:func:`project_forearm`), else projected too (:func:`project_arm`,
+            without the lengths' test).
+    """
+    if not arm[5] < z_read - tol or z_prev != z_prev:
+        return arm
+    sx, sy, sz = f[0], f[1], f[2]
+    r2 = lu * lu - (f[3] - sx) ** 2 - (f[4] - sy) ** 2
+    if r2 < 0.0:
+        return arm
+    g = (sx, sy, sz, f[3], f[4], sz + _sqrt(r2), f[6], f[7], f[8])
+    if shoulder_kept:
+        alt = project_forearm(g[0:3], g[3:9], v[3:9], lu, lf, offset_var)
+    else:
+        alt = project_arm(g, v, lu, lf, 0.0, _inf, offset_var)
+    if alt is None or alt[5] < z_read - tol or abs(alt[5] - z_prev) >= abs(arm[5] - z_prev):
+        return arm
+    return alt
+
+
 def circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, p, p2):
     """:func:`~akc_drake.core.arm_geometry.circle_point` for two points ``p`` and ``p2`` (the two Pythagorean
     elbow candidates), the circle computed once: ``(q, q2)``, each bit-identical to ``circle_point``'s, or None

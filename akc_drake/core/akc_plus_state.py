@@ -25,10 +25,33 @@ _NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST, _PAIR_Z = 36, 54,
 
 
 class StateVector:
-    """:meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``, ``_lost``, ``_f0``,
-    ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``, ``_hips_lost``, ``_pair_z``)."""
+    """:meth:`reset`, :meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``,
+    ``_lost``, ``_f0``, ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``, ``_hips_lost``,
+    ``_pair_z``)."""
 
     __slots__ = ()
+
+    def reset(self) -> None:
+        """Forget the previous output and the untrusted-frame counters."""
+        self._prev: list[tuple | None] = [None, None]
+        self._lost = [0.0, 0.0, 0.0, 0.0]  # frames without a trusted depth: (left elbow, left shoulder, right ...)
+        self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when last seen
+        self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
+        self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
+        # per side: the forearm (wrist - elbow) of our last output with the wrist detected, the frames since, and
+        # the upper arm (elbow - shoulder) of that output, which the held forearm turns with (NaN: no longer turns)
+        self._blind: list[list | None] = [None, None]
+        self._blind_e: list[list | None] = [None, None]  # the upper arm (elbow - shoulder) likewise
+        # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
+        # mean, weight ``shoulder_alpha``), and the frames since the last
+        self._held_sh: list[list | None] = [None, None]
+        # per side: the shoulder minus the other shoulder (``TorsoReference._other_anchor``) likewise, learnt while
+        # the hips are no torso reference: the reference after they have been none for ``hips_lost_frames``
+        self._held_ss: list[list | None] = [None, None]
+        self._hips_lost = 0.0  # frames since the hips were last the torso's reference (or since the start)
+        # per side: the measured depth minus the other shoulder's (a running mean; NaN: none yet), the frames it has
+        # held the shoulder, the depth last measured and the frames since (``TorsoReference._shoulder_jumped``)
+        self._pair_z = [[math.nan, 0.0, math.nan, 0.0], [math.nan, 0.0, math.nan, 0.0]]
 
     def get_state_vector(self) -> np.ndarray:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the

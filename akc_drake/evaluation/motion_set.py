@@ -345,14 +345,39 @@ def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
     return worst
 
 
+
+def _norm3(v) -> float:
+    """The 3D RMSE from per-axis RMSEs: the root of the sum of the three axes' mean squared errors."""
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+def worst_regression_3d(results: list[dict], corrected: str, filt: str) -> dict:
+    """The largest 3D RMSE increase (cm) of ``corrected`` over ``filt`` on any clip and arm joint.
+
+    The 3D RMSE is the root of the sum of the three axes' mean squared errors, each axis paired as in
+    :func:`worst_regression`. A corrector that trades one axis for the others (a lost joint's depth for its x, y)
+    shows here what the per-axis figure does not.
+    """
+    worst = {"delta_cm": -math.inf}
+    for r in results:
+        if corrected not in r["methods"] or filt not in r["methods"]:
+            continue
+        a_all, b_all, p = _compared(r, corrected, filt)
+        for joint in ARM_JOINTS:
+            dlt = _norm3(a_all[joint]) - _norm3(b_all[joint])
+            if dlt > worst["delta_cm"]:
+                worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "paired": p is not None}
+    return worst
+
 def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
     """Mean z RMSE of ``filt`` and ``corrected`` over the (clip, joint) pairs the camera loses (cm).
 
-    Paired as :func:`worst_regression` is. ``only_frames`` and ``only_z_cm``: over all clips and arm joints, the
-    frames where ``corrected`` gives a depth and ``filt`` none, and the pooled z RMSE of ``corrected`` there (None
-    for results without paired errors).
+    Paired as :func:`worst_regression` is; ``filter_3d_cm`` and ``corrected_3d_cm`` are the same pairs' mean 3D RMSE
+    (:func:`worst_regression_3d`). ``only_frames`` and ``only_z_cm``: over all clips and arm joints, the frames
+    where ``corrected`` gives a depth and ``filt`` none, and the pooled z RMSE of ``corrected`` there (None for
+    results without paired errors).
     """
-    a, b = [], []
+    a, b, a3, b3 = [], [], [], []
     only_n, only_sse, any_paired = 0, 0.0, False
     for r in results:
         if corrected not in r["methods"] or filt not in r["methods"]:
@@ -363,11 +388,15 @@ def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
             if r["lost_share"][joint] >= LOST_SHARE:
                 a.append(b_all[joint][2])
                 b.append(a_all[joint][2])
+                a3.append(_norm3(b_all[joint]))
+                b3.append(_norm3(a_all[joint]))
             if p is not None and p["only_n"][joint][2]:
                 only_n += p["only_n"][joint][2]
                 only_sse += p["only_n"][joint][2] * (p["only_rmse_cm"][joint][2] / 100.0) ** 2
     return {"pairs": len(a), "filter_z_cm": float(np.mean(a)) if a else None,
             "corrected_z_cm": float(np.mean(b)) if b else None,
+            "filter_3d_cm": float(np.mean(a3)) if a3 else None,
+            "corrected_3d_cm": float(np.mean(b3)) if b3 else None,
             "only_frames": only_n if any_paired else None,
             "only_z_cm": math.sqrt(only_sse / only_n) * 100.0 if only_n else None}
 
@@ -414,8 +443,8 @@ def evaluate_motion_dir(
 
     Returns:
         ``{"protocol", "seed", "body", "detector", "akc_plus", "methods", "dims_cm", "clips": [evaluate_clip results],
-        "failures": [...], "pooled_rmse_cm", "worst_regression", "lost_joint_gain", "render_cache": {"dir",
-        "hits", "misses"}, "elapsed_s"}``.
+        "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "lost_joint_gain",
+        "render_cache": {"dir", "hits", "misses"}, "elapsed_s"}``.
     """
     from akc_drake.evaluation.cache import _resolve
     from akc_drake.evaluation.executor import TaskFailure, run_tasks
@@ -462,6 +491,7 @@ def evaluate_motion_dir(
         "failures": failures,
         "pooled_rmse_cm": pooled(results, methods),
         "worst_regression": {},
+        "worst_regression_3d": {},
         "lost_joint_gain": {},
         "render_cache": {"dir": None if root is None else str(root), "hits": hits,
                          "misses": 1 + len(results) - hits},
@@ -471,6 +501,7 @@ def evaluate_motion_dir(
             name = f"{corr}({filt})"
             if name in methods and filt in methods:
                 out["worst_regression"][name] = worst_regression(results, name, filt)
+                out["worst_regression_3d"][name] = worst_regression_3d(results, name, filt)
                 out["lost_joint_gain"][name] = lost_joint_gain(results, name, filt)
     out["elapsed_s"] = time.perf_counter() - t0
     return out
@@ -507,11 +538,17 @@ def motion_dir_tables(result: dict) -> list:
             on = " on the frames both estimate" if w.get("paired") else ""
             t.notes.append(f"{name}: worst increase over its filter{on} {w['delta_cm']:+.2f} cm "
                            f"({w['clip']}, {w['joint']} {w['axis']})")
+    for name, w in result.get("worst_regression_3d", {}).items():  # (absent from results before session 26)
+        if "clip" in w:
+            t.notes.append(f"{name}: worst 3D RMSE increase over its filter {w['delta_cm']:+.2f} cm "
+                           f"({w['clip']}, {w['joint']})")
     for name, g in result["lost_joint_gain"].items():
         if g["pairs"]:
+            d3 = (f"; 3D {g['filter_3d_cm']:.2f} -> {g['corrected_3d_cm']:.2f}"
+                  if g.get("filter_3d_cm") is not None else "")
             t.notes.append(f"{name}: z RMSE on the {g['pairs']} (clip, joint) pairs the camera loses "
                            f"(>= {LOST_SHARE:.0%} of frames): filter {g['filter_z_cm']:.2f} -> "
-                           f"{g['corrected_z_cm']:.2f} cm")
+                           f"{g['corrected_z_cm']:.2f} cm{d3}")
         if g.get("only_frames"):
             t.notes.append(f"{name}: a depth on {g['only_frames']} joint-frames where its filter has none "
                            f"(z RMSE {g['only_z_cm']:.2f} cm there)")
