@@ -173,6 +173,13 @@ def test_the_3d_figures_weigh_a_trade_of_one_axis_for_the_others():
     assert g["pairs"] == 2
     assert g["filter_3d_cm"] == pytest.approx((math.sqrt(74.0) + math.sqrt(3.0)) / 2)
     assert g["corrected_3d_cm"] == pytest.approx((math.sqrt(30.0) + math.sqrt(4.25)) / 2)
+    result = {"protocol": "ours", "methods": ["EKF", "AKC+(EKF)"], "clips": clips,
+              "pooled_rmse_cm": {m: clips[0]["methods"][m]["rmse_cm"] for m in ("EKF", "AKC+(EKF)")},
+              "worst_regression": {"AKC+(EKF)": w}, "worst_regression_3d": {"AKC+(EKF)": w3},
+              "lost_joint_gain": {"AKC+(EKF)": g}}
+    notes = motion_dir_tables(result)[-1].notes
+    assert "AKC+(EKF): worst 3D RMSE increase over its filter +0.33 cm (b, left_shoulder)" in notes
+    assert any(n.endswith("filter 2.00 -> 3.25 cm; 3D 5.17 -> 3.77") for n in notes)
 
 
 def test_evaluate_clip_returns_plain_metrics_and_pooling_is_exact():
