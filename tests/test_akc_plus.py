@@ -1187,6 +1187,45 @@ def test_a_seen_elbow_projected_in_front_of_its_reading_is_put_behind_it():
     assert out[LE, 2] < f[LE, 2] - 0.05
 
 
+def test_a_projected_arm_whose_elbow_is_in_front_of_its_reading_takes_the_configuration_behind_it():
+    # As above with a filter twice as unsure of the depths (7 cm): the arm passes the lengths' test and the whole arm
+    # is projected (the shoulder too), tipping to the mirror (the elbow 21 cm in front of the truth, 5.3 in front of
+    # its reading); the projection from the elbow's candidate behind the shoulder puts it within 2 cm of the truth.
+    p, dims = arm_pose(elbow_dir_l=(-0.2, 0.94, 0.43), wrist_dir_l=(-0.07, 0.58, -0.41))
+    f = p.copy()
+    f[LE, 2] -= 0.16
+    f[LW, 2] += 0.05
+    hand_follows(f, p)
+    out = settled_corrector(p, dims).correct(f, measured=f, variance=kf_var(z=5e-3)).pose
+    assert np.linalg.norm(out[LE] - p[LE]) < 0.02 and np.linalg.norm(out[LW] - p[LW]) < 0.025
+    assert 0.005 < np.linalg.norm(out[LS] - p[LS]) < 0.015  # (projected with the arm, not kept)
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_after_an_ekf_a_long_lost_elbow_counts_the_filter_no_surer_than_the_held_upper_arm():
+    # The elbow and the wrist lost altogether, the arm still; the EKF runs both on at 3 cm a frame in x, claiming
+    # 7 cm. From the fourth frame the elbow's filter counts no surer than the upper arm held at the seen shoulder:
+    # the eighth frame 11.0 cm off, not 17.1.
+    p, dims = arm_pose()
+    m = p.copy()
+    m[[LE, LW]] = np.nan
+    err = {}
+    for constrained in (True, False):
+        akc = settled_corrector(p, dims, AKCPlusConfig(constrained_filter=constrained))
+        err[constrained] = []
+        for k in range(1, 9):
+            f = p.copy()
+            f[[LE, LW], 0] += 0.03 * k
+            var = kf_var()
+            var[[LE, LW]] = 0.07**2
+            out = akc.correct(f, measured=m, variance=var).pose
+            err[constrained].append(np.linalg.norm(out[LE] - p[LE]))
+            assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert err[True][:3] == err[False][:3]
+    assert err[False][7] == pytest.approx(0.171, abs=0.005) and err[True][7] == pytest.approx(0.110, abs=0.005)
+
+
 def test_after_an_ekf_a_long_lost_wrist_counts_the_filter_no_surer_than_the_hold():
     # The hand stops while the detector loses it; an EKF's wrist runs on at 3 cm a frame in x, claiming 7 cm on
     # each axis (its bone constraints shrink the posterior of a joint nothing measures). For recent_frames (3)

@@ -152,7 +152,6 @@ def test_a_blind_wrist_is_the_product_of_the_filter_and_the_forearm_held_at_the_
     assert f2[6] == pytest.approx((0.1 * 1.0 + 0.06 * 0.1) / 0.16, rel=1e-12)
 
 
-
 def test_after_honest_frames_the_filter_counts_no_surer_than_the_hold():
     # A constrained filter's wrist, lost altogether: it claims 1 cm (1e-4) on each axis. Up to ``honest_frames``
     # blind frames it is believed (weight 0.02 / 0.0201 on it at the second frame); after them its variance
@@ -167,6 +166,10 @@ def test_after_honest_frames_the_filter_counts_no_surer_than_the_hold():
     f, vs = fused(1.0, 1e-4)  # the second blind frame: the filter's variance as it claims
     assert f[6] == pytest.approx((0.02 * 1.0 + 1e-4 * 0.1) / 0.0201, rel=1e-12)
     assert vs[6] == pytest.approx(1e-4 * 0.02 / 0.0201, rel=1e-12)
+    f, vs = fused(2.0, 1e-4)  # the third: still as it claims (``honest_frames`` = 3)
+    assert vs[6] == pytest.approx(1e-4 * 0.03 / 0.0301, rel=1e-12)
+    f, vs = fused(3.0, 1e-4)  # the fourth: the hold's 0.04
+    assert vs[6] == pytest.approx(0.02, rel=1e-12) and f[6] == pytest.approx(0.55, rel=1e-12)
     f, vs = fused(4.0, 0.2)  # the fifth
     assert f[6] == pytest.approx((1.0 + 0.1) / 2, rel=1e-12) and f[7] == pytest.approx((2.0 + 0.3) / 2, rel=1e-12)
     assert vs[6] == pytest.approx(0.025, rel=1e-12) and vs[7] == pytest.approx(0.025, rel=1e-12)

@@ -265,7 +265,7 @@ def test_behind_surface_switches_only_with_evidence():
     nan = float("nan")
     assert behind_surface(arm, read, v, lu, lf, nan, 0.05, truth[5], 5e-5) is arm  # no reading
     assert behind_surface(arm, read, v, lu, lf, read[5], 0.05, nan, 5e-5) is arm  # no last output
-    assert behind_surface(arm, read, v, lu, lf, arm[5] + 0.05, 0.05, truth[5], 5e-5) is arm  # within the noise
+    assert behind_surface(arm, read, v, lu, lf, arm[5] + 0.04, 0.05, truth[5], 5e-5) is arm  # within the noise
     # The elbow's image position beyond the upper arm's reach of the shoulder: no candidate behind it.
     far = (*read[0:3], read[3] + 0.3, *read[4:9])
     assert behind_surface(arm, far, v, lu, lf, read[5], 0.05, truth[5], 5e-5) is arm

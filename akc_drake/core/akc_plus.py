@@ -60,8 +60,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   (``constrained_filter``), a joint lost for more than ``recent_frames`` counts its filter's extrapolation as no
   surer than the hold (each axis's variance at least the hold's): the bone constraints shrink the posterior of a
   joint nothing measures (mocapbank's right wrist, MediaPipe, lost 74 frames: 7-17 cm claimed in x, y while 25-37
-  cm off), and the fusion followed the drift (AKC+(EKF)'s mean 3D arm RMSE fell on all nine evaluation sets, 7.97
-  -> 7.08 cm on the rig with MediaPipe).
+  cm off), and the fusion followed the drift (AKC+(EKF)'s mean 3D RMSE of the lost joints fell on all nine evaluation
+  sets, 13.92 -> 11.10 cm on the rig with MediaPipe).
 * A shoulder whose depth the occlusion filter dropped, or that the detector lost altogether: its depth (then its
   x, y too) is the filter's fused with the shoulder held on the torso, our outputs' offset from the hips' centre
   while it was seen (a running mean, weight ``shoulder_alpha``, both hips' depths measured) carried by this
@@ -92,8 +92,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   front of the depth its pixel read: a camera reads the first surface on the ray, so the joint is at or behind it.
   The filter followed an elbow read on a surface in front (MediaPipe on the skinned body, bvhtools_a2: 12-19 cm),
   and the projection tipped to the mirror configuration, the elbow in front of the wrist. The projection from the
-  elbow's Pythagorean candidate behind the shoulder replaces it when that leaves the elbow behind its reading and
-  nearer our last output's (:func:`~akc_drake.core.akc_plus_lengths.behind_surface`; AKC+(KF)'s worst increase on
+  elbow's Pythagorean candidate behind the shoulder replaces it when that leaves the elbow behind its reading, its
+  depth nearer our last output's (:func:`~akc_drake.core.akc_plus_lengths.behind_surface`; AKC+(KF)'s worst increase on
   the MediaPipe windows +1.15 -> +0.80 cm).
 * A measured wrist its own hand hides: the forearm (the filter's elbow to the measured wrist) toward the camera,
   the wrist's pixel reads the hand, up to a hand's length in front (the elbow's depth is dropped then, its pixel

@@ -135,7 +135,7 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     return p, False
 
 
-def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2), floor_after=math.inf):
+def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2), honest_frames=math.inf):
     """A joint not measured this frame: the filter's estimate fused with the joint held at an offset from an anchor.
 
     Two Gaussian priors of the joint ``f[base:base + 3]``: the filter's (its covariance-matched variances
@@ -177,8 +177,8 @@ def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2), floor_after=mat
         i = base + k
         v = vs[i]
         if v == v:  # (a variance the filter does not know: NaN, left as it is)
-            if n > floor_after and v < vh:
-                v = vh
+            if n > honest_frames and v < vh:
+                v = vh  # (no surer than the hold: ``honest_frames``)
             s = v + vh
             f[i] = (vh * f[i] + v * (anchor[k] + held[k])) / s
             vs[i] = v * vh / s

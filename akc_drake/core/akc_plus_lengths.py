@@ -238,9 +238,9 @@ def behind_surface(arm, f, v, lu, lf, z_read, tol, z_prev, offset_var=0.0, shoul
     arm's lengths contradict its depths, and the projection from the filter's elbow can tip to the mirror
     configuration: the elbow in front of the wrist, farther in front of its reading. The projection is then run
     again from the elbow's Pythagorean candidate behind the shoulder (eq. 8 at the elbow's image x, y), and its
-    arm is taken when it leaves the elbow behind the surface and nearer our previous output's elbow: no switch of
-    configuration without that evidence too (an elbow in front of its reading because its 2D position is off the
-    joint, the upper arm toward the camera, must not jump behind the shoulder).
+    arm is taken when it leaves the elbow behind the surface, its depth nearer our previous output's elbow's: no
+    switch of configuration without that evidence too (an elbow in front of its reading because its 2D position is
+    off the joint, the upper arm toward the camera, must not jump behind the shoulder).
 
     Args:
         arm: the projected arm (nine floats); its elbow's depth is ``arm[5]``.

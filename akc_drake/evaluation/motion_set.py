@@ -345,7 +345,6 @@ def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
     return worst
 
 
-
 def _norm3(v) -> float:
     """The 3D RMSE from per-axis RMSEs: the root of the sum of the three axes' mean squared errors."""
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
@@ -368,6 +367,7 @@ def worst_regression_3d(results: list[dict], corrected: str, filt: str) -> dict:
             if dlt > worst["delta_cm"]:
                 worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "paired": p is not None}
     return worst
+
 
 def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
     """Mean z RMSE of ``filt`` and ``corrected`` over the (clip, joint) pairs the camera loses (cm).
@@ -540,7 +540,8 @@ def motion_dir_tables(result: dict) -> list:
                            f"({w['clip']}, {w['joint']} {w['axis']})")
     for name, w in result.get("worst_regression_3d", {}).items():  # (absent from results before session 26)
         if "clip" in w:
-            t.notes.append(f"{name}: worst 3D RMSE increase over its filter {w['delta_cm']:+.2f} cm "
+            on = " on the frames both estimate" if w.get("paired") else ""
+            t.notes.append(f"{name}: worst 3D RMSE increase over its filter{on} {w['delta_cm']:+.2f} cm "
                            f"({w['clip']}, {w['joint']})")
     for name, g in result["lost_joint_gain"].items():
         if g["pairs"]:
