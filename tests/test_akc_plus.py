@@ -1163,22 +1163,34 @@ def test_after_an_ekf_the_lengths_test_is_of_the_arm_as_measured():
     assert abs(out[True][LW, 2] - m[LW, 2]) < abs(out[False][LW, 2] - m[LW, 2]) - 0.005
 
 
+def _elbow_read_in_front(elbow_dir_l, wrist_dir_l, elbow_front_m, wrist_behind_m):
+    """An exact left arm (``arm_pose``), and its reading with the elbow that far in front and the wrist that far
+    behind (the hand read with the wrist): ``(p, dims, f)``, ``f`` the filter's pose and the measurement."""
+    p, dims = arm_pose(elbow_dir_l=elbow_dir_l, wrist_dir_l=wrist_dir_l)
+    f = p.copy()
+    f[LE, 2] -= elbow_front_m
+    f[LW, 2] += wrist_behind_m
+    return p, dims, hand_follows(f, p)
+
+
+def _corrected_near_the_truth(p, dims, f, var):
+    """A corrector settled on ``p`` corrects ``f`` (measured as read): the elbow within 2 cm of the truth, the wrist
+    within 2.5, the lengths exact. Returns the pose."""
+    out = settled_corrector(p, dims).correct(f, measured=f, variance=var).pose
+    assert np.linalg.norm(out[LE] - p[LE]) < 0.02 and np.linalg.norm(out[LW] - p[LW]) < 0.025
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    return out
+
 def test_a_seen_elbow_projected_in_front_of_its_reading_is_put_behind_it():
     # The elbow 9 cm behind the shoulder, the forearm toward the camera; the elbow read (and filtered) 15 cm in
     # front, on a surface before it, the wrist 4 cm behind: the forearm nearly parallel to the image plane, 8 cm
     # short. The projection tipped to the mirror (the elbow 23 cm in front of the truth, the wrist 7 cm behind);
     # a camera reads the first surface on the ray, so the elbow is put behind its reading, in the configuration
     # our last output had. With our last output's elbow in front, the mirror stays (no switch without evidence).
-    p, dims = arm_pose(elbow_dir_l=(-0.15, 0.94, 0.31), wrist_dir_l=(-0.15, 0.6, -0.78))
-    f = p.copy()
-    f[LE, 2] -= 0.15
-    f[LW, 2] += 0.04
-    hand_follows(f, p)
-    out = settled_corrector(p, dims).correct(f, measured=f, variance=kf_var()).pose
-    assert np.linalg.norm(out[LE] - p[LE]) < 0.02 and np.linalg.norm(out[LW] - p[LW]) < 0.025
+    p, dims, f = _elbow_read_in_front((-0.15, 0.94, 0.31), (-0.15, 0.6, -0.78), 0.15, 0.04)
+    out = _corrected_near_the_truth(p, dims, f, kf_var())
     assert out[LE, 2] > f[LE, 2] + 0.1
-    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
-    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
     akc = settled_corrector(p, dims)
     state = akc.get_state_vector()
     state[5] = p[LE, 2] - 0.25  # (the left elbow's depth in our last output)
@@ -1191,37 +1203,37 @@ def test_a_projected_arm_whose_elbow_is_in_front_of_its_reading_takes_the_config
     # As above with a filter twice as unsure of the depths (7 cm): the arm passes the lengths' test and the whole arm
     # is projected (the shoulder too), tipping to the mirror (the elbow 21 cm in front of the truth, 5.3 in front of
     # its reading); the projection from the elbow's candidate behind the shoulder puts it within 2 cm of the truth.
-    p, dims = arm_pose(elbow_dir_l=(-0.2, 0.94, 0.43), wrist_dir_l=(-0.07, 0.58, -0.41))
-    f = p.copy()
-    f[LE, 2] -= 0.16
-    f[LW, 2] += 0.05
-    hand_follows(f, p)
-    out = settled_corrector(p, dims).correct(f, measured=f, variance=kf_var(z=5e-3)).pose
-    assert np.linalg.norm(out[LE] - p[LE]) < 0.02 and np.linalg.norm(out[LW] - p[LW]) < 0.025
+    p, dims, f = _elbow_read_in_front((-0.2, 0.94, 0.43), (-0.07, 0.58, -0.41), 0.16, 0.05)
+    out = _corrected_near_the_truth(p, dims, f, kf_var(z=5e-3))
     assert 0.005 < np.linalg.norm(out[LS] - p[LS]) < 0.015  # (projected with the arm, not kept)
-    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
-    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
 
 
-def test_after_an_ekf_a_long_lost_elbow_counts_the_filter_no_surer_than_the_held_upper_arm():
-    # The elbow and the wrist lost altogether, the arm still; the EKF runs both on at 3 cm a frame in x, claiming
-    # 7 cm. From the fourth frame the elbow's filter counts no surer than the upper arm held at the seen shoulder:
-    # the eighth frame 11.0 cm off, not 17.1.
+def _lost_and_drifting(lost, joint):
+    """The arm still, the detector losing ``lost`` altogether for 8 frames while the filter runs them on at 3 cm a
+    frame in x claiming 7 cm on each axis: ``{constrained_filter: [joint's error per frame]}`` (lengths exact)."""
     p, dims = arm_pose()
     m = p.copy()
-    m[[LE, LW]] = np.nan
+    m[lost] = np.nan
     err = {}
     for constrained in (True, False):
         akc = settled_corrector(p, dims, AKCPlusConfig(constrained_filter=constrained))
         err[constrained] = []
         for k in range(1, 9):
             f = p.copy()
-            f[[LE, LW], 0] += 0.03 * k
+            f[lost, 0] += 0.03 * k
             var = kf_var()
-            var[[LE, LW]] = 0.07**2
+            var[lost] = 0.07**2
             out = akc.correct(f, measured=m, variance=var).pose
-            err[constrained].append(np.linalg.norm(out[LE] - p[LE]))
+            err[constrained].append(np.linalg.norm(out[joint] - p[joint]))
             assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+            assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    return err
+
+def test_after_an_ekf_a_long_lost_elbow_counts_the_filter_no_surer_than_the_held_upper_arm():
+    # The elbow and the wrist lost altogether, the arm still; the EKF runs both on at 3 cm a frame in x, claiming
+    # 7 cm. From the fourth frame the elbow's filter counts no surer than the upper arm held at the seen shoulder:
+    # the eighth frame 11.0 cm off, not 17.1.
+    err = _lost_and_drifting([LE, LW], LE)
     assert err[True][:3] == err[False][:3]
     assert err[False][7] == pytest.approx(0.171, abs=0.005) and err[True][7] == pytest.approx(0.110, abs=0.005)
 
@@ -1231,20 +1243,6 @@ def test_after_an_ekf_a_long_lost_wrist_counts_the_filter_no_surer_than_the_hold
     # each axis (its bone constraints shrink the posterior of a joint nothing measures). For recent_frames (3)
     # frames its variance is believed, as a KF's; then it counts no surer than the forearm held at the seen elbow:
     # the eighth frame 10 cm off, not 16.
-    p, dims = arm_pose()
-    m = p.copy()
-    m[LW] = np.nan
-    err = {}
-    for constrained in (True, False):
-        akc = settled_corrector(p, dims, AKCPlusConfig(constrained_filter=constrained))
-        err[constrained] = []
-        for k in range(1, 9):
-            f = p.copy()
-            f[LW, 0] += 0.03 * k
-            var = kf_var()
-            var[LW] = 0.07**2
-            out = akc.correct(f, measured=m, variance=var).pose
-            err[constrained].append(np.linalg.norm(out[LW] - p[LW]))
-            assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    err = _lost_and_drifting([LW], LW)
     assert err[True][:3] == err[False][:3]
     assert err[False][7] == pytest.approx(0.160, abs=0.005) and err[True][7] == pytest.approx(0.101, abs=0.005)

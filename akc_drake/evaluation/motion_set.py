@@ -325,6 +325,16 @@ def _compared(r: dict, corrected: str, filt: str):
     return r["methods"][corrected]["rmse_cm"], r["methods"][filt]["rmse_cm"], None
 
 
+def _joint_pairs(results: list[dict], corrected: str, filt: str):
+    """``(clip name, arm joint, corrected's RMSE, filt's RMSE, paired)`` for every clip that ran both methods
+    (:func:`_compared`)."""
+    for r in results:
+        if corrected not in r["methods"] or filt not in r["methods"]:
+            continue
+        a_all, b_all, p = _compared(r, corrected, filt)
+        for joint in ARM_JOINTS:
+            yield r["name"], joint, a_all[joint], b_all[joint], p is not None
+
 def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
     """The largest RMSE increase (cm) of ``corrected`` over ``filt`` on any clip, arm joint and axis.
 
@@ -332,16 +342,11 @@ def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
     recorded, compares each method's RMSE over its own frames).
     """
     worst = {"delta_cm": -math.inf}
-    for r in results:
-        if corrected not in r["methods"] or filt not in r["methods"]:
-            continue
-        a_all, b_all, p = _compared(r, corrected, filt)
-        for joint in ARM_JOINTS:
-            a, b = a_all[joint], b_all[joint]
-            for i, ax in enumerate(AXES):
-                dlt = a[i] - b[i]
-                if dlt > worst["delta_cm"]:
-                    worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "axis": ax, "paired": p is not None}
+    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt):
+        for i, ax in enumerate(AXES):
+            dlt = a[i] - b[i]
+            if dlt > worst["delta_cm"]:
+                worst = {"delta_cm": dlt, "clip": name, "joint": joint, "axis": ax, "paired": paired}
     return worst
 
 
@@ -358,14 +363,10 @@ def worst_regression_3d(results: list[dict], corrected: str, filt: str) -> dict:
     shows here what the per-axis figure does not.
     """
     worst = {"delta_cm": -math.inf}
-    for r in results:
-        if corrected not in r["methods"] or filt not in r["methods"]:
-            continue
-        a_all, b_all, p = _compared(r, corrected, filt)
-        for joint in ARM_JOINTS:
-            dlt = _norm3(a_all[joint]) - _norm3(b_all[joint])
-            if dlt > worst["delta_cm"]:
-                worst = {"delta_cm": dlt, "clip": r["name"], "joint": joint, "paired": p is not None}
+    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt):
+        dlt = _norm3(a) - _norm3(b)
+        if dlt > worst["delta_cm"]:
+            worst = {"delta_cm": dlt, "clip": name, "joint": joint, "paired": paired}
     return worst
 
 
