@@ -100,6 +100,11 @@ def _result():
         for j in ARM_JOINTS:  # the paired frames and the corrector's own frames make up its frames
             np.testing.assert_array_equal(np.add(p["n"][j], p["only_n"][j]), r["methods"][m]["n"][j])
     assert "paired" not in r["methods"]["KF"]
+    ws = worst_regression([r], "AKC+(KF)", "KF", frames="seen")
+    assert ws["clip"] == "ub" and np.isfinite(ws["delta_cm"])
+    for j in ARM_JOINTS:  # the seen frames are some of the paired frames
+        assert np.all(np.less_equal(r["methods"]["AKC+(KF)"]["paired"]["seen_n"][j],
+                                    r["methods"]["AKC+(KF)"]["paired"]["n"][j]))
     g = lost_joint_gain([r], "AKC+(KF)", "KF")
     assert g["pairs"] >= 0
     result = {"protocol": "ours", "methods": methods, "clips": [r], "pooled_rmse_cm": pool,
@@ -149,6 +154,55 @@ def test_a_corrector_is_compared_with_its_filter_on_the_frames_both_estimate():
     assert g["only_frames"] == 2 and g["only_z_cm"] == pytest.approx(10.0)
     g = lost_joint_gain([clip(False)], "AKC+(KF)", "KF")
     assert g["only_frames"] is None and g["corrected_z_cm"] == pytest.approx(np.sqrt(204 / 6))
+
+
+def test_the_seen_frames_separate_the_easy_case_from_a_lost_joints_guess():
+    # The left elbow is lost on frames 0-2 (its depth failed the occlusion filter): there the corrector's guess is
+    # 10 cm off in z and the filter's drift 4 cm. On the frames it is seen the corrector is 1 cm off and the
+    # filter 2 cm. The right wrist is seen throughout, and the corrector moves it 3 cm on the last two frames.
+    T = 6
+    truth = np.zeros((T, 12, 3))
+    base = np.full((T, 12, 3), 0.02)
+    est = np.full((T, 12, 3), 0.01)
+    le, rw = INDEX["left_elbow"], INDEX["right_wrist"]
+    base[:3, le, 2], est[:3, le, 2] = 0.04, 0.10
+    est[4:, rw, 0] = 0.03
+    seen = np.ones((T, 12), bool)
+    seen[:3, le] = False
+    p = paired_errors(est, base, truth, "KF", seen=seen)
+    assert p["seen_n"]["left_elbow"] == [3, 3, 3] and p["n"]["left_elbow"] == [6, 6, 6]
+    np.testing.assert_allclose(p["seen_rmse_cm"]["left_elbow"], [1.0, 1.0, 1.0])
+    np.testing.assert_allclose(p["seen_filter_rmse_cm"]["left_elbow"], [2.0, 2.0, 2.0])
+    np.testing.assert_allclose(p["seen_rmse_cm"]["right_wrist"][0], math.sqrt((4 * 1 + 2 * 9) / 6))
+    lost = {k: 0.0 for k in ARM_JOINTS}
+    lost["left_elbow"] = 0.5
+    r = {"name": "c", "lost_share": lost,
+         "methods": {"AKC+(KF)": {"rmse_cm": p["rmse_cm"], "paired": p}, "KF": {"rmse_cm": p["filter_rmse_cm"]}}}
+    w = worst_regression([r], "AKC+(KF)", "KF")
+    assert (w["joint"], w["axis"]) == ("left_elbow", "z")
+    assert w["delta_cm"] == pytest.approx(math.sqrt((300 + 3) / 6) - math.sqrt((48 + 12) / 6))
+    ws = worst_regression([r], "AKC+(KF)", "KF", frames="seen")
+    assert (ws["joint"], ws["axis"]) == ("right_wrist", "x")
+    assert ws["delta_cm"] == pytest.approx(math.sqrt(22 / 6) - 2.0)
+    w3 = worst_regression_3d([r], "AKC+(KF)", "KF", frames="seen")
+    assert w3["joint"] == "right_wrist" and w3["delta_cm"] == pytest.approx(math.sqrt(22 / 6 + 2) - math.sqrt(12))
+    # A joint never seen, or a result recorded without the mask, is left out of the seen figures.
+    seen[:, :] = False
+    seen[:, rw] = True
+    p2 = paired_errors(est, base, truth, "KF", seen=seen)
+    assert p2["seen_n"]["left_elbow"] == [0, 0, 0]
+    r["methods"]["AKC+(KF)"]["paired"] = p2
+    ws2 = worst_regression([r], "AKC+(KF)", "KF", frames="seen")
+    assert ws2["joint"] == "right_wrist" and ws2["delta_cm"] == pytest.approx(ws["delta_cm"])
+    del r["methods"]["AKC+(KF)"]["paired"]
+    assert worst_regression([r], "AKC+(KF)", "KF", frames="seen") == {"delta_cm": -math.inf}
+    result = {"protocol": "ours", "methods": ["KF", "AKC+(KF)"], "clips": [r],
+              "pooled_rmse_cm": {"KF": p["filter_rmse_cm"], "AKC+(KF)": p["rmse_cm"]},
+              "worst_regression": {"AKC+(KF)": w}, "worst_regression_seen": {"AKC+(KF)": ws},
+              "worst_regression_seen_3d": {"AKC+(KF)": w3}, "lost_joint_gain": {}}
+    notes = motion_dir_tables(result)[-1].notes
+    assert ("AKC+(KF): worst increase over its filter on the frames the joint was seen (depth passed the "
+            "occlusion filter) -0.09 cm (c, right_wrist x)") in notes
 
 
 def test_the_3d_figures_weigh_a_trade_of_one_axis_for_the_others():

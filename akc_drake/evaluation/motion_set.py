@@ -252,11 +252,13 @@ def evaluate_clip(item: dict) -> dict:
         spec = parse_method(method)
         if spec.corrector != "none" and spec.filter in estimates:
             out["methods"][method]["paired"] = paired_errors(estimates[method], estimates[spec.filter],
-                                                             session.truth, spec.filter)
+                                                             session.truth, spec.filter,
+                                                             seen=np.isfinite(accepted[:, :, 2]))
     return out
 
 
-def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_name: str) -> dict:
+def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_name: str,
+                  seen: np.ndarray | None = None) -> dict:
     """A corrector's errors against its filter's on the frames where both give an estimate.
 
     Each method's ``rmse_cm`` is over its own frames. A corrector that gives an estimate where its filter has none
@@ -264,15 +266,22 @@ def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_nam
     comparison of the two: the paired RMSEs compare like with like, and the frames where only the corrector
     estimates are counted apart, with its RMSE there.
 
+    With ``seen``, the same pairs are also kept over the frames where the joint was seen: its depth measured and
+    passed by the occlusion filter. That is the easy case, the one a corrector must not make worse.
+
     Args:
         est: ``(T, 12, 3)`` the corrector's estimates; base: its filter's; truth: the ground truth (NaN where none).
         base_name: the filter's method name.
+        seen: ``(T, 12)`` bool, the joints whose depth passed the occlusion filter, or None.
 
     Returns:
         ``{"filter": base_name, "n": {joint: [x, y, z]}, "rmse_cm": {...}, "filter_rmse_cm": {...},
-        "only_n": {...}, "only_rmse_cm": {...}}`` (NaN where there is no frame).
+        "only_n": {...}, "only_rmse_cm": {...}}`` (NaN where there is no frame), and with ``seen`` also
+        ``"seen_n"``, ``"seen_rmse_cm"`` and ``"seen_filter_rmse_cm"``.
     """
     out: dict = {"filter": base_name, "n": {}, "rmse_cm": {}, "filter_rmse_cm": {}, "only_n": {}, "only_rmse_cm": {}}
+    if seen is not None:
+        out.update(seen_n={}, seen_rmse_cm={}, seen_filter_rmse_cm={})
 
     def rmse(e, ok):
         n = ok.sum(axis=0)
@@ -287,6 +296,10 @@ def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_nam
         out["rmse_cm"][joint], out["n"][joint] = rmse(e, both)
         out["filter_rmse_cm"][joint], _ = rmse(b, both)
         out["only_rmse_cm"][joint], out["only_n"][joint] = rmse(e, only)
+        if seen is not None:
+            both_seen = both & seen[:, j, None]
+            out["seen_rmse_cm"][joint], out["seen_n"][joint] = rmse(e, both_seen)
+            out["seen_filter_rmse_cm"][joint], _ = rmse(b, both_seen)
     return out
 
 
@@ -325,24 +338,32 @@ def _compared(r: dict, corrected: str, filt: str):
     return r["methods"][corrected]["rmse_cm"], r["methods"][filt]["rmse_cm"], None
 
 
-def _joint_pairs(results: list[dict], corrected: str, filt: str):
+def _joint_pairs(results: list[dict], corrected: str, filt: str, frames: str = "both"):
     """``(clip name, arm joint, corrected's RMSE, filt's RMSE, paired)`` for every clip that ran both methods
-    (:func:`_compared`)."""
+    (:func:`_compared`); with ``frames="seen"`` over the frames where the joint was seen, and only for the clips
+    and joints that recorded such frames."""
     for r in results:
         if corrected not in r["methods"] or filt not in r["methods"]:
             continue
         a_all, b_all, p = _compared(r, corrected, filt)
+        if frames == "seen":
+            if p is None or "seen_n" not in p:
+                continue
+            a_all, b_all = p["seen_rmse_cm"], p["seen_filter_rmse_cm"]
         for joint in ARM_JOINTS:
+            if frames == "seen" and not p["seen_n"][joint][2]:
+                continue
             yield r["name"], joint, a_all[joint], b_all[joint], p is not None
 
-def worst_regression(results: list[dict], corrected: str, filt: str) -> dict:
+def worst_regression(results: list[dict], corrected: str, filt: str, frames: str = "both") -> dict:
     """The largest RMSE increase (cm) of ``corrected`` over ``filt`` on any clip, arm joint and axis.
 
     On the frames where both estimate (``"paired": True``; a result without paired errors, from before they were
-    recorded, compares each method's RMSE over its own frames).
+    recorded, compares each method's RMSE over its own frames); with ``frames="seen"``, on those of them where
+    the joint was seen (:func:`paired_errors`).
     """
     worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt):
+    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt, frames):
         for i, ax in enumerate(AXES):
             dlt = a[i] - b[i]
             if dlt > worst["delta_cm"]:
@@ -355,15 +376,15 @@ def _norm3(v) -> float:
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-def worst_regression_3d(results: list[dict], corrected: str, filt: str) -> dict:
+def worst_regression_3d(results: list[dict], corrected: str, filt: str, frames: str = "both") -> dict:
     """The largest 3D RMSE increase (cm) of ``corrected`` over ``filt`` on any clip and arm joint.
 
     The 3D RMSE is the root of the sum of the three axes' mean squared errors, each axis paired as in
-    :func:`worst_regression`. A corrector that trades one axis for the others (a lost joint's depth for its x, y)
-    shows here what the per-axis figure does not.
+    :func:`worst_regression` (``frames`` too). A corrector that trades one axis for the others (a lost joint's
+    depth for its x, y) shows here what the per-axis figure does not.
     """
     worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt):
+    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt, frames):
         dlt = _norm3(a) - _norm3(b)
         if dlt > worst["delta_cm"]:
             worst = {"delta_cm": dlt, "clip": name, "joint": joint, "paired": paired}
@@ -444,7 +465,8 @@ def evaluate_motion_dir(
 
     Returns:
         ``{"protocol", "seed", "body", "detector", "akc_plus", "methods", "dims_cm", "clips": [evaluate_clip results],
-        "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "lost_joint_gain",
+        "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "worst_regression_seen",
+        "worst_regression_seen_3d" (the same over the frames each joint was seen), "lost_joint_gain",
         "render_cache": {"dir", "hits", "misses"}, "elapsed_s"}``.
     """
     from akc_drake.evaluation.cache import _resolve
@@ -493,6 +515,8 @@ def evaluate_motion_dir(
         "pooled_rmse_cm": pooled(results, methods),
         "worst_regression": {},
         "worst_regression_3d": {},
+        "worst_regression_seen": {},
+        "worst_regression_seen_3d": {},
         "lost_joint_gain": {},
         "render_cache": {"dir": None if root is None else str(root), "hits": hits,
                          "misses": 1 + len(results) - hits},
@@ -503,6 +527,8 @@ def evaluate_motion_dir(
             if name in methods and filt in methods:
                 out["worst_regression"][name] = worst_regression(results, name, filt)
                 out["worst_regression_3d"][name] = worst_regression_3d(results, name, filt)
+                out["worst_regression_seen"][name] = worst_regression(results, name, filt, "seen")
+                out["worst_regression_seen_3d"][name] = worst_regression_3d(results, name, filt, "seen")
                 out["lost_joint_gain"][name] = lost_joint_gain(results, name, filt)
     out["elapsed_s"] = time.perf_counter() - t0
     return out
@@ -544,6 +570,12 @@ def motion_dir_tables(result: dict) -> list:
             on = " on the frames both estimate" if w.get("paired") else ""
             t.notes.append(f"{name}: worst 3D RMSE increase over its filter{on} {w['delta_cm']:+.2f} cm "
                            f"({w['clip']}, {w['joint']})")
+    for key, what in (("worst_regression_seen", "worst increase"), ("worst_regression_seen_3d", "worst 3D increase")):
+        for name, w in result.get(key, {}).items():  # (absent from results before session 30)
+            if "clip" in w:
+                at = f"{w['joint']} {w['axis']}" if "axis" in w else w["joint"]
+                t.notes.append(f"{name}: {what} over its filter on the frames the joint was seen (depth passed "
+                               f"the occlusion filter) {w['delta_cm']:+.2f} cm ({w['clip']}, {at})")
     for name, g in result["lost_joint_gain"].items():
         if g["pairs"]:
             d3 = (f"; 3D {g['filter_3d_cm']:.2f} -> {g['corrected_3d_cm']:.2f}"
