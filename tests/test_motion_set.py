@@ -196,6 +196,8 @@ def test_the_seen_frames_separate_the_easy_case_from_a_lost_joints_guess():
     assert ws2["joint"] == "right_wrist" and ws2["delta_cm"] == pytest.approx(ws["delta_cm"])
     del r["methods"]["AKC+(KF)"]["paired"]
     assert worst_regression([r], "AKC+(KF)", "KF", frames="seen") == {"delta_cm": -math.inf}
+    with pytest.raises(ValueError, match="frames must be"):
+        worst_regression([r], "AKC+(KF)", "KF", frames="lost")
     result = {"protocol": "ours", "methods": ["KF", "AKC+(KF)"], "clips": [r],
               "pooled_rmse_cm": {"KF": p["filter_rmse_cm"], "AKC+(KF)": p["rmse_cm"]},
               "worst_regression": {"AKC+(KF)": w}, "worst_regression_seen": {"AKC+(KF)": ws},

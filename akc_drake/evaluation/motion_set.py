@@ -342,6 +342,8 @@ def _joint_pairs(results: list[dict], corrected: str, filt: str, frames: str = "
     """``(clip name, arm joint, corrected's RMSE, filt's RMSE, paired)`` for every clip that ran both methods
     (:func:`_compared`); with ``frames="seen"`` over the frames where the joint was seen, and only for the clips
     and joints that recorded such frames."""
+    if frames not in ("both", "seen"):
+        raise ValueError(f"frames must be 'both' or 'seen', got {frames!r}")
     for r in results:
         if corrected not in r["methods"] or filt not in r["methods"]:
             continue
