@@ -118,6 +118,7 @@ def test_ray_check_takes_the_measurement_only_off_the_measured_ray():
     vs = list(var)
     ray_check(m, offs, f, vs, *args)
     assert f[:3] == [0.18 * 2.3 / 2.0, 0.0, 2.3] and vs == var
+    vs = list(var)
     # The filter's shoulder 10 cm off the ray in y: the measured point and its variances replace it.
     f = [0.18, 0.10, 2.3] + m[3:9]
     ray_check(m, offs, f, vs, *args)
@@ -163,6 +164,28 @@ def test_ray_check_takes_the_measurement_that_agrees_with_our_last_output_agains
     f = [0.18 * 2.12 / 2.0, 0.0, 2.12] + m[3:9]
     ray_check(m, offs, f, list(var), *args, prev, 0.05)
     assert f[2] == 2.12
+
+
+def test_ray_check_takes_a_depth_behind_a_filter_that_moved_in_front_of_our_last_output():
+    # An EKF whose bone constraint pulls a seen shoulder 14 cm in front (1.86 m), on the ray; the depth read
+    # (2.0 m) is behind it, where no occluder reads, and 8 cm from our last output (2.08 m), nearer it than the
+    # filter: the measurement replaces the filter. A reading behind that our last output does not support (it was
+    # at the filter's depth: a pixel on the torso behind), or no last output (a KF), stays rejected.
+    from akc_drake.core.arm_geometry import ray_check
+
+    offs = (0, 3, 6)
+    nan = float("nan")
+    m = [0.18, 0.0, 2.0, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7] + [nan] * 27
+    var = [1e-4, 1e-4, 1e-3] * 3
+    args = (var + [1e-4] * 27, 1e-4, 2.5e-3, 9.0, 11.8)
+    filt = [0.18 * 1.86 / 2.0, 0.0, 1.86] + m[3:9]
+    f, vs = list(filt), list(var)
+    ray_check(m, offs, f, vs, *args, (0.18, 0.0, 2.08, *m[3:9]), 0.05)
+    assert f[:3] == m[:3] and vs[:3] == [1e-4, 1e-4, 2.5e-3] and vs[3:] == var[3:]
+    for prev in ((0.18 * 1.86 / 2.0, 0.0, 1.86, *m[3:9]), None):
+        f = list(filt)
+        ray_check(m, offs, f, list(var), *args, prev, 0.05)
+        assert f == filt
 
 
 def test_behind_hand_puts_a_wrist_its_hand_hides_a_hands_length_behind_the_knuckles():

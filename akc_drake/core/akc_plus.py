@@ -19,7 +19,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
   (chi2, 2 dof) is the filter's error (e.g. the paper's per-joint EKF, whose bone constraint moves a seen
   joint towards a lost neighbour), and the measured point replaces it, with the measurement's variance; so does
-  an EKF's depth that jumped from our last output when the measurement agrees with it (``ray_check``).
+  an EKF's depth that jumped from our last output when the measurement agrees with it, or that moved in front of
+  it when the measurement is behind (an occluder is in front of the joint, not behind it: ``ray_check``).
 * *Reach*: a measured point that replaced the filter's (ray test, covariance matching) farther from another
   joint measured this frame than the arm's calibrated lengths reach (chi2 of the stretch) is no reading of the
   joint (the background behind a landmark off the body's edge, 1-1.5 m deep with MediaPipe): the filter's point

@@ -154,9 +154,15 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate, prev=None, agree=0.0)
     the joint (e.g. an EKF whose bone constraint moved a seen joint towards a lost neighbour) and is no evidence:
     the measured point replaces it in ``f``, with the measurement's variances in ``vs`` (both changed in place).
     A rejected depth on the filter's ray stays rejected (an occluder's), unless ``prev`` (our last output of the
-    arm, given for a filter whose constraints move seen joints: an EKF) agrees with it within ``agree`` while the
-    filter's depth is beyond the gate of ``r_z`` from that output: two against one, the filter jumped (the paper's
-    per-joint EKF swung mocapbank's seen shoulder 23 cm behind and 28 in front on alternate frames, on the ray).
+    arm, given for a filter whose constraints move seen joints: an EKF) sides with the measurement:
+    * it agrees with it within ``agree`` while the filter's depth is beyond the gate of ``r_z`` from that output:
+      two against one, the filter jumped (the paper's per-joint EKF swung mocapbank's seen shoulder 23 cm behind
+      and 28 in front on alternate frames, on the ray);
+    * or the measured depth is behind the filter's and nearer our last output than the filter's is: no occluder
+      reads behind the joint, and the filter moved away from it (the paper's per-joint EKF, its bone constraint
+      pulling a seen elbow 20-28 cm in front of its reading towards a lost wrist: mocapbank, simulated detector,
+      seed 2; AKC+(EKF) kept that elbow, and the lost wrist's z went +0.93 cm over the EKF's). A reading behind
+      that our last output does not support (a wrist's pixel on the torso behind the hand) stays rejected.
     A filter's point at or behind the camera (no ray to compare; no joint is there: the paper's per-joint EKF
     diverged so on mocapbank driven bone by bone) is replaced likewise.
 
@@ -180,7 +186,8 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate, prev=None, agree=0.0)
                 off = dx * dx / (r_xy + vs[i] * k2) + dy * dy / (r_xy + vs[i + 1] * k2) > gate
                 if not off and prev is not None and mx == mx and my == my:
                     pz = prev[i + 2]
-                    off = abs(mz - pz) <= agree and (fz - pz) ** 2 > g2 * r_z
+                    off = (abs(mz - pz) <= agree and (fz - pz) ** 2 > g2 * r_z) or (
+                        mz > fz and abs(mz - pz) < abs(fz - pz))
             else:  # (the filter's point behind the camera, where no joint is: a diverged filter)
                 off = mz > 0.0 and mx == mx and my == my
             if off:
