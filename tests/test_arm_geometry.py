@@ -7,6 +7,7 @@ from akc_drake.core.arm_geometry import (
     bends_backwards,
     circle_point,
     elbow_angle_deg,
+    ray_check,
     signed_elbow_angle_deg,
     torso_axes,
     turn_with,
@@ -104,21 +105,24 @@ def test_rebuild_variance_adds_the_mirror_candidates_risk():
     assert vague - base == pytest.approx(2 * dz2, rel=1e-3)
 
 
-def test_ray_check_takes_the_measurement_only_off_the_measured_ray():
-    from akc_drake.core.arm_geometry import ray_check
-
-    offs = (0, 3, 6)
+def _ray_case():
+    """An arm's offsets and measurement (shoulder, elbow, wrist first in the flat 36, the rest NaN), its
+    variances, and ``ray_check``'s further arguments: the filter's flat variances (P), the image's and the depth's
+    R, the innovation gate squared and the chi2 gate."""
     nan = float("nan")
     m = [0.18, 0.0, 2.0, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7] + [nan] * 27
     var = [1e-4, 1e-4, 1e-3] * 3
-    fvar = var + [1e-4] * 27  # the filter's flat variances (P)
-    args = (fvar, 1e-4, 2.5e-3, 9.0, 11.8)
+    return (0, 3, 6), m, var, (var + [1e-4] * 27, 1e-4, 2.5e-3, 9.0, 11.8)
+
+
+def test_ray_check_takes_the_measurement_only_off_the_measured_ray():
+    offs, m, var, args = _ray_case()
+    nan = float("nan")
     # The filter's shoulder on the measured ray but 30 cm deeper (an occluder's depth measured): kept.
     f = [0.18 * 2.3 / 2.0, 0.0, 2.3] + m[3:9]
     vs = list(var)
     ray_check(m, offs, f, vs, *args)
     assert f[:3] == [0.18 * 2.3 / 2.0, 0.0, 2.3] and vs == var
-    vs = list(var)
     # The filter's shoulder 10 cm off the ray in y: the measured point and its variances replace it.
     f = [0.18, 0.10, 2.3] + m[3:9]
     ray_check(m, offs, f, vs, *args)
@@ -144,13 +148,7 @@ def test_ray_check_takes_the_measurement_that_agrees_with_our_last_output_agains
     # An EKF whose constraints swing a seen shoulder 30 cm deeper in one frame, on the measured ray: the measured
     # depth agrees with our last output (within ``agree``), the filter is beyond the gate of R from it, so the
     # measurement replaces it. Without our last output, or with a measurement off it, the on-ray rule keeps it.
-    from akc_drake.core.arm_geometry import ray_check
-
-    offs = (0, 3, 6)
-    nan = float("nan")
-    m = [0.18, 0.0, 2.0, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7] + [nan] * 27
-    var = [1e-4, 1e-4, 1e-3] * 3
-    args = (var + [1e-4] * 27, 1e-4, 2.5e-3, 9.0, 11.8)
+    offs, m, var, args = _ray_case()
     prev = (0.18, 0.0, 2.02, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7)
     f = [0.18 * 2.3 / 2.0, 0.0, 2.3] + m[3:9]
     vs = list(var)
@@ -171,13 +169,7 @@ def test_ray_check_takes_a_depth_behind_a_filter_that_moved_in_front_of_our_last
     # (2.0 m) is behind it, where no occluder reads, and 8 cm from our last output (2.08 m), nearer it than the
     # filter: the measurement replaces the filter. A reading behind that our last output does not support (it was
     # at the filter's depth: a pixel on the torso behind), or no last output (a KF), stays rejected.
-    from akc_drake.core.arm_geometry import ray_check
-
-    offs = (0, 3, 6)
-    nan = float("nan")
-    m = [0.18, 0.0, 2.0, 0.3, 0.2, 1.9, 0.35, 0.4, 1.7] + [nan] * 27
-    var = [1e-4, 1e-4, 1e-3] * 3
-    args = (var + [1e-4] * 27, 1e-4, 2.5e-3, 9.0, 11.8)
+    offs, m, var, args = _ray_case()
     filt = [0.18 * 1.86 / 2.0, 0.0, 1.86] + m[3:9]
     f, vs = list(filt), list(var)
     ray_check(m, offs, f, vs, *args, (0.18, 0.0, 2.08, *m[3:9]), 0.05)

@@ -562,22 +562,17 @@ def motion_dir_tables(result: dict) -> list:
             vals.append([result["pooled_rmse_cm"][m][joint][axis_i] for m in methods])
     t = Table("pooled", f"Pooled RMSE (cm) over {len(result['clips'])} real mocap clips "
               f"({result['protocol']} protocol{_setup(result)})", rows, list(methods), np.array(vals))
-    for name, w in result["worst_regression"].items():
-        if "clip" in w:
-            on = " on the frames both estimate" if w.get("paired") else ""
-            t.notes.append(f"{name}: worst increase over its filter{on} {w['delta_cm']:+.2f} cm "
-                           f"({w['clip']}, {w['joint']} {w['axis']})")
-    for name, w in result.get("worst_regression_3d", {}).items():  # (absent from results before session 26)
-        if "clip" in w:
-            on = " on the frames both estimate" if w.get("paired") else ""
-            t.notes.append(f"{name}: worst 3D RMSE increase over its filter{on} {w['delta_cm']:+.2f} cm "
-                           f"({w['clip']}, {w['joint']})")
-    for key, what in (("worst_regression_seen", "worst increase"), ("worst_regression_seen_3d", "worst 3D increase")):
-        for name, w in result.get(key, {}).items():  # (absent from results before session 30)
+    seen_on = " on the frames the joint was seen (depth passed the occlusion filter)"
+    for key, what, seen in (("worst_regression", "worst increase", False),
+                            ("worst_regression_3d", "worst 3D RMSE increase", False),
+                            ("worst_regression_seen", "worst increase", True),
+                            ("worst_regression_seen_3d", "worst 3D increase", True)):
+        # (All but the first are absent from results before session 26 (3D) or 30 (seen).)
+        for name, w in (result[key] if key == "worst_regression" else result.get(key, {})).items():
             if "clip" in w:
+                on = seen_on if seen else (" on the frames both estimate" if w.get("paired") else "")
                 at = f"{w['joint']} {w['axis']}" if "axis" in w else w["joint"]
-                t.notes.append(f"{name}: {what} over its filter on the frames the joint was seen (depth passed "
-                               f"the occlusion filter) {w['delta_cm']:+.2f} cm ({w['clip']}, {at})")
+                t.notes.append(f"{name}: {what} over its filter{on} {w['delta_cm']:+.2f} cm ({w['clip']}, {at})")
     for name, g in result["lost_joint_gain"].items():
         if g["pairs"]:
             d3 = (f"; 3D {g['filter_3d_cm']:.2f} -> {g['corrected_3d_cm']:.2f}"
