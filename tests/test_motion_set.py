@@ -11,6 +11,7 @@ from akc_drake.errors import UserError
 from akc_drake.evaluation.motion_set import (
     evaluate_clip,
     find_clips,
+    lost_frames,
     lost_joint_gain,
     motion_dir_tables,
     paired_errors,
@@ -174,6 +175,10 @@ def test_the_seen_frames_separate_the_easy_case_from_a_lost_joints_guess():
     np.testing.assert_allclose(p["seen_rmse_cm"]["left_elbow"], [1.0, 1.0, 1.0])
     np.testing.assert_allclose(p["seen_filter_rmse_cm"]["left_elbow"], [2.0, 2.0, 2.0])
     np.testing.assert_allclose(p["seen_rmse_cm"]["right_wrist"][0], math.sqrt((4 * 1 + 2 * 9) / 6))
+    # The lost frames are the other paired ones: the left elbow's frames 0-2, none of the right wrist's.
+    assert p["lost_n"]["left_elbow"] == [3, 3, 3] and p["lost_n"]["right_wrist"] == [0, 0, 0]
+    np.testing.assert_allclose(p["lost_rmse_cm"]["left_elbow"], [1.0, 1.0, 10.0])
+    np.testing.assert_allclose(p["lost_filter_rmse_cm"]["left_elbow"], [2.0, 2.0, 4.0])
     lost = {k: 0.0 for k in ARM_JOINTS}
     lost["left_elbow"] = 0.5
     r = {"name": "c", "lost_share": lost,
@@ -186,6 +191,16 @@ def test_the_seen_frames_separate_the_easy_case_from_a_lost_joints_guess():
     assert ws["delta_cm"] == pytest.approx(math.sqrt(22 / 6) - 2.0)
     w3 = worst_regression_3d([r], "AKC+(KF)", "KF", frames="seen")
     assert w3["joint"] == "right_wrist" and w3["delta_cm"] == pytest.approx(math.sqrt(22 / 6 + 2) - math.sqrt(12))
+    # On its lost frames the guess is 6 cm worse in z and 1 cm better in x and y; no joint without lost frames
+    # counts (the right wrist, 0 of them), so the largest 3D increase is the elbow's.
+    wl = worst_regression([r], "AKC+(KF)", "KF", frames="lost")
+    assert (wl["joint"], wl["axis"]) == ("left_elbow", "z") and wl["delta_cm"] == pytest.approx(6.0)
+    wl3 = worst_regression_3d([r], "AKC+(KF)", "KF", frames="lost")
+    assert wl3["joint"] == "left_elbow" and wl3["delta_cm"] == pytest.approx(math.sqrt(102) - math.sqrt(24))
+    assert wl3["frames"] == 3 and ws["frames"] == 6 and "frames" not in w
+    lf = lost_frames([r], "AKC+(KF)", "KF")
+    assert (lf["frames"], lf["pairs"], lf["pairs_worse_3d"]) == (3, 1, 1)
+    assert lf["corrected_3d_cm"] == pytest.approx(math.sqrt(102)) and lf["filter_3d_cm"] == pytest.approx(math.sqrt(24))
     # A joint never seen, or a result recorded without the mask, is left out of the seen figures.
     seen[:, :] = False
     seen[:, rw] = True
@@ -197,14 +212,20 @@ def test_the_seen_frames_separate_the_easy_case_from_a_lost_joints_guess():
     del r["methods"]["AKC+(KF)"]["paired"]
     assert worst_regression([r], "AKC+(KF)", "KF", frames="seen") == {"delta_cm": -math.inf}
     with pytest.raises(ValueError, match="frames must be"):
-        worst_regression([r], "AKC+(KF)", "KF", frames="lost")
+        worst_regression([r], "AKC+(KF)", "KF", frames="unseen")
     result = {"protocol": "ours", "methods": ["KF", "AKC+(KF)"], "clips": [r],
               "pooled_rmse_cm": {"KF": p["filter_rmse_cm"], "AKC+(KF)": p["rmse_cm"]},
               "worst_regression": {"AKC+(KF)": w}, "worst_regression_seen": {"AKC+(KF)": ws},
-              "worst_regression_seen_3d": {"AKC+(KF)": w3}, "lost_joint_gain": {}}
+              "worst_regression_seen_3d": {"AKC+(KF)": w3}, "worst_regression_lost_3d": {"AKC+(KF)": wl3},
+              "lost_joint_gain": {"AKC+(KF)": lost_joint_gain([r], "AKC+(KF)", "KF")},
+              "lost_frames": {"AKC+(KF)": lf}}
     notes = motion_dir_tables(result)[-1].notes
     assert ("AKC+(KF): worst increase over its filter on the frames the joint was seen (depth passed the "
-            "occlusion filter) -0.09 cm (c, right_wrist x)") in notes
+            "occlusion filter) -0.09 cm (c, right_wrist x, 6 frames)") in notes
+    assert ("AKC+(KF): worst 3D increase over its filter on the frames the joint was lost (depth dropped or not "
+            f"measured) {math.sqrt(102) - math.sqrt(24):+.2f} cm (c, left_elbow, 3 frames)") in notes
+    assert ("AKC+(KF): 3D RMSE over the 3 joint-frames an arm joint was lost: filter 4.90 -> 10.10 cm; worse on 1 "
+            "of 1 (clip, joint) pairs") in notes
 
 
 def test_the_3d_figures_weigh_a_trade_of_one_axis_for_the_others():

@@ -267,7 +267,9 @@ def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_nam
     estimates are counted apart, with its RMSE there.
 
     With ``seen``, the same pairs are also kept over the frames where the joint was seen: its depth measured and
-    passed by the occlusion filter. That is the easy case, the one a corrector must not make worse.
+    passed by the occlusion filter. That is the easy case, the one a corrector must not make worse. And over the
+    other frames both estimate, where the joint was lost (its depth dropped or not measured): the guesses, which a
+    corrector must make better.
 
     Args:
         est: ``(T, 12, 3)`` the corrector's estimates; base: its filter's; truth: the ground truth (NaN where none).
@@ -277,11 +279,12 @@ def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_nam
     Returns:
         ``{"filter": base_name, "n": {joint: [x, y, z]}, "rmse_cm": {...}, "filter_rmse_cm": {...},
         "only_n": {...}, "only_rmse_cm": {...}}`` (NaN where there is no frame), and with ``seen`` also
-        ``"seen_n"``, ``"seen_rmse_cm"`` and ``"seen_filter_rmse_cm"``.
+        ``"seen_n"``, ``"seen_rmse_cm"``, ``"seen_filter_rmse_cm"`` and the same three with ``lost_``.
     """
     out: dict = {"filter": base_name, "n": {}, "rmse_cm": {}, "filter_rmse_cm": {}, "only_n": {}, "only_rmse_cm": {}}
     if seen is not None:
-        out.update(seen_n={}, seen_rmse_cm={}, seen_filter_rmse_cm={})
+        out.update(seen_n={}, seen_rmse_cm={}, seen_filter_rmse_cm={}, lost_n={}, lost_rmse_cm={},
+                   lost_filter_rmse_cm={})
 
     def rmse(e, ok):
         n = ok.sum(axis=0)
@@ -297,9 +300,9 @@ def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_nam
         out["filter_rmse_cm"][joint], _ = rmse(b, both)
         out["only_rmse_cm"][joint], out["only_n"][joint] = rmse(e, only)
         if seen is not None:
-            both_seen = both & seen[:, j, None]
-            out["seen_rmse_cm"][joint], out["seen_n"][joint] = rmse(e, both_seen)
-            out["seen_filter_rmse_cm"][joint], _ = rmse(b, both_seen)
+            for key, ok in (("seen", both & seen[:, j, None]), ("lost", both & ~seen[:, j, None])):
+                out[f"{key}_rmse_cm"][joint], out[f"{key}_n"][joint] = rmse(e, ok)
+                out[f"{key}_filter_rmse_cm"][joint], _ = rmse(b, ok)
     return out
 
 
@@ -339,37 +342,40 @@ def _compared(r: dict, corrected: str, filt: str):
 
 
 def _joint_pairs(results: list[dict], corrected: str, filt: str, frames: str = "both"):
-    """``(clip name, arm joint, corrected's RMSE, filt's RMSE, paired)`` for every clip that ran both methods
-    (:func:`_compared`); with ``frames="seen"`` over the frames where the joint was seen, and only for the clips
-    and joints that recorded such frames."""
-    if frames not in ("both", "seen"):
-        raise ValueError(f"frames must be 'both' or 'seen', got {frames!r}")
+    """``(clip name, arm joint, corrected's RMSE, filt's RMSE, paired, frames)`` for every clip that ran both
+    methods (:func:`_compared`); with ``frames="seen"`` (``"lost"``) over the frames where the joint was seen
+    (lost), and only for the clips and joints that recorded such frames (their number; None for ``"both"``)."""
+    if frames not in ("both", "seen", "lost"):
+        raise ValueError(f"frames must be 'both', 'seen' or 'lost', got {frames!r}")
     for r in results:
         if corrected not in r["methods"] or filt not in r["methods"]:
             continue
         a_all, b_all, p = _compared(r, corrected, filt)
-        if frames == "seen":
-            if p is None or "seen_n" not in p:
+        if frames != "both":
+            if p is None or f"{frames}_n" not in p:
                 continue
-            a_all, b_all = p["seen_rmse_cm"], p["seen_filter_rmse_cm"]
+            a_all, b_all = p[f"{frames}_rmse_cm"], p[f"{frames}_filter_rmse_cm"]
         for joint in ARM_JOINTS:
-            if frames == "seen" and not p["seen_n"][joint][2]:
+            n = None if frames == "both" else p[f"{frames}_n"][joint][2]
+            if n == 0:
                 continue
-            yield r["name"], joint, a_all[joint], b_all[joint], p is not None
+            yield r["name"], joint, a_all[joint], b_all[joint], p is not None, n
 
 def worst_regression(results: list[dict], corrected: str, filt: str, frames: str = "both") -> dict:
     """The largest RMSE increase (cm) of ``corrected`` over ``filt`` on any clip, arm joint and axis.
 
     On the frames where both estimate (``"paired": True``; a result without paired errors, from before they were
-    recorded, compares each method's RMSE over its own frames); with ``frames="seen"``, on those of them where
-    the joint was seen (:func:`paired_errors`).
+    recorded, compares each method's RMSE over its own frames); with ``frames="seen"`` (``"lost"``), on those of
+    them where the joint was seen (lost: :func:`paired_errors`), whose number is then the record's ``frames``.
     """
     worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt, frames):
+    for name, joint, a, b, paired, n in _joint_pairs(results, corrected, filt, frames):
         for i, ax in enumerate(AXES):
             dlt = a[i] - b[i]
             if dlt > worst["delta_cm"]:
                 worst = {"delta_cm": dlt, "clip": name, "joint": joint, "axis": ax, "paired": paired}
+                if n is not None:
+                    worst["frames"] = n
     return worst
 
 
@@ -386,10 +392,12 @@ def worst_regression_3d(results: list[dict], corrected: str, filt: str, frames: 
     depth for its x, y) shows here what the per-axis figure does not.
     """
     worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired in _joint_pairs(results, corrected, filt, frames):
+    for name, joint, a, b, paired, n in _joint_pairs(results, corrected, filt, frames):
         dlt = _norm3(a) - _norm3(b)
         if dlt > worst["delta_cm"]:
             worst = {"delta_cm": dlt, "clip": name, "joint": joint, "paired": paired}
+            if n is not None:
+                worst["frames"] = n
     return worst
 
 
@@ -423,6 +431,22 @@ def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
             "corrected_3d_cm": float(np.mean(b3)) if b3 else None,
             "only_frames": only_n if any_paired else None,
             "only_z_cm": math.sqrt(only_sse / only_n) * 100.0 if only_n else None}
+
+
+def lost_frames(results: list[dict], corrected: str, filt: str) -> dict:
+    """``corrected`` against ``filt`` over every frame where an arm joint was lost (:func:`paired_errors`).
+
+    ``frames``: the joint-frames; ``filter_3d_cm``, ``corrected_3d_cm``: the 3D RMSE pooled over them (the root of
+    the three axes' pooled mean squared errors); ``pairs``: the (clip, joint) pairs with such frames, and
+    ``pairs_worse_3d`` those where ``corrected``'s 3D RMSE over them exceeds ``filt``'s. Counts of 0 and None
+    figures for results recorded without the mask.
+    """
+    n, sse_a, sse_b, pairs, worse = 0, 0.0, 0.0, 0, 0
+    for _, _, a, b, _, k in _joint_pairs(results, corrected, filt, "lost"):
+        sa, sb = sum(x * x for x in a), sum(x * x for x in b)
+        n, sse_a, sse_b, pairs, worse = n + k, sse_a + k * sa, sse_b + k * sb, pairs + 1, worse + (sa > sb)
+    return {"frames": n, "filter_3d_cm": math.sqrt(sse_b / n) if n else None,
+            "corrected_3d_cm": math.sqrt(sse_a / n) if n else None, "pairs": pairs, "pairs_worse_3d": worse}
 
 
 def evaluate_motion_dir(
@@ -468,7 +492,8 @@ def evaluate_motion_dir(
     Returns:
         ``{"protocol", "seed", "body", "detector", "akc_plus", "methods", "dims_cm", "clips": [evaluate_clip results],
         "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "worst_regression_seen",
-        "worst_regression_seen_3d" (the same over the frames each joint was seen), "lost_joint_gain",
+        "worst_regression_seen_3d" (the same over the frames each joint was seen), "worst_regression_lost",
+        "worst_regression_lost_3d" (over the frames each joint was lost), "lost_joint_gain", "lost_frames",
         "render_cache": {"dir", "hits", "misses"}, "elapsed_s"}``.
     """
     from akc_drake.evaluation.cache import _resolve
@@ -519,7 +544,10 @@ def evaluate_motion_dir(
         "worst_regression_3d": {},
         "worst_regression_seen": {},
         "worst_regression_seen_3d": {},
+        "worst_regression_lost": {},
+        "worst_regression_lost_3d": {},
         "lost_joint_gain": {},
+        "lost_frames": {},
         "render_cache": {"dir": None if root is None else str(root), "hits": hits,
                          "misses": 1 + len(results) - hits},
     }
@@ -529,9 +557,11 @@ def evaluate_motion_dir(
             if name in methods and filt in methods:
                 out["worst_regression"][name] = worst_regression(results, name, filt)
                 out["worst_regression_3d"][name] = worst_regression_3d(results, name, filt)
-                out["worst_regression_seen"][name] = worst_regression(results, name, filt, "seen")
-                out["worst_regression_seen_3d"][name] = worst_regression_3d(results, name, filt, "seen")
+                for frames in ("seen", "lost"):
+                    out[f"worst_regression_{frames}"][name] = worst_regression(results, name, filt, frames)
+                    out[f"worst_regression_{frames}_3d"][name] = worst_regression_3d(results, name, filt, frames)
                 out["lost_joint_gain"][name] = lost_joint_gain(results, name, filt)
+                out["lost_frames"][name] = lost_frames(results, name, filt)
     out["elapsed_s"] = time.perf_counter() - t0
     return out
 
@@ -563,16 +593,19 @@ def motion_dir_tables(result: dict) -> list:
     t = Table("pooled", f"Pooled RMSE (cm) over {len(result['clips'])} real mocap clips "
               f"({result['protocol']} protocol{_setup(result)})", rows, list(methods), np.array(vals))
     seen_on = " on the frames the joint was seen (depth passed the occlusion filter)"
-    for key, what, seen in (("worst_regression", "worst increase", False),
-                            ("worst_regression_3d", "worst 3D RMSE increase", False),
-                            ("worst_regression_seen", "worst increase", True),
-                            ("worst_regression_seen_3d", "worst 3D increase", True)):
-        # (All but the first are absent from results before session 26 (3D) or 30 (seen).)
+    lost_on = " on the frames the joint was lost (depth dropped or not measured)"
+    for key, what, on in (("worst_regression", "worst increase", None),
+                          ("worst_regression_3d", "worst 3D RMSE increase", None),
+                          ("worst_regression_seen", "worst increase", seen_on),
+                          ("worst_regression_seen_3d", "worst 3D increase", seen_on),
+                          ("worst_regression_lost_3d", "worst 3D increase", lost_on)):
+        # (All but the first are absent from results before session 26 (3D), 30 (seen) or 31 (lost).)
         for name, w in (result[key] if key == "worst_regression" else result.get(key, {})).items():
             if "clip" in w:
-                on = seen_on if seen else (" on the frames both estimate" if w.get("paired") else "")
+                where = on or (" on the frames both estimate" if w.get("paired") else "")
                 at = f"{w['joint']} {w['axis']}" if "axis" in w else w["joint"]
-                t.notes.append(f"{name}: {what} over its filter{on} {w['delta_cm']:+.2f} cm ({w['clip']}, {at})")
+                at += f", {w['frames']} frames" if "frames" in w else ""
+                t.notes.append(f"{name}: {what} over its filter{where} {w['delta_cm']:+.2f} cm ({w['clip']}, {at})")
     for name, g in result["lost_joint_gain"].items():
         if g["pairs"]:
             d3 = (f"; 3D {g['filter_3d_cm']:.2f} -> {g['corrected_3d_cm']:.2f}"
@@ -580,6 +613,11 @@ def motion_dir_tables(result: dict) -> list:
             t.notes.append(f"{name}: z RMSE on the {g['pairs']} (clip, joint) pairs the camera loses "
                            f"(>= {LOST_SHARE:.0%} of frames): filter {g['filter_z_cm']:.2f} -> "
                            f"{g['corrected_z_cm']:.2f} cm{d3}")
+        lf = result.get("lost_frames", {}).get(name)  # (absent before session 31)
+        if lf and lf["frames"]:
+            t.notes.append(f"{name}: 3D RMSE over the {lf['frames']} joint-frames an arm joint was lost: filter "
+                           f"{lf['filter_3d_cm']:.2f} -> {lf['corrected_3d_cm']:.2f} cm; worse on "
+                           f"{lf['pairs_worse_3d']} of {lf['pairs']} (clip, joint) pairs")
         if g.get("only_frames"):
             t.notes.append(f"{name}: a depth on {g['only_frames']} joint-frames where its filter has none "
                            f"(z RMSE {g['only_z_cm']:.2f} cm there)")
