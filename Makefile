@@ -89,7 +89,7 @@ graphs: install
 
 # ruff, then the layering contracts of pyproject.toml [tool.importlinter] (import-linter).
 lint: install
-	$(VENV)/bin/ruff check akc_drake tests
+	$(VENV)/bin/ruff check akc_drake tests examples
 	$(VENV)/bin/lint-imports --no-cache
 
 clean:

@@ -171,12 +171,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cycles", type=int, default=30, metavar="N", help="motion cycles of 6 s each")
     _add_seed(p)
     p.add_argument("--methods", default=None, help="comma-separated, from: " + ", ".join(METHODS)
-                   + " (default: all; with --motion-dir: KF, EKF and the AKC/AKC+ variants)")
+                   + ", and NAME(KF), NAME(EKF) for an --add-corrector NAME (default: all; with --motion-dir: KF, "
+                   "EKF and the AKC/AKC+ variants; and each --add-corrector's two)")
     p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"), help="AKC weight preset (paper Table I)")
     p.add_argument("--rate-hz", type=float, default=10.0, metavar="HZ",
                    help="the camera's frame rate for --motion / --motion-file (default: 10, the paper's; a "
                    "RealSense streams at 30)")
     _add_akc_plus(p)
+    p.add_argument("--add-corrector", action="append", metavar="NAME=FILE.py:FACTORY",
+                   help="a corrector of your own, run as NAME(KF) and NAME(EKF) beside the others (added to the "
+                   "default --methods) and compared with its filter as AKC+ is: FACTORY(dims, filter_kind, "
+                   "period_s) returns an object whose correct(pose, measured, variance) returns the corrected "
+                   "(12, 3) pose; FILE.py or package.module (see the README, 'Your own corrector'); repeatable")
     p.add_argument("--protocol", default="paper", choices=("paper", "ours"),
                    help="paper: the stages and table definitions as the paper describes them; ours: our "
                    "improvements (default: paper)")

@@ -415,6 +415,32 @@ def test_tables_in_paper_layout(evaluation):
     np.testing.assert_allclose(t9.ours[4], np.sqrt(np.sum(t9.ours[:4] ** 2, axis=0)))
 
 
+def test_your_own_corrector_in_the_paper_experiment(sessions):
+    # A corrector of your own (--add-corrector) runs beside the others; the paper's tables have no column for it, so
+    # an extra table lists every method's RMSE per arm joint and axis; its rows are the results' figures.
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "segment_lengths.py"
+    opts = M.MethodOptions(correctors={"LEN": f"{example}:SegmentLengths"})
+    cfg = ExperimentConfig(motions=("I",), cycles=2, width=INTR.width, height=INTR.height, options=opts,
+                           methods=("KF", "AKC+(KF)", "LEN(KF)"), weight_study=False, calibration_study=False)
+    assert cfg.as_dict()["options"]["correctors"] == {"LEN": f"{example}:SegmentLengths"}
+    ev = run_experiment(cfg, sessions)
+    t = {t.key: t for t in ev.tables}["every_method"]
+    assert t.columns == ["KF", "AKC+(KF)", "LEN(KF)"] and t.groups == [("Motion I", 3)]
+    assert len(t.rows) == 18 and t.rows[2] == "left_shoulder z" and np.isnan(t.paper).all()
+    row = next(r for r in ev.results if r["motion"] == "I" and r["method"] == "LEN(KF)" and r["joint"] == "left_wrist")
+    assert t.ours[t.rows.index("left_wrist x"), 2] == pytest.approx(row["rmse_cm"]["x"])
+    ranges = [r["range_cm"] for r in ev.arm_length_range_cm if r["method"] == "LEN(KF)"]
+    assert len(ranges) == 4 and max(ranges) < 1e-9
+    with pytest.raises(ValueError, match="unknown method 'LEN\\(KF\\)'"):
+        ExperimentConfig(motions=("I",), methods=("KF", "LEN(KF)"))
+    # Without a corrector of your own the paper's tables are all there is.
+    assert "every_method" not in {t.key for t in run_experiment(
+        ExperimentConfig(motions=("I",), cycles=2, width=INTR.width, height=INTR.height, methods=("KF", "AKC+(KF)"),
+                         weight_study=False, calibration_study=False), sessions).tables}
+
+
 def test_config_validation():
     with pytest.raises(ValueError, match="cycles"):
         ExperimentConfig(cycles=0)

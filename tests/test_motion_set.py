@@ -347,6 +347,42 @@ def test_motion_dir_command_options(tmp_path, capsys):
     assert "--workers must be at least 1" in capsys.readouterr().err
     assert cli_main(base + ["--akc-plus", "nope=1"]) == 2
     assert "--akc-plus: unknown AKC+ setting(s) 'nope'" in capsys.readouterr().err
+    example = Path(__file__).resolve().parents[1] / "examples" / "segment_lengths.py"
+    assert cli_main(base + ["--add-corrector", f"LEN={example}"]) == 2
+    assert "--add-corrector: corrector" in capsys.readouterr().err
+    assert cli_main(base + ["--add-corrector", f"LEN={example}:SegmentLengths", "--methods", "KF,AKC+(KF)"]) == 2
+    assert "--add-corrector LEN: --methods 'KF,AKC+(KF)' runs none of it" in capsys.readouterr().err
+    assert cli_main(base + ["--methods", "KF,LEN(KF)"]) == 2
+    assert "unknown method 'LEN(KF)'" in capsys.readouterr().err
+
+
+def test_your_own_corrector_on_the_motion_set_from_the_command_line(tmp_path, monkeypatch):
+    # --add-corrector adds NAME(KF) and NAME(EKF) to the default methods; the worst increases, the seen and lost
+    # figures are computed for it as for AKC+; the name and path are recorded. On two local workers (which load
+    # the file themselves) the numbers are the same.
+    from akc_drake.cli import main as cli_main
+    from akc_drake.evaluation.motion_set import evaluate_motion_dir
+
+    monkeypatch.setenv("AKC_DRAKE_CACHE", str(tmp_path / "cache"))
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    shutil.copy(DATA / "upper_body.bvh", clips / "a.bvh")
+    example = Path(__file__).resolve().parents[1] / "examples" / "segment_lengths.py"
+    out = tmp_path / "r.json"
+    assert cli_main(["evaluate", "--motion-dir", str(clips), "--scheduler", "inprocess", "--protocol", "ours",
+                     "--add-corrector", f"LEN={example}:SegmentLengths", "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    assert r["correctors"] == {"LEN": f"{example}:SegmentLengths"}
+    assert r["methods"][-2:] == ["LEN(KF)", "LEN(EKF)"] and "AKC+(EKF)" in r["methods"]
+    for key in ("worst_regression", "worst_regression_seen", "worst_regression_lost_3d", "lost_frames"):
+        assert set(r[key]) == {"AKC(KF)", "AKC(EKF)", "AKC+(KF)", "AKC+(EKF)", "LEN(KF)", "LEN(EKF)"}
+    clip = r["clips"][0]["methods"]
+    assert clip["LEN(KF)"]["paired"]["filter"] == "KF"
+    assert max(clip["LEN(KF)"]["arm_length_range_cm"].values()) < 1e-9
+    assert clip["LEN(KF)"]["sse_m2"] != clip["KF"]["sse_m2"]
+    there = evaluate_motion_dir(clips, methods=["KF", "LEN(KF)"], protocol="ours", scheduler="local", n_workers=2,
+                                progress=False, correctors={"LEN": f"{example}:SegmentLengths"})
+    assert json.dumps(there["clips"][0]["methods"]["LEN(KF)"]["sse_m2"]) == json.dumps(clip["LEN(KF)"]["sse_m2"])
 
 
 def test_motion_dir_same_numbers_in_process_and_on_two_local_workers(tmp_path):

@@ -41,6 +41,37 @@ def _akc_plus(args) -> dict | None:
     return settings
 
 
+def _correctors(args) -> dict:
+    """``--add-corrector`` parsed: ``{NAME: import path}`` (empty when not given)."""
+    items = getattr(args, "add_corrector", None)
+    if not items:
+        return {}
+    from akc_drake.evaluation.methods import parse_correctors
+
+    try:
+        return parse_correctors(items)
+    except ValueError as e:
+        raise UserError(f"--add-corrector: {e}") from None
+
+
+def _methods(args, default, correctors: dict) -> tuple[str, ...]:
+    """``--methods`` parsed (``default`` when not given, with each of ``correctors``' KF and EKF variants)."""
+    from akc_drake.evaluation.methods import parse_methods
+
+    own = tuple(f"{c}({f})" for c in correctors for f in ("KF", "EKF"))
+    try:
+        methods = parse_methods(args.methods if args.methods is not None else (*default, *own), correctors)
+    except ValueError as e:
+        raise UserError(
+            str(e) if str(e).startswith("--methods") else f"--methods {args.methods!r}: {e}"
+        ) from None
+    for c in correctors:
+        if not any(m.startswith(f"{c}(") for m in methods):
+            raise UserError(f"--add-corrector {c}: --methods {args.methods!r} runs none of it "
+                            f"(add {c}(KF) or {c}(EKF))")
+    return methods
+
+
 def _motion_file_options(args) -> tuple[str | None, str | None]:
     mf, sk = getattr(args, "motion_file", None), getattr(args, "skeleton", None)
     if mf is None:
@@ -74,19 +105,15 @@ def build_config(args):
         UserError: naming the option and its value.
     """
     from akc_drake.evaluation.experiment import ExperimentConfig
-    from akc_drake.evaluation.methods import METHODS, MethodOptions, parse_methods
+    from akc_drake.evaluation.methods import METHODS, MethodOptions
 
     if args.cycles < 1:
         raise UserError(f"--cycles must be at least 1, got {args.cycles}")
     rate = getattr(args, "rate_hz", 10.0)
     if not (math.isfinite(rate) and 1.0 <= rate <= 240.0):
         raise UserError(f"--rate-hz must be a frame rate between 1 and 240 Hz, got {rate:g}")
-    try:
-        methods = parse_methods(args.methods if args.methods is not None else METHODS)
-    except ValueError as e:
-        raise UserError(
-            str(e) if str(e).startswith("--methods") else f"--methods {args.methods!r}: {e}"
-        ) from None
+    correctors = _correctors(args)
+    methods = _methods(args, METHODS, correctors)
     motion_file, skeleton = _motion_file_options(args)
     motions = ("I", "II") if args.motion == "both" else (args.motion,)
     akc_plus = _akc_plus(args)
@@ -106,7 +133,7 @@ def build_config(args):
             body=getattr(args, "body", "primitive"),
             detector="mediapipe" if getattr(args, "detector", "sim") == "both" else getattr(args, "detector", "sim"),
             protocol=getattr(args, "protocol", "paper"),
-            options=MethodOptions(akc_plus_config=akc_plus),
+            options=MethodOptions(akc_plus_config=akc_plus, correctors=correctors or None),
         )
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -181,7 +208,6 @@ def _rig_clips(args) -> list | None:
 def run_motion_dir(args) -> int:
     """``evaluate --motion-dir DIR``: every method on every real mocap clip; per-clip and pooled tables."""
     from akc_drake.evaluation.executor import check_scheduler
-    from akc_drake.evaluation.methods import parse_methods
     from akc_drake.evaluation.motion_set import (
         DEFAULT_METHODS,
         evaluate_motion_dir,
@@ -198,10 +224,8 @@ def run_motion_dir(args) -> int:
             raise UserError(f"--{opt.replace('_', '-')}: not used with --motion-dir")
     if getattr(args, "rate_hz", 10.0) != 10.0:
         raise UserError("--rate-hz: the motion set is rendered at 10 Hz (not with --motion-dir or --drive rig)")
-    try:
-        methods = DEFAULT_METHODS if args.methods is None else parse_methods(args.methods)
-    except ValueError as e:
-        raise UserError(f"--methods {args.methods!r}: {e}") from None
+    correctors = _correctors(args)
+    methods = _methods(args, DEFAULT_METHODS, correctors)
     _check_outputs(args)
     detector = getattr(args, "detector", "sim")
     if detector == "both":
@@ -216,7 +240,7 @@ def run_motion_dir(args) -> int:
     result = evaluate_motion_dir(args.motion_dir, methods=methods, seed=args.seed, protocol=args.protocol,
                                  weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
                                  scheduler=scheduler, n_workers=workers, drive=drive, clips=clips,
-                                 akc_plus=_akc_plus(args))
+                                 akc_plus=_akc_plus(args), correctors=correctors)
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))

@@ -83,7 +83,8 @@ class ExperimentConfig:
         weight_study: also run Table VII (AKC(KF) with Wa, Wb, Wc).
         calibration_study: also run Tables VIII-IX (AKC(KF) with each calibration; renders the L-pose).
         options: occlusion-filter settings (visibility threshold, proximity), AKC+'s settings
-            (``akc_plus_config``, ``--akc-plus``) and, under ``protocol="ours"``, the filter and COIK settings.
+            (``akc_plus_config``, ``--akc-plus``), correctors of your own (``correctors``, ``--add-corrector``; the
+            methods may name them) and, under ``protocol="ours"``, the filter and COIK settings.
         protocol: "paper" (the stages and table definitions as the paper describes them) or "ours"
             (:mod:`akc_drake.evaluation.protocol`).
         body: the rendered operator, "primitive" or "skinned" (``--body``).
@@ -115,7 +116,7 @@ class ExperimentConfig:
 
         if self.protocol not in PROTOCOLS:
             raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {self.protocol!r}")
-        self.methods = parse_methods(self.methods)
+        self.methods = parse_methods(self.methods, self.options.correctors or ())
         if isinstance(self.cycles, bool) or not isinstance(self.cycles, (int, np.integer)) or self.cycles < 1:
             raise ValueError(f"cycles must be a positive integer, got {self.cycles!r}")
         if self.weights not in ("Wa", "Wb", "Wc"):
@@ -156,6 +157,7 @@ class ExperimentConfig:
             visibility_threshold=self.options.visibility_threshold,
             proximity=self.options.proximity,
             akc_plus_config=self.options.akc_plus_config,
+            correctors=self.options.correctors,
         )
 
     @property
@@ -174,6 +176,7 @@ class ExperimentConfig:
         d["options"] = {
             "visibility_threshold": self.options.visibility_threshold,
             "proximity": self.options.proximity,
+            "correctors": dict(self.options.correctors or {}),
         }
         return d
 

@@ -16,6 +16,10 @@ method         occlusion filter   filter       corrector
 ``COIK(EKF)``  yes                EKF          COIK
 =============  =================  ===========  ==========
 
+A corrector of your own runs beside them as ``NAME(KF)`` / ``NAME(EKF)``: ``MethodOptions.correctors`` maps
+``NAME`` to the import path of a factory (``"package.module:attribute"``, :func:`load_corrector`). It is given
+what AKC+ is given, and is compared with its filter as AKC+ is.
+
 The stages are the core objects the Drake LeafSystems wrap, called directly frame by frame, so the
 accuracy and the speed measured here are those of the code the diagram runs. Shared prefixes are
 computed once (:class:`MethodRunner`): AKC(KF) and COIK(KF) see exactly the same KF output, which is
@@ -44,7 +48,8 @@ STAGES: tuple[str, ...] = ("source", "occlusion", "filter", "corrector")
 
 _FILTERS = ("none", "KF", "EKF")
 _CORRECTORS = ("none", "AKC", "AKC+", "COIK")
-_PATTERN = re.compile(r"^\s*(AKC\+|AKC|COIK)\s*\(\s*(KF|EKF)\s*\)\s*$")
+_PATTERN = re.compile(r"^\s*([A-Za-z][A-Za-z0-9_+-]*)\s*\(\s*(KF|EKF)\s*\)\s*$")
+_LABEL = re.compile(r"^[A-Za-z][A-Za-z0-9_+-]*$")
 
 
 @dataclass(frozen=True)
@@ -55,7 +60,8 @@ class MethodSpec:
         name: the canonical name (e.g. ``"AKC(KF)"``).
         occlusion: whether the occlusion filter runs first.
         filter: ``"none"``, ``"KF"`` or ``"EKF"``.
-        corrector: ``"none"``, ``"AKC"`` (the paper's), ``"AKC+"`` (ours) or ``"COIK"``.
+        corrector: ``"none"``, ``"AKC"`` (the paper's), ``"AKC+"`` (ours), ``"COIK"`` or the name of a corrector
+            of your own (``MethodOptions.correctors``).
     """
 
     name: str
@@ -64,11 +70,15 @@ class MethodSpec:
     corrector: str
 
 
-def parse_method(name: str) -> MethodSpec:
+def parse_method(name: str, correctors: Iterable[str] = ()) -> MethodSpec:
     """The :class:`MethodSpec` of a method name.
 
+    Args:
+        name: one of :data:`METHODS`, or ``NAME(KF)`` / ``NAME(EKF)`` for a name in ``correctors``.
+        correctors: the names of correctors of your own (``MethodOptions.correctors``).
+
     Raises:
-        ValueError: naming the method when it is not one of :data:`METHODS`.
+        ValueError: naming the method when it is none of these.
     """
     if not isinstance(name, str):
         raise ValueError(f"method must be a string, got {name!r}")
@@ -78,19 +88,21 @@ def parse_method(name: str) -> MethodSpec:
     if key in ("KF", "EKF"):
         return MethodSpec(key, True, key, "none")
     m = _PATTERN.match(key)
-    if m:
+    if m and (m.group(1) in _CORRECTORS[1:] or m.group(1) in correctors):
         return MethodSpec(f"{m.group(1)}({m.group(2)})", True, m.group(2), m.group(1))
-    raise ValueError(f"unknown method {name!r}; known: {', '.join(METHODS)}")
+    own = "".join(f", {c}(KF), {c}(EKF)" for c in correctors)
+    raise ValueError(f"unknown method {name!r}; known: {', '.join(METHODS)}{own}")
 
 
-def parse_methods(text: str | Iterable[str]) -> tuple[str, ...]:
-    """Parse a comma-separated method list (``"Raw,KF,AKC(KF)"``) into canonical names, in order.
+def parse_methods(text: str | Iterable[str], correctors: Iterable[str] = ()) -> tuple[str, ...]:
+    """Parse a comma-separated method list (``"Raw,KF,AKC(KF)"``) into canonical names, in order
+    (``correctors``: as :func:`parse_method`).
 
     Raises:
         ValueError: naming the unknown method, or when the list is empty or repeats a method.
     """
     items = [s for s in (text.split(",") if isinstance(text, str) else text)]
-    names = [parse_method(s).name for s in items if str(s).strip()]
+    names = [parse_method(s, correctors).name for s in items if str(s).strip()]
     if not names:
         raise ValueError(f"--methods: no method given (known: {', '.join(METHODS)})")
     dup = sorted({n for n in names if names.count(n) > 1})
@@ -212,7 +224,7 @@ def run_filter(filt, measurements: np.ndarray, t: np.ndarray, variance: np.ndarr
 
 
 def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None, variance: np.ndarray | None = None):
-    """Run an AKC or AKC+ corrector over ``poses`` ``(T, 12, 3)``; (corrected, seconds, status).
+    """Run an AKC, AKC+ or your own corrector over ``poses`` ``(T, 12, 3)``; (corrected, seconds, status).
 
     ``measured`` ``(T, 12, 3)`` is the occlusion filter's output and ``variance`` ``(T, 12, 3)`` the filter's
     posterior variance, both given to AKC+ (which keeps the depths they show trustworthy).
@@ -221,7 +233,8 @@ def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None, va
     out = np.empty((T, NUM_LANDMARKS, 3))
     dt_run = np.empty(T)
     status = np.empty(T, dtype="<U16")
-    corrector.reset()
+    if hasattr(corrector, "reset"):
+        corrector.reset()
     clock = time.perf_counter
     for k in range(T):
         t0 = clock()
@@ -232,7 +245,7 @@ def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None, va
         else:
             res = corrector.correct(poses[k], measured[k], variance[k])
         dt_run[k] = clock() - t0
-        out[k] = res.pose
+        out[k] = getattr(res, "pose", res)  # (a corrector of your own may return the (12, 3) pose itself)
         fb = getattr(res, "fallback", None)
         status[k] = "fallback" if fb is not None and bool(np.any(fb)) else "ok"
     return out, dt_run, status
@@ -275,6 +288,9 @@ class MethodOptions:
         coik_config: COIK configuration (None: the solver's default).
         akc_plus_config: AKC+ settings: an ``AKCPlusConfig``, a dict of some of its fields (plain data, which
             crosses to the evaluation's workers) or None (the defaults).
+        correctors: correctors of your own, name -> the import path of a factory (``"package.module:attribute"``;
+            strings, so that they cross to the evaluation's workers, which import them), run as ``NAME(KF)`` and
+            ``NAME(EKF)``: see :func:`load_corrector`.
     """
 
     visibility_threshold: float = 0.7
@@ -285,6 +301,7 @@ class MethodOptions:
     akc_plus_config: object | None = None
     ekf_kind: str = "coupled"
     occlusion_rules: dict | None = None
+    correctors: dict | None = None
 
 
 class MethodRunner:
@@ -308,6 +325,7 @@ class MethodRunner:
         self._filtered: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._variance: dict[str, np.ndarray] = {}
         self._done: dict[str, MethodResult] = {}
+        self._own = dict(self.options.correctors or {})
 
     def occlusion(self) -> tuple[np.ndarray, np.ndarray]:
         """(accepted landmarks ``(T, 12, 3)``, seconds per frame) of the occlusion filter."""
@@ -336,7 +354,7 @@ class MethodRunner:
 
     def run(self, name: str) -> MethodResult:
         """The result of method ``name`` (cached)."""
-        spec = parse_method(name)
+        spec = parse_method(name, self._own)
         if spec.name in self._done:
             return self._done[spec.name]
         s = self.session
@@ -362,9 +380,110 @@ class MethodRunner:
             elif spec.corrector == "COIK":
                 est, t_cor, status = run_coik(make_coik(self.dims, self.options.coik_config), est)
                 times["corrector"] = t_cor
+            elif spec.corrector != "none":  # a corrector of your own: given what AKC+ is given
+                factory = load_corrector(self._own[spec.corrector])
+                est, t_cor, status = run_akc(
+                    factory(self.dims, spec.filter, s.dt), est, self.occlusion()[0], self.filter_variance(spec.filter)
+                )
+                times["corrector"] = t_cor
         result = MethodResult(spec.name, est, times, status)
         self._done[spec.name] = result
         return result
+
+
+def load_corrector(path: str) -> Callable:
+    """The factory of a corrector of your own, from its import path ``"package.module:attribute"`` or a Python
+    file's ``"path/to/file.py:attribute"``.
+
+    The factory is called once per method and session as ``factory(dims, filter_kind, period_s)``: the calibrated
+    :class:`~akc_drake.core.skeleton.BodyDimensions`, ``"KF"`` or ``"EKF"``, and the frame period in seconds. It
+    returns an object with ``correct(pose, measured, variance)``, called every frame with the filter's ``(12, 3)``
+    pose, the occlusion filter's ``(12, 3)`` measurement (NaN where a landmark or its depth was rejected) and the
+    filter's ``(12, 3)`` posterior variance, in the camera frame, metres (the inputs AKC+ has). ``correct``
+    returns the corrected ``(12, 3)`` pose, or an object with a ``pose`` attribute (an
+    :class:`~akc_drake.core.akc.AKCResult`); ``reset()``, if the object has one, is called before each session.
+    A class with ``__init__(self, dims, filter_kind, period_s)`` is such a factory.
+
+    Raises:
+        ValueError: the path is malformed, its module cannot be imported, or it names nothing callable.
+    """
+    import importlib
+
+    module, sep, attr = str(path).rpartition(":")
+    module, attr = module.strip(), attr.strip()
+    if not sep or not module or not attr:
+        raise ValueError(f"corrector {path!r}: expected package.module:attribute or file.py:attribute")
+    if module.endswith(".py"):
+        obj = _load_file(module, path)
+    else:
+        try:
+            obj = importlib.import_module(module)
+        except ImportError as e:
+            raise ValueError(f"corrector {path!r}: cannot import {module!r} ({e})") from None
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ValueError(f"corrector {path!r}: {module!r} has no {attr!r}")
+        obj = getattr(obj, part)
+    if not callable(obj):
+        raise ValueError(f"corrector {path!r}: {attr!r} is not callable")
+    return obj
+
+
+def _load_file(file: str, path: str):
+    """The module of a Python file, loaded once per process (kept in ``sys.modules`` under a name made from its
+    absolute path)."""
+    import hashlib
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    f = Path(file).expanduser().resolve()
+    if not f.is_file():
+        raise ValueError(f"corrector {path!r}: no such file {file!r}")
+    name = f"akc_drake_corrector_{f.stem}_{hashlib.sha1(str(f).encode()).hexdigest()[:8]}"
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, f)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as e:
+        del sys.modules[name]
+        raise ValueError(f"corrector {path!r}: {file!r} fails to load ({type(e).__name__}: {e})") from None
+    return mod
+
+
+def parse_correctors(text: str | Iterable[str]) -> dict[str, str]:
+    """``NAME=package.module:attribute`` or ``NAME=file.py:attribute`` items, comma-separated (or a list of
+    such strings) -> ``{NAME: path}`` (a file's path made absolute), each path loaded once here so that a wrong
+    one fails before a long run (:func:`load_corrector`).
+
+    Raises:
+        ValueError: an item is malformed, a name is not a word (letters, digits, ``_+-``, a letter first) or is
+            a built-in corrector's or repeated, or a path does not load.
+    """
+    items = [t for part in ([text] if isinstance(text, str) else text) for t in str(part).split(",") if t.strip()]
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, path = item.partition("=")
+        name, path = name.strip(), path.strip()
+        if not sep or not name or not path:
+            raise ValueError(f"corrector {item.strip()!r}: expected NAME=package.module:attribute")
+        if not _LABEL.match(name):
+            raise ValueError(f"corrector name {name!r}: letters, digits, '_', '+' and '-', a letter first")
+        if name in _CORRECTORS or name in _FILTERS or name == "Raw":
+            raise ValueError(f"corrector name {name!r} is a built-in method's")
+        if name in out:
+            raise ValueError(f"corrector name {name!r} given more than once")
+        module, _, attr = path.rpartition(":")
+        if module.strip().endswith(".py"):  # (absolute: a worker's working folder may differ)
+            from pathlib import Path
+
+            path = f"{Path(module.strip()).expanduser().resolve()}:{attr.strip()}"
+        load_corrector(path)
+        out[name] = path
+    return out
 
 
 def resolve_weights(weights):
@@ -445,7 +564,7 @@ def run_methods(
     runner = MethodRunner(session, dims, weights, options)
     out = {}
     for name in names:
-        out[parse_method(name).name] = runner.run(name)
+        out[parse_method(name, runner.options.correctors or ()).name] = runner.run(name)
         if progress is not None:
             progress(name)
     return out

@@ -180,7 +180,8 @@ def evaluate_clip(item: dict) -> dict:
         item: ``{"clip": find_clips() entry, "dims": {segment: metres}, "methods": [...], "seed": int,
             "protocol": "paper" | "ours", "weights": "Wa" | "Wb" | "Wc"}``, optionally ``"body"``
             ("primitive" | "skinned"), ``"detector"`` ("sim" | "mediapipe"), ``"cache"`` (None: the default
-            render cache, False: off, or a folder), ``"akc_plus"`` (AKC+ settings, field -> value, or None) and
+            render cache, False: off, or a folder), ``"akc_plus"`` (AKC+ settings, field -> value, or None),
+            ``"correctors"`` (correctors of your own, name -> import path, which the worker imports) and
             ``"frame_progress"`` (a progress bar over the clip's frames as they render, on stderr).
 
     Returns:
@@ -212,6 +213,9 @@ def evaluate_clip(item: dict) -> dict:
     options = method_options(protocol)
     if item.get("akc_plus"):
         options = dataclasses.replace(options, akc_plus_config=dict(item["akc_plus"]))
+    own = dict(item.get("correctors") or {})
+    if own:
+        options = dataclasses.replace(options, correctors=own)
     runner = MethodRunner(session, dims, item.get("weights", "Wb"), options)
     accepted, _ = runner.occlusion()
     lost = {j: float(np.mean(~np.isfinite(accepted[:, INDEX[j], 2]))) for j in ARM_JOINTS}
@@ -249,7 +253,7 @@ def evaluate_clip(item: dict) -> dict:
         out["methods"][method] = m_out
         estimates[method] = est
     for method in item["methods"]:
-        spec = parse_method(method)
+        spec = parse_method(method, own)
         if spec.corrector != "none" and spec.filter in estimates:
             out["methods"][method]["paired"] = paired_errors(estimates[method], estimates[spec.filter],
                                                              session.truth, spec.filter,
@@ -466,6 +470,7 @@ def evaluate_motion_dir(
     drive: str = "angles",
     clips: list | None = None,
     akc_plus: dict | None = None,
+    correctors: dict | None = None,
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -488,9 +493,13 @@ def evaluate_motion_dir(
         clips: evaluate these clips (:func:`find_clips` entries) instead of ``motion_dir``'s.
         akc_plus: AKC+ settings, field -> value (:func:`~akc_drake.core.akc_plus_config.akc_plus_config`;
             ``--akc-plus``), or None for the defaults.
+        correctors: correctors of your own, name -> import path
+            (:func:`~akc_drake.evaluation.methods.parse_correctors`; ``--add-corrector``), which ``methods`` may name
+            as ``NAME(KF)`` / ``NAME(EKF)``; compared with their filters as AKC and AKC+ are.
 
     Returns:
-        ``{"protocol", "seed", "body", "detector", "akc_plus", "methods", "dims_cm", "clips": [evaluate_clip results],
+        ``{"protocol", "seed", "body", "detector", "akc_plus", "correctors", "methods", "dims_cm",
+        "clips": [evaluate_clip results],
         "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "worst_regression_seen",
         "worst_regression_seen_3d" (the same over the frames each joint was seen), "worst_regression_lost",
         "worst_regression_lost_3d" (over the frames each joint was lost), "lost_joint_gain", "lost_frames",
@@ -519,7 +528,8 @@ def evaluate_motion_dir(
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
-         "akc_plus": settings, "frame_progress": bool(progress) and scheduler == "inprocess"}
+         "akc_plus": settings, "correctors": dict(correctors or {}),
+         "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
     raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
@@ -535,6 +545,7 @@ def evaluate_motion_dir(
         "detector": detector,
         "drive": drive,
         "akc_plus": settings,
+        "correctors": dict(correctors or {}),
         "methods": list(methods),
         "dims_cm": {k: v * 100.0 for k, v in dims.as_dict().items()},
         "clips": results,
@@ -551,7 +562,7 @@ def evaluate_motion_dir(
         "render_cache": {"dir": None if root is None else str(root), "hits": hits,
                          "misses": 1 + len(results) - hits},
     }
-    for corr in ("AKC", "AKC+"):
+    for corr in ("AKC", "AKC+", *(correctors or {})):
         for filt in ("KF", "EKF"):
             name = f"{corr}({filt})"
             if name in methods and filt in methods:

@@ -319,6 +319,25 @@ def _calibration_tables(ev) -> list[Table]:
     return tables
 
 
+def _every_method_table(ev: Evaluation) -> Table:
+    """The RMSE of every arm joint and axis for every method run, per motion: where a corrector of your own
+    (``--add-corrector``), which the paper's tables have no column for, is compared with the rest."""
+    from akc_drake.core.skeleton import ARM_JOINTS
+
+    methods = list(ev.config.methods)
+    motions = list(ev.runs)
+    rows = [f"{j} {a}" for j in ARM_JOINTS for a in AXES]
+    cols, groups, ours = [], [], []
+    for m in motions:
+        groups.append((f"Motion {m}", len(methods)))
+        for method in methods:
+            cols.append(method)
+            ours.append([v for j in ARM_JOINTS for v in _rmse_cols(ev, m, method, j)])
+    ours_a = np.array(ours, dtype=float).T
+    return Table("every_method", "RMSE (cm) of every arm joint and axis, every method", rows, cols, ours_a,
+                 np.full_like(ours_a, np.nan), groups=groups)
+
+
 def build_tables(ev: Evaluation) -> list[Table]:
     """Every table of the paper that the configured methods allow, in the paper's order."""
     have = set(ev.config.methods)
@@ -376,6 +395,8 @@ def build_tables(ev: Evaluation) -> list[Table]:
     if t7 is not None:
         tables.append(t7)
     tables.extend(_calibration_tables(ev))
+    if ev.config.options.correctors:
+        tables.append(_every_method_table(ev))
     if ev.config.motion_file:
         # The paper's figures are for its Motion I and II; beside a recording they would mislead. Only the
         # calibration lengths (the same operator) keep them.
