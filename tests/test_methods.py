@@ -103,6 +103,14 @@ def wrapped(dims, filter_kind, period_s):  # returns an object with a pose, no r
 
 
 NOT_CALLABLE = 3
+
+
+class Flat:
+    def __init__(self, dims, filter_kind, period_s):
+        pass
+
+    def correct(self, pose, measured, variance):
+        return pose[0]  # (3,): would broadcast into every landmark
 '''
 
 
@@ -144,6 +152,10 @@ def test_your_own_corrector_runs_as_a_method_and_gets_what_akc_plus_gets(own_fil
     np.testing.assert_array_equal(frames[k][1], kf[k])
     np.testing.assert_array_equal(frames[k][2], accepted[k])
     np.testing.assert_array_equal(frames[k][3], var[k])
+    # A pose of the wrong shape is an error naming the corrector and the frame, not a broadcast.
+    flat = MethodRunner(s, dims, options=MethodOptions(correctors=parse_correctors(f"FLAT={own_file}:Flat")))
+    with pytest.raises(ValueError, match=r"Flat.correct returned a pose of shape \(3,\) at frame 0"):
+        flat.run("FLAT(KF)")
 
 
 def test_a_wrong_corrector_is_named_before_a_run(own_file, tmp_path):

@@ -245,7 +245,11 @@ def run_akc(corrector, poses: np.ndarray, measured: np.ndarray | None = None, va
         else:
             res = corrector.correct(poses[k], measured[k], variance[k])
         dt_run[k] = clock() - t0
-        out[k] = getattr(res, "pose", res)  # (a corrector of your own may return the (12, 3) pose itself)
+        pose = getattr(res, "pose", res)  # (a corrector of your own may return the (12, 3) pose itself)
+        if np.shape(pose) != (NUM_LANDMARKS, 3):  # (not broadcast: a (3,) or a scalar would fill every landmark)
+            raise ValueError(f"{type(corrector).__name__}.correct returned a pose of shape {np.shape(pose)} at frame "
+                             f"{k}, expected ({NUM_LANDMARKS}, 3)")
+        out[k] = pose
         fb = getattr(res, "fallback", None)
         status[k] = "fallback" if fb is not None and bool(np.any(fb)) else "ok"
     return out, dt_run, status
