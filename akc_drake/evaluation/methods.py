@@ -91,7 +91,8 @@ def parse_method(name: str, correctors: Iterable[str] = ()) -> MethodSpec:
     if m and (m.group(1) in _CORRECTORS[1:] or m.group(1) in correctors):
         return MethodSpec(f"{m.group(1)}({m.group(2)})", True, m.group(2), m.group(1))
     own = "".join(f", {c}(KF), {c}(EKF)" for c in correctors)
-    raise ValueError(f"unknown method {name!r}; known: {', '.join(METHODS)}{own}")
+    hint = f" (a corrector of your own: --add-corrector {m.group(1)}=FILE.py:FACTORY)" if m else ""
+    raise ValueError(f"unknown method {name!r}; known: {', '.join(METHODS)}{own}{hint}")
 
 
 def parse_methods(text: str | Iterable[str], correctors: Iterable[str] = ()) -> tuple[str, ...]:
