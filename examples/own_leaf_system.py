@@ -14,7 +14,6 @@ stage so that it reads the filter's output of the same frame, and its output is 
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -23,16 +22,15 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 from akc_drake import diagrams
 from akc_drake.config import PipelineConfig
 from akc_drake.core.skeleton import NUM_LANDMARKS
+from akc_drake.evaluation.methods import load_corrector
 from akc_drake.systems import timing
 
 _HERE = Path(__file__).resolve().parent
 
 
 def _segment_lengths():
-    spec = importlib.util.spec_from_file_location("segment_lengths", _HERE / "segment_lengths.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.SegmentLengths
+    """The factory of ``segment_lengths.py``, loaded as ``evaluate --add-corrector`` loads it."""
+    return load_corrector(f"{_HERE / 'segment_lengths.py'}:SegmentLengths")
 
 
 class SegmentLengthsSystem(LeafSystem):

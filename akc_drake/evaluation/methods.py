@@ -28,10 +28,15 @@ both fair and fast. Every stage is timed per frame with ``time.perf_counter``.
 
 from __future__ import annotations
 
+import hashlib
+import importlib
+import importlib.util
 import re
+import sys
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -412,8 +417,6 @@ def load_corrector(path: str) -> Callable:
     Raises:
         ValueError: the path is malformed, its module cannot be imported, or it names nothing callable.
     """
-    import importlib
-
     module, sep, attr = str(path).rpartition(":")
     module, attr = module.strip(), attr.strip()
     if not sep or not module or not attr:
@@ -437,11 +440,6 @@ def load_corrector(path: str) -> Callable:
 def _load_file(file: str, path: str):
     """The module of a Python file, loaded once per process (kept in ``sys.modules`` under a name made from its
     absolute path)."""
-    import hashlib
-    import importlib.util
-    import sys
-    from pathlib import Path
-
     f = Path(file).expanduser().resolve()
     if not f.is_file():
         raise ValueError(f"corrector {path!r}: no such file {file!r}")
@@ -483,8 +481,6 @@ def parse_correctors(text: str | Iterable[str]) -> dict[str, str]:
             raise ValueError(f"corrector name {name!r} given more than once")
         module, _, attr = path.rpartition(":")
         if module.strip().endswith(".py"):  # (absolute: a worker's working folder may differ)
-            from pathlib import Path
-
             path = f"{Path(module.strip()).expanduser().resolve()}:{attr.strip()}"
         load_corrector(path)
         out[name] = path

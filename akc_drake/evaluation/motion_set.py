@@ -218,7 +218,8 @@ def evaluate_clip(item: dict) -> dict:
         options = dataclasses.replace(options, correctors=own)
     runner = MethodRunner(session, dims, item.get("weights", "Wb"), options)
     accepted, _ = runner.occlusion()
-    lost = {j: float(np.mean(~np.isfinite(accepted[:, INDEX[j], 2]))) for j in ARM_JOINTS}
+    seen = np.isfinite(accepted[:, :, 2])  # (T, 12): the depths the occlusion filter passed
+    lost = {j: float(np.mean(~seen[:, INDEX[j]])) for j in ARM_JOINTS}
     out = {
         "name": clip["name"],
         "activity": clip.get("activity", ""),
@@ -257,7 +258,7 @@ def evaluate_clip(item: dict) -> dict:
         if spec.corrector != "none" and spec.filter in estimates:
             out["methods"][method]["paired"] = paired_errors(estimates[method], estimates[spec.filter],
                                                              session.truth, spec.filter,
-                                                             seen=np.isfinite(accepted[:, :, 2]))
+                                                             seen=seen)
     return out
 
 
