@@ -73,12 +73,14 @@ demo: install
 	$(VENV)/bin/akc-drake demo
 
 # Both cores (pytest-xdist; one test file per worker at a time, so module fixtures are built once), in a random
-# order (pytest-randomly prints its seed; repeat an order with --randomly-seed=N).
+# order (pytest-randomly prints its seed; repeat an order with --randomly-seed=N). A worker that dies (a native
+# crash) is not replaced: with --dist loadfile, pytest-xdist can wait forever for a replaced worker's work
+# (pytest-xdist issues 784 and 1323), so the run ends at once and its summary names the test that crashed.
 # The real-motion set is fetched first, so the tests of the clip readers and the rig drive on real clips run; when
 # a registry cannot be reached those tests are skipped (pytest names them), the rest still runs.
 test: install
 	@$(MAKE) --no-print-directory mocap-data || echo "warning: could not fetch the real-motion set (make mocap-data); its tests will be skipped"
-	$(PY) -m pytest -q -p no:cacheprovider -n 2 --dist loadfile
+	$(PY) -m pytest -q -p no:cacheprovider -n 2 --dist loadfile --max-worker-restart 0
 
 bench: install
 	$(VENV)/bin/akc-drake bench
