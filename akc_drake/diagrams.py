@@ -121,10 +121,13 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
     (the closed-loop operator) instead of ``motion``.
 
     Returns:
-        ``{"landmarks_C", "visibility", "pixels", "truth"}`` output ports and ``"systems"``: the systems added.
+        ``{"landmarks_C", "visibility", "pixels", "truth"}`` output ports, ``"systems"``: the systems added, and
+        ``"owned"``: what this function made that holds a resource until closed (the MediaPipe detector it makes
+        for a ``frame_source`` given without a ``detector``); :class:`MocapDiagram` closes it.
     """
     period = camera_period(cfg)
     systems = {}
+    owned = []  # what this function made and someone must close (a default MediaPipe detector)
     if replay is not None:
         from akc_drake.systems.measurement_replay import MeasurementReplay
 
@@ -156,6 +159,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
             from akc_drake.io.mediapipe_detector import MediaPipeDetector
 
             detector = MediaPipeDetector()
+            owned.append(detector)
     else:
         from akc_drake.systems.depth_camera_source import DepthCameraSource, images_needed
 
@@ -203,6 +207,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
         "systems": systems,
         "num_frames": num_frames,
         "intrinsics": intrinsics,
+        "owned": owned,
     }
 
 
@@ -390,7 +395,13 @@ def _progress_advance(simulator: Simulator, t_end: float, step: float, progress:
 
 @dataclass
 class MocapDiagram:
-    """A built mocap diagram and what is needed to run it and read its output."""
+    """A built mocap diagram and what is needed to run it and read its output.
+
+    A detector the builder made itself (MediaPipe's pose landmarker for a ``frame_source`` built without a
+    ``detector``; MediaPipe Hands in a teleop diagram built without a ``hand_detector``) holds a MediaPipe graph and
+    its thread until it is closed: :meth:`close`, or a ``with`` block, releases them (later simulations then fail in
+    the detector). A detector you pass stays yours to close. Unclosed, they are closed at the interpreter's exit.
+    """
 
     diagram: Diagram
     config: PipelineConfig
@@ -399,6 +410,18 @@ class MocapDiagram:
     loggers: dict[str, VectorLogSink]
     num_frames: int | None
     intrinsics: object = None
+    owned: list = field(default_factory=list, repr=False)
+
+    def close(self) -> None:
+        """Close the detectors the builder made (see the class); closing twice is a no-op."""
+        while self.owned:
+            self.owned.pop().close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     @property
     def systems(self) -> dict:
@@ -452,7 +475,8 @@ def build_mocap_diagram(cfg: PipelineConfig | None = None, *, replay: Measuremen
         builder.ExportOutput(ports.truth, "landmarks_true_C")
     diagram = builder.Build()
     diagram.set_name("mocap")
-    return MocapDiagram(diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"))
+    return MocapDiagram(diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"),
+                        owned=source.get("owned", []))
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -637,6 +661,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                 from akc_drake.io.hand_detector import HandDetector
 
                 hand_detector = HandDetector()
+                source.setdefault("owned", []).append(hand_detector)
             # after the extractor (its pose wrists of the same frame tell the hands apart), before the gripper
             hands = builder.AddSystem(HandApertureDetector(hand_detector, source["intrinsics"], period,
                                                            timing.stage_offset("filter", cfg.stage_offset_s)))
@@ -682,6 +707,6 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     diagram.set_name("teleop")
     return TeleopDiagram(
         diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"),
-        mapper=mapper, station=station, ik=ik, monitor=monitor, meshcat=meshcat, ik_time_step=ik_time_step,
-        clip_log=clip_log, gripper=gripper, operator=controller,
+        owned=source.get("owned", []), mapper=mapper, station=station, ik=ik, monitor=monitor, meshcat=meshcat,
+        ik_time_step=ik_time_step, clip_log=clip_log, gripper=gripper, operator=controller,
     )

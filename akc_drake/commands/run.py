@@ -114,6 +114,7 @@ def main(args) -> int:
             realtime=(kind == "realsense"),
             progress=sys.stderr.isatty(),
         )
+        built.close()  # (the detectors the diagram made for itself: the run is over)
     finally:
         inputs.close()
     if result.stop_reason.startswith("source error"):
