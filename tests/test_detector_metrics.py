@@ -116,3 +116,26 @@ def test_upper_arm_angle_to_the_camera_ray_and_the_figures_by_view():
     assert "visible_not_end_on" not in rep["joints"]["left_hip"]
     text = format_report("test", rep)
     assert "| left_elbow | 20.0 (1) | - (0) | 0.0 (1) | 10.0 (2) | 0.0 (1) |" in text
+
+
+def test_pixel_errors_by_the_detectors_visibility_band():
+    """Each found frame of an arm joint counts in the band of its visibility (1.0 in the top band, NaN in none);
+    a frame where nobody was found counts nowhere."""
+    P = _pose(False)
+    truth = np.stack([P] * 5)
+    uv = np.stack([[project(p, K) for p in P]] * 5)
+    j = INDEX["right_wrist"]
+    uv[:, j] += np.array([[3.0, 4.0], [6.0, 8.0], [0.0, 2.0], [0.0, 7.0], [0.0, 0.0]])  # 5, 10, 2, 7, 0 px
+    vis = np.full((5, NUM_LANDMARKS), 0.99)
+    vis[:, j] = [1.0, 0.75, 0.995, np.nan, 0.5]
+    uv[4] = np.nan  # nobody found in the last frame
+    rep = detector_report(_session(truth, uv, vis, truth))
+    bands = rep["joints"]["right_wrist"]["by_visibility"]
+    assert list(bands) == ["0-0.7", "0.7-0.8", "0.8-0.9", "0.9-0.95", "0.95-0.99", "0.99-1"]
+    assert bands["0.99-1"]["frames"] == 2 and bands["0.99-1"]["px_median"] == pytest.approx(3.5)
+    assert bands["0.7-0.8"] == {"frames": 1, "px_median": pytest.approx(10.0), "px_p90": pytest.approx(10.0)}
+    assert bands["0-0.7"]["frames"] == 0 and bands["0-0.7"]["px_median"] is None
+    assert sum(b["frames"] for b in bands.values()) == 3  # the NaN visibility and the empty frame count nowhere
+    assert "by_visibility" not in rep["joints"]["right_hip"]
+    text = format_report("test", rep)
+    assert "| right_wrist | - (0) | 10.0 (1) | - (0) | - (0) | - (0) | 3.5 (2) |" in text

@@ -12,6 +12,10 @@ and the true joint centres in the camera frame):
   them with the paper's rules, and how often a visible joint is flagged by mistake (rejected frames of a
   visible joint, or a visible joint whose depth is dropped);
 * **depth error**: the depth read at the detected pixel (the raw landmark's z) minus the true z;
+* **by visibility**: the arm joints' pixel error in bands of the detector's own visibility score
+  (:data:`VISIBILITY_BANDS`), over every frame the joint was found, seen or hidden: whether the score tells how
+  far off a reading is (on the skinned operator MediaPipe's does on some motions and not on others; docs/results.md,
+  session 32);
 * **by view**: the visible arm joints' pixel error by the angle between the upper arm and the camera ray
   (:func:`upper_arm_ray_angle`). With the upper arm end-on (pointing at the camera) the shoulder and elbow
   project onto one pixel and the image shows no bend: a 2D detector's elbow is least defined there, so the
@@ -38,6 +42,8 @@ LANDMARK_RADIUS_M = {"shoulder": 0.055, "elbow": 0.045, "wrist": 0.032, "pinky":
 END_ON_DEG = 30.0
 #: Bins of the upper arm's angle to the camera ray (degrees) for the per-view pixel errors.
 ANGLE_BINS_DEG = (0.0, 10.0, END_ON_DEG, 180.0)
+#: Bands of the detector's visibility score for the pixel errors by visibility (the last band includes 1).
+VISIBILITY_BANDS = (0.0, 0.7, 0.8, 0.9, 0.95, 0.99, 1.0)
 
 
 def _project(P: np.ndarray, K: CameraIntrinsics) -> np.ndarray:
@@ -114,10 +120,13 @@ def detector_report(session, visibility_threshold: float = 0.7, proximity: float
         ``flag_visibility`` / ``flag_proximity`` / ``flag_any`` (shares of those frames flagged). Arm
         landmarks (not the hips) also have ``visible_not_end_on`` (the same figures over the visible frames
         whose upper arm on that side is at least :data:`END_ON_DEG` from the camera ray) and
-        ``visible_by_upper_arm_angle``: ``{"0-10": {"frames", "px_median"}, ...}`` over :data:`ANGLE_BINS_DEG`.
+        ``visible_by_upper_arm_angle``: ``{"0-10": {"frames", "px_median"}, ...}`` over :data:`ANGLE_BINS_DEG`,
+        and ``by_visibility``: ``{"0.99-1": {"frames", "px_median", "px_p90"}, ...}`` over
+        :data:`VISIBILITY_BANDS` (every frame the joint was found, with a finite visibility).
     """
     K = session.intrinsics
     truth, pix = np.asarray(session.truth), np.asarray(session.pixels)
+    vis = np.asarray(session.visibility, dtype=float)
     raw = np.asarray(session.raw)
     found = np.isfinite(pix).any(axis=(1, 2))
     err = np.linalg.norm(pix - _project(truth, K), axis=2)
@@ -155,6 +164,12 @@ def detector_report(session, visibility_threshold: float = 0.7, proximity: float
             joints[name]["visible_by_upper_arm_angle"] = {
                 f"{lo:g}-{hi:g}": {k: stats(~occ[:, j] & (a >= lo) & (a < hi))[k] for k in ("frames", "px_median")}
                 for lo, hi in zip(ANGLE_BINS_DEG[:-1], ANGLE_BINS_DEG[1:], strict=True)
+            }
+            v = vis[:, j]
+            joints[name]["by_visibility"] = {
+                f"{lo:g}-{hi:g}": {k: stats((v >= lo) & ((v < hi) | ((hi == 1.0) & (v == 1.0))))[k]
+                                   for k in ("frames", "px_median", "px_p90")}
+                for lo, hi in zip(VISIBILITY_BANDS[:-1], VISIBILITY_BANDS[1:], strict=True)
             }
     return {"frames": int(len(found)), "detection_rate": round(float(found.mean()), 4), "joints": joints}
 
@@ -198,6 +213,20 @@ def format_report(name: str, rep: dict) -> str:
             v, n = r["visible"], r["visible_not_end_on"]
             cells += [f"{f(v['px_median'])} ({v['frames']})", f"{f(n['px_median'])} ({n['frames']})"]
             lines.append(f"| {name_j} | " + " | ".join(cells) + " |")
+    by_vis = [r for r in rep["joints"].values() if "by_visibility" in r]
+    bands = list(by_vis[0]["by_visibility"]) if by_vis else []
+    if bands:
+        lines += [
+            "",
+            "Arm joints by the detector's visibility score: px median (frames), every frame the joint was found.",
+            "",
+            "| landmark | " + " | ".join(bands) + " |",
+            "|---" * (len(bands) + 1) + "|",
+        ]
+        for name_j, r in rep["joints"].items():
+            if "by_visibility" in r and name_j.split("_", 1)[1] in ("shoulder", "elbow", "wrist"):
+                cells = [f"{f(c['px_median'])} ({c['frames']})" for c in r["by_visibility"].values()]
+                lines.append(f"| {name_j} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
