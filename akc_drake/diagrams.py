@@ -145,6 +145,7 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
             "truth": src.GetOutputPort("landmarks_true_C"),
             "systems": systems,
             "num_frames": replay.num_frames,
+            "owned": owned,
         }
 
     from akc_drake.systems.landmark_extractor import LandmarkExtractor
@@ -423,7 +424,7 @@ def build_mocap_diagram(cfg: PipelineConfig | None = None, *, replay: Measuremen
     diagram = builder.Build()
     diagram.set_name("mocap")
     return MocapDiagram(diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"),
-                        owned=source.get("owned", []))
+                        owned=source["owned"])
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -608,7 +609,7 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
                 from akc_drake.io.hand_detector import HandDetector
 
                 hand_detector = HandDetector()
-                source.setdefault("owned", []).append(hand_detector)
+                source["owned"].append(hand_detector)
             # after the extractor (its pose wrists of the same frame tell the hands apart), before the gripper
             hands = builder.AddSystem(HandApertureDetector(hand_detector, source["intrinsics"], period,
                                                            timing.stage_offset("filter", cfg.stage_offset_s)))
@@ -654,6 +655,6 @@ def build_teleop_diagram(cfg: PipelineConfig | None = None, *, replay: Measureme
     diagram.set_name("teleop")
     return TeleopDiagram(
         diagram, cfg, dims, ports, loggers, source.get("num_frames"), source.get("intrinsics"),
-        owned=source.get("owned", []), mapper=mapper, station=station, ik=ik, monitor=monitor, meshcat=meshcat,
+        owned=source["owned"], mapper=mapper, station=station, ik=ik, monitor=monitor, meshcat=meshcat,
         ik_time_step=ik_time_step, clip_log=clip_log, gripper=gripper, operator=controller,
     )

@@ -116,29 +116,9 @@ def test_config_errors_are_user_errors():
         diagrams.build_mocap_diagram(PipelineConfig(filter="UKF"))
 
 
-class _NoiseSource:
-    """A video-like frame source: ``n`` frames of noise at a constant 2 m depth."""
-
-    def __init__(self, n=3):
-        from akc_drake.core.camera import CameraIntrinsics
-
-        self.intrinsics = CameraIntrinsics(width=160, height=120, fx=150.0, fy=150.0, cx=79.5, cy=59.5)
-        self.rate_hz, self.n, self.depth_is_surface = 10.0, n, False
-
-    def __len__(self):
-        return self.n
-
-    def __iter__(self):
-        from akc_drake.core.camera import CameraFrame
-
-        rng = np.random.default_rng(0)
-        K = self.intrinsics
-        for i in range(self.n):
-            color = rng.integers(0, 256, (K.height, K.width, 3), dtype=np.uint8)
-            yield CameraFrame(color, np.full((K.height, K.width), 2.0), i / self.rate_hz, K)
-
-
 def test_a_detector_the_builder_made_is_closed_with_the_diagram_and_yours_is_not():
+    from frame_sources import NoiseFrames
+
     from akc_drake.errors import UserError
     from akc_drake.io import mediapipe_detector as mpd
 
@@ -147,7 +127,7 @@ def test_a_detector_the_builder_made_is_closed_with_the_diagram_and_yours_is_not
     except UserError as e:
         pytest.skip(f"no pose model here: {e}")
     cfg = PipelineConfig(source="video:x", camera=CameraConfig(width=160, height=120, rate_hz=10.0))
-    with diagrams.build_mocap_diagram(cfg, frame_source=_NoiseSource()) as built:
+    with diagrams.build_mocap_diagram(cfg, frame_source=NoiseFrames()) as built:
         (made,) = built.owned
         assert isinstance(made, mpd.MediaPipeDetector) and made._landmarker is not None
         log, _ = built.simulate(3)  # it runs (noise: nobody found, so NaN landmarks)
@@ -158,7 +138,7 @@ def test_a_detector_the_builder_made_is_closed_with_the_diagram_and_yours_is_not
         built.simulate(3)
 
     with mpd.MediaPipeDetector() as mine:
-        built = diagrams.build_mocap_diagram(cfg, frame_source=_NoiseSource(), detector=mine)
+        built = diagrams.build_mocap_diagram(cfg, frame_source=NoiseFrames(), detector=mine)
         assert built.owned == []
         built.close()
         assert mine._landmarker is not None  # still the caller's, open

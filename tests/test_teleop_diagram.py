@@ -208,8 +208,9 @@ def test_arm_limits_from_the_config_and_from_the_argument():
 def test_the_hand_detector_the_builder_made_is_closed_with_the_diagram():
     """Teleop on a camera's frames measures the hands with MediaPipe Hands; one the builder made is the diagram's
     to close (a pose detector passed in stays the caller's)."""
+    from frame_sources import NoiseFrames
+
     from akc_drake import diagrams
-    from akc_drake.core.camera import CameraFrame, CameraIntrinsics
     from akc_drake.errors import UserError
     from akc_drake.io import hand_detector as hd
     from akc_drake.io import mediapipe_detector as mpd
@@ -220,22 +221,9 @@ def test_the_hand_detector_the_builder_made_is_closed_with_the_diagram():
     except UserError as e:
         pytest.skip(f"no MediaPipe model here: {e}")
 
-    class Frames:
-        intrinsics = CameraIntrinsics(width=160, height=120, fx=150.0, fy=150.0, cx=79.5, cy=59.5)
-        rate_hz, depth_is_surface = 10.0, False
-
-        def __len__(self):
-            return 2
-
-        def __iter__(self):
-            K = self.intrinsics
-            for i in range(2):
-                yield CameraFrame(np.zeros((K.height, K.width, 3), np.uint8), np.full((K.height, K.width), 2.0),
-                                  i / self.rate_hz, K)
-
     cfg = PipelineConfig(source="video:x", camera=CameraConfig(width=160, height=120, rate_hz=10.0))
     with mpd.MediaPipeDetector() as pose:
-        with diagrams.build_teleop_diagram(cfg, frame_source=Frames(), detector=pose, log_stages=False) as built:
+        with diagrams.build_teleop_diagram(cfg, frame_source=NoiseFrames(2), detector=pose, log_stages=False) as built:
             (hands,) = built.owned
             assert isinstance(hands, hd.HandDetector) and hands._landmarker is not None
         assert hands._landmarker is None and pose._landmarker is not None
