@@ -32,13 +32,13 @@ _RUN = textwrap.dedent(
 )
 
 
-def _run(tmp_path, name, pure):
+def _run(tmp_path, name, pure, prelude=""):
     env = dict(os.environ)
     env.pop(compiled.PURE_PYTHON_ENV, None)
     if pure:
         env[compiled.PURE_PYTHON_ENV] = "1"
     out = tmp_path / f"{name}.npy"
-    code = _RUN + "\nimport akc_drake.compiled as c\nprint(c.build_state())\n"
+    code = prelude + _RUN + "\nimport akc_drake.compiled as c\nprint(c.build_state())\n"
     r = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True, check=True)
     return np.load(out), r.stdout.strip()
 
@@ -64,6 +64,18 @@ def test_compiled_and_source_give_bit_identical_poses(tmp_path):
     assert a.shape == b.shape == (6 * 121, 12, 3)  # (2 cycles of 6 s at 10 Hz, both ends)
     assert np.isfinite(a).mean() > 0.9  # (real poses, not NaN throughout)
     np.testing.assert_array_equal(a, b)  # NaN where NaN, every other bit equal
+
+
+def test_neither_the_source_nor_the_compiled_modules_import_cython_at_run_time(tmp_path):
+    # Their locals are typed for the compiler (``x: float``; ``cython.Py_ssize_t`` under ``TYPE_CHECKING``), and
+    # Cython is a build dependency only: with its module unimportable both still run, and give the same poses.
+    block = "import sys\nsys.modules['cython'] = None  # (import cython: ImportError)\n"
+    a, state_a = _run(tmp_path, "compiled", pure=False, prelude=block)
+    b, state_b = _run(tmp_path, "source", pure=True, prelude=block)
+    assert state_b == "source"
+    assert state_a == ("source" if os.environ.get(compiled.PURE_PYTHON_ENV) else "compiled")
+    assert np.isfinite(a).mean() > 0.9
+    np.testing.assert_array_equal(a, b)
 
 
 def _fake_package(tmp_path, build=True):

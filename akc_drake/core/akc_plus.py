@@ -158,6 +158,7 @@ arithmetic). The evidence tests (covariance matching, the blind hold, the known-
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -194,6 +195,9 @@ from akc_drake.core.arm_geometry import radial as _radial
 from akc_drake.core.arm_geometry import ray_check
 from akc_drake.core.arm_geometry import turn_with as _turn_with
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
+
+if TYPE_CHECKING:  # (read by Cython when compiling: typed indices, see setup.py; never imported at run time)
+    import cython
 
 _hypot, _inf = math.hypot, math.inf
 _isfinite = math.isfinite
@@ -242,22 +246,17 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             raise ValueError(f"config must be an AKCPlusConfig, got {type(config).__name__}")
         self._dims = dims
         self.config = config
-        self._lf = (dims.LLA, dims.RLA)
-        self._lu = (dims.LUA, dims.RUA)
-        self._ls = dims.SW
+        self._lf, self._lu, self._ls = (dims.LLA, dims.RLA), (dims.LUA, dims.RUA), dims.SW
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
         self._hand = tuple((*o, config.hand_length_m) for o in _HAND if config.hand_length_m > 0)
         self._pf = pf = per_frame(config, period_s)  # (the rate-dependent settings at this frame period)
         self._inv_t2 = 1.0 / pf.step_sigma_m**2
-        self._v_t = pf.temporal_walk_var
-        self._v_s = pf.shoulder_walk_var
-        self._a_s = pf.shoulder_alpha
+        self._v_t, self._v_s, self._a_s = pf.temporal_walk_var, pf.shoulder_walk_var, pf.shoulder_alpha
         self._t_cap = config.temporal_cap**2
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
         self._inv_torso2 = 1.0 / config.sigma_torso_m**2 if config.sigma_torso_m > 0 else 0.0
-        self._no_prior: set = set()
-        self._fits: set = set()
+        self._no_prior, self._fits = set(), set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
         self._r_z = config.depth_sigma_m**2
         self._len_var = config.length_sigma_m**2
@@ -300,8 +299,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             return False
         return abs(m[o + 2] - fz) <= self.config.consistency_m
 
-    def _arm(self, v, m, side):
+    def _arm(self, v, m, side: cython.Py_ssize_t):
         """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
+        sx: float; sy: float; sz: float; ex: float; ey: float; ez: float; wx: float; wy: float; wz: float; z: float
+        q: float; d: float; d0: float; d1: float; d2: float; df: float; jump: float; inv_w2: float; lf: float; lu: float
+        g2: float; rz: float; tol: float; cons: float; xy_tol: float  # (C doubles when compiled: setup.py)
+        o_s: cython.Py_ssize_t; o_e: cython.Py_ssize_t; o_w: cython.Py_ssize_t
         prev = self._prev[side]
         o_s, o_e, o_w = offsets = self._offsets[side]
         # (``arm_inputs`` inline, its operations in the same order: this runs for every arm.)
@@ -557,10 +560,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     # (The circle exists for both candidates or for neither: it depends on s and w alone.)
                     qq = circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, pair[0], pair[1])  # (``_circle_point`` x 2)
                     if qq is not None:
-                        q, q2 = qq
+                        q1, q2 = qq
                         # (Both off the elbow's image position: whichever is chosen is discarded below.)
                         xy_tol = self._xy_tol
-                        if w_seen or not (_hypot(q[0] - ex, q[1] - ey) > xy_tol
+                        if w_seen or not (_hypot(q1[0] - ex, q1[1] - ey) > xy_tol
                                           and _hypot(q2[0] - ex, q2[1] - ey) > xy_tol):
                             e = self._choose_elbow(qq, ex, ey, ez, pe, ke, s, w, lu, lf)
             if e is None or (not w_seen and _hypot(e[0] - ex, e[1] - ey) > self._xy_tol):
@@ -657,9 +660,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._v = v
         self._axes = None  # (see ``_penalty``)
         self._v0 = v[:]
-        chosen = [-1, -1]
-        held = [True, True]
-        fallback = [False, False]
+        chosen, held, fallback = [-1, -1], [True, True], [False, False]
         prevs, lost, offsets = self._prev, self._lost, self._offsets
         # The torso's references of the held shoulders (``TorsoReference._torso_anchors``): the hips' centre, or the
         # other shoulder.

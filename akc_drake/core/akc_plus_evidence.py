@@ -11,13 +11,17 @@ update (the running NIS, the arm's coordinates) is passed in.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from akc_drake.core.arm_geometry import behind_hand, rebuild_variance
+
+if TYPE_CHECKING:  # (read by Cython when compiling: typed indices, see setup.py; never imported at run time)
+    import cython
 
 _NAN = float("nan")
 
 
-def arm_variances(sub_index, var, m, v, f, nis, alpha, floor, g2, refit=False):
+def arm_variances(sub_index, var, m, v, f, nis, alpha: float, floor: float, g2: float, refit=False):
     """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
 
     The running NIS measures the filter's error against its model while it is measured; an axis not measured
@@ -53,6 +57,8 @@ def arm_variances(sub_index, var, m, v, f, nis, alpha, floor, g2, refit=False):
     Returns:
         The nine variances (a list).
     """
+    p: float; k: float; z: float; d: float; q: float; vi: float; r: float  # (C doubles when compiled: setup.py)
+    i: cython.Py_ssize_t; j: cython.Py_ssize_t; n: cython.Py_ssize_t
     b = 1.0 - alpha
     out = [0.0] * 9
     for i, j, r, n in sub_index:
@@ -135,7 +141,7 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     return p, False
 
 
-def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2), honest_frames=math.inf):
+def fuse_held(f, vs, held, anchor, v_step: float, base, axes=(0, 1, 2), honest_frames: float = math.inf):
     """A joint not measured this frame: the filter's estimate fused with the joint held at an offset from an anchor.
 
     Two Gaussian priors of the joint ``f[base:base + 3]``: the filter's (its covariance-matched variances
@@ -171,6 +177,7 @@ def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2), honest_frames=m
             filter's, whose bone constraints shrink the posterior of a joint nothing measures): each axis counts
             it at least the hold's variance (inf: always the filter's).
     """
+    n: float; v: float
     n = held[3] = held[3] + 1.0
     vh = v_step * n
     for k in axes:
@@ -184,7 +191,8 @@ def fuse_held(f, vs, held, anchor, v_step, base, axes=(0, 1, 2), honest_frames=m
             vs[i] = v * vh / s
 
 
-def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, no_prior, lost, recent):
+def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu: float, lf: float, xy, r_z: float, length_var: float, no_prior,
+                 lost, recent):
     """Whether the elbow's and the shoulder's depths are known (see :mod:`akc_drake.core.akc_plus`).
 
     Known: measured and seen, or not measured this frame (nor held at our last output, ``no_prior``) with a
@@ -205,6 +213,8 @@ def known_depths(m, vs, me, ms, o_e, o_s, ke, ks, lu, lf, xy, r_z, length_var, n
     Returns:
         ``(elbow known, shoulder known)``.
     """
+    sx: float; sy: float; ex: float; ey: float; wx: float; wy: float; ve: float; vsz: float; mze: float; mzs: float
+    rb: float; rs: float
     sx, sy, ex, ey, wx, wy = xy
     ve, vsz = vs[5], vs[2]
     # Each test without its rebuilt variance; that variance is computed only where the test turns on it (a
@@ -365,6 +375,7 @@ def hidden_wrist(v, m, o_e, o_w, o_i, o_p, length) -> None:
         o_e, o_w, o_i, o_p: the elbow's, wrist's, index and pinky knuckles' flat offsets.
         length: the wrist to the knuckles' midpoint.
     """
+    wx: float; wy: float; wz: float; k: float
     wx, wy, wz = m[o_w], m[o_w + 1], m[o_w + 2]
     if not wz < v[o_e + 2]:  # (the forearm not toward the camera, or a depth NaN: the common case, at once)
         return

@@ -29,8 +29,10 @@ _isfinite = math.isfinite
 _MIN_SEGMENT_M = 1e-12
 
 
-def _circle(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
+def _circle(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, px: float,
+            py: float, pz: float):
     """:func:`~akc_drake.core.arm_geometry.circle_point`'s operations, the arm returned (None if no circle)."""
+    d: float; q: float; h: float  # (C doubles when compiled: setup.py)
     nx, ny, nz = sx - wx, sy - wy, sz - wz
     d = _hypot(nx, ny, nz)
     if not (abs(lf - lu) < d < lf + lu):
@@ -53,7 +55,7 @@ def _circle(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
     return (sx, sy, sz, cx + qx * f, cy + qy * f, cz + qz * f, wx, wy, wz)
 
 
-def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0, tested=None):
+def project_arm(f, var, lu: float, lf: float, length_var: float, gate: float, offset_var: float = 0.0, tested=None):
     """The arm nearest ``f`` in the filter's metric whose segments have exactly the lengths ``lu`` and ``lf``.
 
     Minimises ``sum (p - f)^2 / var`` over the nine coordinates (shoulder, elbow, wrist) subject to
@@ -88,6 +90,9 @@ def project_arm(f, var, lu, lf, length_var, gate, offset_var=0.0, tested=None):
         The arm (nine floats), or None when chi2 > gate (or is NaN) or no arm with these lengths exists near
         ``f`` (the shoulder-wrist distance out of reach, a zero-length segment, a singular step).
     """
+    fsx: float; fsy: float; fsz: float; fex: float; fey: float; fez: float; fwx: float; fwy: float; fwz: float
+    vsx: float; vsy: float; vsz: float; vex: float; vey: float; vez: float; vwx: float; vwy: float; vwz: float
+    n1: float; n2: float; g1: float; g2: float; o: float; chi2: float
     fsx, fsy, fsz, fex, fey, fez, fwx, fwy, fwz = f
     vsx, vsy, vsz, vex, vey, vez, vwx, vwy, vwz = var
     if offset_var:
@@ -160,7 +165,7 @@ def measured_arm(m, offsets):
     return t if _isfinite(sum(t)) else None
 
 
-def project_forearm(s, f, v, lu, lf, offset_var=0.0):
+def project_forearm(s, f, v, lu: float, lf: float, offset_var: float = 0.0):
     """The elbow and wrist nearest ``f`` in the metric of variances ``v`` with ``|s - e| = lu``, ``|e - w| = lf``.
 
     Two steps of sequential quadratic programming (fewer once the lengths are met to 0.01 mm), then the elbow
@@ -177,6 +182,8 @@ def project_forearm(s, f, v, lu, lf, offset_var=0.0):
         The arm (nine floats: shoulder, elbow, wrist), or None when no arm with these lengths exists near ``f``
         (the shoulder-wrist distance out of reach, a zero-length segment, a singular step).
     """
+    sx: float; sy: float; sz: float; fex: float; fey: float; fez: float; fwx: float; fwy: float; fwz: float
+    vex: float; vey: float; vez: float; vwx: float; vwy: float; vwz: float; n1: float; n2: float; o: float
     sx, sy, sz = s
     fex, fey, fez, fwx, fwy, fwz = f
     vex, vey, vez, vwx, vwy, vwz = v
@@ -271,10 +278,11 @@ def behind_surface(arm, f, v, lu, lf, z_read, tol, z_prev, offset_var=0.0, shoul
     return alt
 
 
-def circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, p, p2):
+def circle_pair(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, p, p2):
     """:func:`~akc_drake.core.arm_geometry.circle_point` for two points ``p`` and ``p2`` (the two Pythagorean
     elbow candidates), the circle computed once: ``(q, q2)``, each bit-identical to ``circle_point``'s, or None
     when the circle does not exist (it depends on the shoulder and the wrist alone)."""
+    d: float; q: float; h: float; px: float; py: float; pz: float
     nx, ny, nz = sx - wx, sy - wy, sz - wz
     d = _hypot(nx, ny, nz)
     if not (abs(lf - lu) < d < lf + lu):

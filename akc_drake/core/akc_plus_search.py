@@ -92,7 +92,8 @@ class CandidateSearch:
                 best_j, best = j, p
         return best, best_j
 
-    def _choose_elbow(self, cands, fx, fy, fz, prev_p, k_lost, s, w, lu, lf, inv_w2=None):
+    def _choose_elbow(self, cands, fx: float, fy: float, fz: float, prev_p, k_lost, s, w, lu: float, lf: float,
+                      inv_w2=None):
         """:meth:`_choose` of elbow candidates with the anatomical penalty (shoulder ``s``, wrist ``w``) and,
         with ``inv_w2``, the wrist's forearm-length term ``(|c - w| - lf)^2 inv_w2`` as extra terms.
 
@@ -102,6 +103,8 @@ class CandidateSearch:
         (mirror candidates tens of cm apart usually differ by more than the penalty), else only for a
         candidate whose other terms leave it a chance to win. (``_inv_f2`` inline: this runs on most frames.)
         """
+        inv_f2: float; v: float; inv_t2: float; t_cap: float; qx: float; qy: float; qz: float; px: float; py: float
+        pz: float; x: float; high: float; pen_b: float; best_j: float  # (C doubles when compiled: setup.py)
         if k_lost in self._no_prior:
             inv_f2 = 0.0
         else:
@@ -112,8 +115,7 @@ class CandidateSearch:
                 v = vs[5 if k_lost % 2 == 0 else 2]
                 inv_f2 = 1.0 / (1e-12 if 1e-12 > v else v) if v == v else 0.0  # (max(v, 1e-12) exactly)
         inv_t2, t_cap = self._inv_t2, self._t_cap
-        if prev_p is not None:
-            qx, qy, qz = prev_p
+        qx, qy, qz = prev_p if prev_p is not None else (0.0, 0.0, 0.0)  # (not read without prev_p)
         # Each candidate's terms without the penalty: j (filter, temporal) and x (the wrist's), low = j + x.
         js, xs, lows = [], [], []
         for px, py, pz in cands:
@@ -159,9 +161,10 @@ class CandidateSearch:
                 best_j, best = j, cands[i]
         return best
 
-    def _penalty(self, s, e, w, lu, lf, axes=None):
+    def _penalty(self, s, e, w, lu: float, lf: float, axes=None):
         """BACKWARDS when the arm's elbow is folded below elbow_min_deg or hyperextended (m5, our sign:
         :func:`~akc_drake.core.arm_geometry.bends_backwards`)."""
+        ex: float; ey: float; ez: float
         ex, ey, ez = e
         ux, uy, uz = s[0] - ex, s[1] - ey, s[2] - ez
         fx, fy, fz = w[0] - ex, w[1] - ey, w[2] - ez
@@ -195,12 +198,14 @@ class CandidateSearch:
             v0 = self._v0
             self._tz, self._inv_tz2 = 0.5 * (v0[_LHIP_Z] + v0[_RHIP_Z]), self._inv_torso2
 
-    def _shoulder_cost(self, c, e, w, sx, sy, sz, ps, inv_fs2, lu, lf, other, bound=_inf):
+    def _shoulder_cost(self, c, e, w, sx: float, sy: float, sz: float, ps, inv_fs2: float, lu: float, lf: float, other,
+                       bound: float = _inf):
         """The cost of shoulder candidate ``c`` (``inv_fs2``: its filter prior's 1 / sigma^2, ``_inv_f2``).
 
         A candidate whose cost already reaches ``bound`` (the best so far) before the anatomical penalty cannot
         win (the penalty is >= 0): that partial cost is returned without computing the penalty.
         """
+        cx: float; cy: float; cz: float; t: float; j: float; dw: float; tz: float; fl: float
         cx, cy, cz = c
         dx, dy, dz = cx - sx, cy - sy, cz - sz
         j = (dx * dx + dy * dy + dz * dz) * inv_fs2

@@ -39,7 +39,7 @@ _LHIP, _RHIP = 3 * INDEX["left_hip"], 3 * INDEX["right_hip"]
 NO_HIPS = (_NAN, _NAN, _NAN)  # (the hips' centre unknown: the held shoulder off this frame)
 
 
-def _seen(z, f, p, rz, g2):
+def _seen(z: float, f: float, p: float, rz: float, g2: float):
     """A measured depth ``z`` passes the innovation test against the filter's ``f`` (posterior variance ``p``; the
     test of ``_arm``'s seen depth: the residual's variance is ``R - P``). False for a NaN."""
     q = rz - p
@@ -139,6 +139,8 @@ class TorsoReference:
         simulated detector) passes the innovation test by following it. (The wrist's vote needs no pixel
         proximity: a shoulder at the depth of a wrist that far from it in the image, as in a T-pose, is no vote.)
         """
+        g2: float; rz: float; cons: float; hz: float; vh: float; mx: float; my: float; mz: float; lu: float; lf: float
+        fold: float; ex: float; ey: float; ez: float; miss: float  # (C doubles when compiled: setup.py)
         o_s, o_e, o_w = self._offsets[side]
         g2, rz, cons = self._gate2, self._r_z, self._cons
         h = self._anchor[side][1]
@@ -191,12 +193,15 @@ class TorsoReference:
         shoulder held on them agreed; the right elbow, rebuilt from it, 12.6 cm RMSE in z against the KF's 2.7
         (7.6 with this rule: the hold ends after 44 frames, 25 cm off).
         """
+        mz: float; moz: float; last: float; since: float; g2: float; rz: float; n: float; v_s: float; mx: float
+        my: float  # (C doubles when compiled: setup.py)
         o_s, o_o = self._offsets[side][0], self._offsets[1 - side][0]
         mz, moz = m[o_s + 2], m[o_o + 2]
         pz, po = self._pair_z[side], self._pair_z[1 - side]
         if mz == mz:
             last, since, pz[2], pz[3] = pz[2], pz[3], mz, 0.0
         else:
+            last = since = _NAN  # (not read: no depth this frame)
             pz[3] += 1.0
         if held or mz != mz or vs[2] != vs[2] or not self._v_s:
             return held

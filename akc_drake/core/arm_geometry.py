@@ -46,6 +46,7 @@ def torso_axes(v) -> tuple:
     midpoint to the hips' midpoint made orthogonal to it, front = down x lateral (towards the camera for an
     operator facing it). Missing shoulders or hips give the default of an operator facing the camera.
     """
+    lx: float; ly: float; lz: float; dx: float; dy: float; dz: float; nl: float; nd: float  # (setup.py)
     lx, ly, lz = v[_LSH] - v[_RSH], v[_LSH + 1] - v[_RSH + 1], v[_LSH + 2] - v[_RSH + 2]
     dx = 0.5 * (v[_LHIP] + v[_RHIP] - v[_LSH] - v[_RSH])
     dy = 0.5 * (v[_LHIP + 1] + v[_RHIP + 1] - v[_LSH + 1] - v[_RSH + 1])
@@ -64,7 +65,7 @@ def torso_axes(v) -> tuple:
     return front, (dx, dy, dz), (lx, ly, lz)
 
 
-def bends_backwards(ux, uy, uz, fx, fy, fz, lf, axes) -> bool:
+def bends_backwards(ux: float, uy: float, uz: float, fx: float, fy: float, fz: float, lf: float, axes) -> bool:
     """Whether the forearm ``f`` bends backwards (hyperextension) about the elbow, for m5's signed angle.
 
     ``u`` is the unit vector elbow -> shoulder. The paper does not say how it signs theta; our convention:
@@ -74,6 +75,7 @@ def bends_backwards(ux, uy, uz, fx, fy, fz, lf, axes) -> bool:
     than :data:`_BACKWARD_FRACTION` of the forearm. Where the anterior side is ill-defined (arm raised
     sideways overhead) the angle is taken unsigned.
     """
+    ax: float; ay: float; az: float; bx: float; by: float; bz: float; cx: float; cy: float; cz: float; n: float
     (ax, ay, az), (bx, by, bz), (cx, cy, cz) = axes
     hd = -(ux * bx + uy * by + uz * bz)  # humerus (shoulder -> elbow) . down
     hf = -(ux * ax + uy * ay + uz * az)  # . front
@@ -143,7 +145,8 @@ def arm_inputs(v, offsets, prev):
     return sx, sy, sz, ex, ey, ez, wx, wy, wz
 
 
-def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate, prev=None, agree=0.0) -> None:
+def ray_check(m, offsets, f, vs, var, r_xy: float, r_z: float, g2: float, gate: float, prev=None,
+              agree: float = 0.0) -> None:
     """Measured depths the innovation test rejects: an occluder's, or the filter's error? The ray decides.
 
     The image measures a joint's ray (x / z, y / z); an occluder's depth read at the joint's pixel moves the
@@ -174,6 +177,7 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate, prev=None, agree=0.0)
         r_xy, r_z: the measurement's variances; g2: the innovation gate squared; gate: the largest chi2 accepted.
         prev: our last output of the arm (9 floats) or None; agree: the largest |measured - last output| depth.
     """
+    mz: float; fz: float; q: float; mx: float; my: float; pz: float
     for i, o in ((0, offsets[0]), (3, offsets[1]), (6, offsets[2])):
         mz = m[o + 2]
         fz = f[i + 2]
@@ -195,12 +199,14 @@ def ray_check(m, offsets, f, vs, var, r_xy, r_z, g2, gate, prev=None, agree=0.0)
                 vs[i], vs[i + 1], vs[i + 2] = r_xy, r_xy, r_z
 
 
-def circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
+def circle_point(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, px: float,
+                 py: float, pz: float):
     """The elbow at ``lf`` from the wrist and ``lu`` from the shoulder nearest to ``p``; None if none exists.
 
     The two spheres meet in a circle (centre on the wrist-shoulder line, plane normal to it); the nearest
     point of the circle to ``p`` is ``p``'s projection on the plane pushed out to the radius.
     """
+    d: float; h: float; q: float
     nx, ny, nz = sx - wx, sy - wy, sz - wz
     d = _hypot(nx, ny, nz)
     if not (abs(lf - lu) < d < lf + lu):
@@ -223,17 +229,18 @@ def circle_point(wx, wy, wz, sx, sy, sz, lf, lu, px, py, pz):
 
 
 # ------------------------------------------------------------------ AKC+'s candidates (plain floats)
-def pythagoras(ax, ay, az, px, py, length):
+def pythagoras(ax: float, ay: float, az: float, px: float, py: float, length: float):
     """The two points at ``length`` from anchor ``a`` with the x, y of ``p`` (eq. 7-8), or None if too far."""
     dx, dy = px - ax, py - ay
     r2 = length * length - dx * dx - dy * dy
     if r2 < 0.0:
         return None
-    r = math.sqrt(r2)
+    r: float = math.sqrt(r2)
     return (px, py, az + r), (px, py, az - r)
 
 
-def rebuild_variance(ax, ay, vax, vay, vaz, px, py, vpx, vpy, length, length_var, prior_var=0.0):
+def rebuild_variance(ax: float, ay: float, vax: float, vay: float, vaz: float, px: float, py: float, vpx: float,
+                     vpy: float, length: float, length_var: float, prior_var: float = 0.0):
     """The variance of the depth eq. 7-8 gives joint ``p`` from anchor ``a`` (first order, regularised).
 
     ``z_p = z_a +- dz`` with ``dz^2 = l^2 - dx^2 - dy^2`` (``dx = x_p - x_a``, ``dy = y_p - y_a``), so
@@ -257,14 +264,14 @@ def rebuild_variance(ax, ay, vax, vay, vaz, px, py, vpx, vpy, length, length_var
     l2 = length * length
     dz2 = l2 - dx2 - dy2
     v4 = 4.0 * (dx2 * (vpx + vax) + dy2 * (vpy + vay) + l2 * length_var)
-    den = 4.0 * abs(dz2) + 2.0 * math.sqrt(v4)
-    out = vaz + (v4 / den if den > 0.0 else 0.0)
+    den: float = 4.0 * abs(dz2) + 2.0 * math.sqrt(v4)
+    out: float = vaz + (v4 / den if den > 0.0 else 0.0)
     if prior_var > 0.0 and dz2 > 0.0:
         out += 2.0 * dz2 * math.erfc(math.sqrt(dz2 / (2.0 * prior_var)))  # Phi(-dz/sd) (2 dz)^2
     return out
 
 
-def candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
+def candidates(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float, xy_seen, tol: float):
     """The joint's candidates at ``length`` from anchor ``a``: the Pythagorean pair (eq. 7-8) when its x, y
     were detected this frame; when they were not (the filter holds them, less reliable 2D) and ``p`` is
     already within ``tol`` of the length, ``p`` moved radially (a small correction).
@@ -279,27 +286,27 @@ def candidates(ax, ay, az, px, py, pz, length, xy_seen, tol):
     return (in_plane(ax, ay, az, px, py, length) if xy_seen else radial(ax, ay, az, px, py, pz, length),)
 
 
-def in_plane(ax, ay, az, px, py, length):
+def in_plane(ax: float, ay: float, az: float, px: float, py: float, length: float):
     """The point at ``length`` from ``a`` along the in-plane direction to ``p``, at ``a``'s depth."""
     dx, dy = px - ax, py - ay
-    n = _hypot(dx, dy)
+    n: float = _hypot(dx, dy)
     if n < 1e-12:
         return ax, ay + length, az
     f = length / n
     return ax + dx * f, ay + dy * f, az
 
 
-def radial(ax, ay, az, px, py, pz, length):
+def radial(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
     """``p`` moved along its direction from ``a`` to ``length`` from it (eq. 9's form)."""
     dx, dy, dz = px - ax, py - ay, pz - az
-    n = _hypot(dx, dy, dz)
+    n: float = _hypot(dx, dy, dz)
     if n < 1e-12:
         return ax, ay + length, az
     f = length / n
     return ax + dx * f, ay + dy * f, az + dz * f
 
 
-def follow(ax, ay, az, px, py, pz, length):
+def follow(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
     """Joint ``p`` moved to ``length`` from ``a``: its x, y kept (the image is the reliable part) at the
     Pythagorean depth nearest its own when that moves it less than 1.5 times the radial move, else radially."""
     r = radial(ax, ay, az, px, py, pz, length)
@@ -312,7 +319,8 @@ def follow(ax, ay, az, px, py, pz, length):
     return r
 
 
-def d2(p, qx, qy, qz):
+def d2(p, qx: float, qy: float, qz: float):
+    dx: float; dy: float; dz: float
     dx, dy, dz = p[0] - qx, p[1] - qy, p[2] - qz
     return dx * dx + dy * dy + dz * dz
 
@@ -322,7 +330,8 @@ def d2(p, qx, qy, qz):
 TOWARD_CAMERA_SHARE = (0.5, 0.8)
 
 
-def behind_hand(ex, ey, ez, wx, wy, wz, cx, cy, cz, length) -> float:
+def behind_hand(ex: float, ey: float, ez: float, wx: float, wy: float, wz: float, cx: float, cy: float, cz: float,
+                length: float) -> float:
     """The factor that puts a wrist its own hand hides on its pixel ray behind the hand (1.0: left as it is).
 
     When the forearm points toward the camera, the hand is in front of the wrist and the depth at the wrist's pixel
@@ -341,6 +350,7 @@ def behind_hand(ex, ey, ez, wx, wy, wz, cx, cy, cz, length) -> float:
     Returns:
         ``k``: the wrist is ``k * w`` (its pixel ray through the camera centre).
     """
+    nf: float; lo: float; hi: float; dz: float
     fx, fy, fz = wx - ex, wy - ey, wz - ez
     nf = _hypot(fx, fy, fz)
     if not (nf > 1e-6 and wz > 1e-6) or cz - wz > length or not _isfinite(cx + cy + cz):
@@ -355,13 +365,15 @@ def behind_hand(ex, ey, ez, wx, wy, wz, cx, cy, cz, length) -> float:
     return (wz + (weight if weight < 1.0 else 1.0) * deficit) / wz
 
 
-def turn_with(vx, vy, vz, ax, ay, az, bx, by, bz) -> tuple[float, float, float]:
+def turn_with(vx: float, vy: float, vz: float, ax: float, ay: float, az: float, bx: float, by: float,
+              bz: float) -> tuple[float, float, float]:
     """The vector ``v`` turned by the smallest rotation that takes direction ``a`` to direction ``b`` (Rodrigues,
     with the axis ``a x b`` unnormalised: ``v c + k x v + (k . v) k / (1 + c)``, ``c`` the cosine). A forearm held
     while its wrist is not seen turns so with its upper arm (the arm swinging about the shoulder as one piece); the
     teleoperation's roll prior carries the torso's forward axis so (``control_frames``).
     ``v`` is returned as it is when either direction is degenerate or the turn is a half turn or more (then the
     smallest rotation is not defined). Plain floats (AKC+'s hot path)."""
+    na: float; nb: float
     na, nb = _hypot(ax, ay, az), _hypot(bx, by, bz)
     if not (na > _MIN_SEGMENT_M and nb > _MIN_SEGMENT_M):
         return vx, vy, vz
