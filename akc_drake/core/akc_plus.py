@@ -639,6 +639,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         Raises:
             ValueError: if ``pose`` or ``measured`` does not have shape (12, 3).
         """
+        o_s: cython.Py_ssize_t; o_e: cython.Py_ssize_t; o_w: cython.Py_ssize_t  # (C indices when compiled: setup.py)
         a = pose if type(pose) is np.ndarray and pose.dtype == _F64 else _as_f64(pose)  # (inline)
         if a.shape != _SHAPE:
             raise ValueError(f"pose must have shape ({NUM_LANDMARKS}, 3), got {a.shape}")
@@ -650,7 +651,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.reshape(_FLAT).tolist()
             for o in self._hand:  # (a wrist its own hand hides, put behind it: ``hidden_wrist``)
-                hidden_wrist(v, m, *o)
+                hidden_wrist(v, m, o[0], o[1], o[2], o[3], o[4])
         self._var = None
         if variance is not None:
             c = variance if type(variance) is np.ndarray and variance.dtype == _F64 else _as_f64(variance)  # (inline)

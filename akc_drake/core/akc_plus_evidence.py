@@ -362,7 +362,8 @@ def nearer_wrist_misfit(f, lu, lf, cons):
             and abs(math.hypot(sx - ex, sy - ey, sz - ez) - lu) <= cons)
 
 
-def hidden_wrist(v, m, o_e, o_w, o_i, o_p, length) -> None:
+def hidden_wrist(v, m, o_e: cython.Py_ssize_t, o_w: cython.Py_ssize_t, o_i: cython.Py_ssize_t, o_p: cython.Py_ssize_t,
+                 length: float) -> None:
     """A measured wrist that its own hand hides, put behind the hand (:func:`~akc_drake.core.arm_geometry.behind_hand`).
 
     The forearm's direction is the filter's elbow to the measured wrist (the elbow's depth is often dropped then:
