@@ -56,26 +56,20 @@ def test_the_installed_package_runs_every_hot_module_compiled():
         assert sys.modules[m].__file__.endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES))
 
 
-def test_compiled_and_source_give_bit_identical_poses(tmp_path):
-    a, state_a = _run(tmp_path, "compiled", pure=False)
-    b, state_b = _run(tmp_path, "source", pure=True)
+# Cython is a build dependency only: the locals are typed for the compiler (``x: float``; ``cython.Py_ssize_t``
+# under ``TYPE_CHECKING``), so with its module unimportable both builds still run, and give the same poses.
+_NO_CYTHON = "import sys\nsys.modules['cython'] = None  # (import cython: ImportError)\n"
+
+
+@pytest.mark.parametrize("prelude", ["", _NO_CYTHON], ids=["as-installed", "cython-unimportable"])
+def test_compiled_and_source_give_bit_identical_poses(tmp_path, prelude):
+    a, state_a = _run(tmp_path, "compiled", pure=False, prelude=prelude)
+    b, state_b = _run(tmp_path, "source", pure=True, prelude=prelude)
     assert state_b == "source"
     assert state_a == ("source" if os.environ.get(compiled.PURE_PYTHON_ENV) else "compiled")
     assert a.shape == b.shape == (6 * 121, 12, 3)  # (2 cycles of 6 s at 10 Hz, both ends)
     assert np.isfinite(a).mean() > 0.9  # (real poses, not NaN throughout)
     np.testing.assert_array_equal(a, b)  # NaN where NaN, every other bit equal
-
-
-def test_neither_the_source_nor_the_compiled_modules_import_cython_at_run_time(tmp_path):
-    # Their locals are typed for the compiler (``x: float``; ``cython.Py_ssize_t`` under ``TYPE_CHECKING``), and
-    # Cython is a build dependency only: with its module unimportable both still run, and give the same poses.
-    block = "import sys\nsys.modules['cython'] = None  # (import cython: ImportError)\n"
-    a, state_a = _run(tmp_path, "compiled", pure=False, prelude=block)
-    b, state_b = _run(tmp_path, "source", pure=True, prelude=block)
-    assert state_b == "source"
-    assert state_a == ("source" if os.environ.get(compiled.PURE_PYTHON_ENV) else "compiled")
-    assert np.isfinite(a).mean() > 0.9
-    np.testing.assert_array_equal(a, b)
 
 
 def _fake_package(tmp_path, build=True):
