@@ -175,8 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "EKF and the AKC/AKC+ variants; and each --add-corrector's two)")
     p.add_argument("--weights", default="Wb", choices=("Wa", "Wb", "Wc"), help="AKC weight preset (paper Table I)")
     p.add_argument("--rate-hz", type=float, default=10.0, metavar="HZ",
-                   help="the camera's frame rate for --motion / --motion-file (default: 10, the paper's; a "
-                   "RealSense streams at 30)")
+                   help="the camera's frame rate (default: 10, the paper's; a RealSense streams at 30); motion "
+                   "files and the --motion-dir clips are retargeted at it")
     _add_akc_plus(p)
     p.add_argument("--add-corrector", action="append", metavar="NAME=FILE.py:FACTORY",
                    help="a corrector of your own, run as NAME(KF) and NAME(EKF) beside the others (added to the "

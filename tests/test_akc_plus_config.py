@@ -70,6 +70,7 @@ def test_per_frame_settings_are_the_configs_at_ten_hertz():
 
 @pytest.mark.parametrize("rate_hz", [30.0, 15.0, 5.0])
 def test_per_frame_settings_mean_the_same_in_seconds(rate_hz):
+    """Motions, random walks, the shoulders' running means and frame counts; the running NIS per innovation."""
     c = AKCPlusConfig(nis_alpha=0.3)
     pf, n = per_frame(c, 1.0 / rate_hz), rate_hz / 10.0  # n frames at this rate per frame at 10 Hz
     # A motion between two frames (speed x period), and over one second:
@@ -78,10 +79,11 @@ def test_per_frame_settings_mean_the_same_in_seconds(rate_hz):
     # A random walk's variance accumulated over one second:
     assert pf.temporal_walk_var * rate_hz == pytest.approx(c.sigma_temporal_m**2 * 10.0)
     assert pf.shoulder_walk_var * rate_hz == pytest.approx(c.sigma_shoulder_m**2 * 10.0)
-    # A running mean forgets as much per second: (1 - a')^n == 1 - a.
-    assert (1.0 - pf.nis_alpha) ** n == pytest.approx(1.0 - 0.3)
+    # The shoulders' running means forget as much per second: (1 - a')^n == 1 - a.
     assert (1.0 - pf.shoulder_alpha) ** n == pytest.approx(1.0 - c.shoulder_alpha)
-    assert 0.0 < pf.nis_alpha <= 1.0
+    assert 0.0 < pf.shoulder_alpha <= 1.0
+    # The running NIS averages as many innovations at every rate (its noise is set by their number).
+    assert pf.nis_alpha == 0.3
     # Frame counts: as many seconds.
     assert pf.recent_frames / rate_hz == pytest.approx(c.recent_frames / 10.0)
     assert pf.gate_frames / rate_hz == pytest.approx(c.gate_frames / 10.0)

@@ -310,15 +310,41 @@ def test_motion_dir_renders_each_clip_once_through_the_cache(tmp_path):
     keys = {key}
     for other in (dict(seed=3, protocol="ours"), dict(seed=2, protocol="paper"),
                   dict(seed=2, protocol="ours", body="skinned"), dict(seed=2, protocol="ours", detector="mediapipe"),
-                  dict(seed=2, protocol="ours", width=320, height=240)):
+                  dict(seed=2, protocol="ours", width=320, height=240), dict(seed=2, protocol="ours", rate_hz=30.0)):
         keys.add(spec_key(clip_spec(clip, **other)))
-    assert len(keys) == 6
+    assert len(keys) == 7
     assert spec_key(clip_spec({**clip, "window_s": [0.0, 0.05]}, seed=2, protocol="ours")) != key
     (clips / "a.bvh").write_text(text.replace("Frame Time: 0.025", "Frame Time: 0.0250"))
     assert spec_key(clip_spec(clip, seed=2, protocol="ours")) != key
     third = evaluate_motion_dir(clips, **kw)
     assert third["render_cache"]["hits"] == 2 and third["render_cache"]["misses"] == 1  # only the edited clip
     assert len(entries()) == 4
+
+
+def test_the_clips_are_retargeted_at_the_camera_rate(tmp_path):
+    """``--rate-hz`` with ``--motion-dir``: each clip is the file's own motion sampled at the camera's rate (not
+    10 Hz samples interpolated), and the T-pose, the filters and AKC+ run at that rate too."""
+    from akc_drake.evaluation.cache import _motion_of
+    from akc_drake.evaluation.motion_set import clip_spec, evaluate_motion_dir, tpose_spec
+    from akc_drake.operator.retarget import load_motion_file
+
+    shutil.copy(DATA / "upper_body.bvh", tmp_path / "a.bvh")  # 5 frames at 40 Hz: 0.1 s
+    clip = find_clips(tmp_path)[0]
+    for rate in (10.0, 30.0):
+        motion = _motion_of(clip_spec(clip, seed=0, protocol="ours", rate_hz=rate))
+        ref = load_motion_file(tmp_path / "a.bvh", rate_hz=rate)
+        np.testing.assert_allclose(np.diff(motion.times), 1.0 / rate, rtol=1e-12)
+        np.testing.assert_array_equal(motion.q_left, ref.q_left)
+        np.testing.assert_array_equal(motion.q_right, ref.q_right)
+    assert tpose_spec(rate_hz=30.0)["intrinsics"]["rate_hz"] == 30.0
+    r = evaluate_motion_dir(tmp_path, methods=["KF", "AKC+(KF)"], seed=0, protocol="ours", cache=False,
+                            progress=False, tpose_seconds=1.0, rate_hz=30.0)
+    assert r["failures"] == [] and r["rate_hz"] == 30.0
+    assert r["clips"][0]["frames"] == 4  # t = 0, 1/30, 2/30, 0.1 s (2 frames at 10 Hz)
+    titles = [t.title for t in motion_dir_tables(r)]
+    assert titles and all(t.endswith("(ours protocol, 30 Hz)") for t in titles), titles
+    with pytest.raises(ValueError, match="rate_hz must be a positive frame rate"):
+        evaluate_motion_dir(tmp_path, methods=["KF"], cache=False, progress=False, rate_hz=0.0)
 
 
 def test_a_bad_clip_fails_alone(tmp_path, capsys):

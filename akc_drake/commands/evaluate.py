@@ -98,6 +98,14 @@ def _motion_file_options(args) -> tuple[str | None, str | None]:
     return str(p), (str(sk) if sk else None)
 
 
+def _rate_hz(args) -> float:
+    """``--rate-hz``, checked (a UserError names a rate outside 1-240 Hz)."""
+    rate = getattr(args, "rate_hz", 10.0)
+    if not (math.isfinite(rate) and 1.0 <= rate <= 240.0):
+        raise UserError(f"--rate-hz must be a frame rate between 1 and 240 Hz, got {rate:g}")
+    return float(rate)
+
+
 def build_config(args):
     """An :class:`~akc_drake.evaluation.experiment.ExperimentConfig` from parsed options.
 
@@ -109,9 +117,7 @@ def build_config(args):
 
     if args.cycles < 1:
         raise UserError(f"--cycles must be at least 1, got {args.cycles}")
-    rate = getattr(args, "rate_hz", 10.0)
-    if not (math.isfinite(rate) and 1.0 <= rate <= 240.0):
-        raise UserError(f"--rate-hz must be a frame rate between 1 and 240 Hz, got {rate:g}")
+    rate = _rate_hz(args)
     correctors = _correctors(args)
     methods = _methods(args, METHODS, correctors)
     motion_file, skeleton = _motion_file_options(args)
@@ -222,8 +228,7 @@ def run_motion_dir(args) -> int:
     for opt in ("motion_file", "skeleton"):
         if getattr(args, opt, None) and clips is None:
             raise UserError(f"--{opt.replace('_', '-')}: not used with --motion-dir")
-    if getattr(args, "rate_hz", 10.0) != 10.0:
-        raise UserError("--rate-hz: the motion set is rendered at 10 Hz (not with --motion-dir or --drive rig)")
+    rate = _rate_hz(args)
     correctors = _correctors(args)
     methods = _methods(args, DEFAULT_METHODS, correctors)
     _check_outputs(args)
@@ -240,7 +245,7 @@ def run_motion_dir(args) -> int:
     result = evaluate_motion_dir(args.motion_dir, methods=methods, seed=args.seed, protocol=args.protocol,
                                  weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
                                  scheduler=scheduler, n_workers=workers, drive=drive, clips=clips,
-                                 akc_plus=_akc_plus(args), correctors=correctors)
+                                 akc_plus=_akc_plus(args), correctors=correctors, rate_hz=rate)
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))

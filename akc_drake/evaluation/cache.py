@@ -357,9 +357,10 @@ def _motion_of(spec: dict):
         return getattr(motions, m["pose"])(float(m["seconds"]), spec["seed"])
     from akc_drake.operator.retarget import load_motion_file
 
-    if m.get("names") is None and m.get("window_s") is None:
-        return load_motion_file(m["path"], m.get("skeleton"))
-    motion = load_motion_file(m["path"], m.get("skeleton"), names=m.get("names"))
+    # Retargeted at the camera's rate: a 30 Hz camera sees the recording's own motion at 30 Hz, not 10 Hz samples
+    # interpolated (and a rig drive needs the motion's samples at the frames' times).
+    rate = float(spec["intrinsics"]["rate_hz"])
+    motion = load_motion_file(m["path"], m.get("skeleton"), rate_hz=rate, names=m.get("names"))
     if m.get("window_s"):
         motion = window_motion(motion, m["window_s"], spec["name"])
     return motion

@@ -104,10 +104,12 @@ def clip_spec(
     width: int = 640,
     height: int = 480,
     drive: str = "angles",
+    rate_hz: float = 10.0,
 ) -> dict:
     """The render spec (:func:`~akc_drake.evaluation.cache.render_spec`) of one clip: its file's and skeleton's
-    content, its joint-name map and window, the seed, the camera, the body, the detector and the protocol's
-    depth extraction: everything that changes its rendered session, so that the render cache keys it.
+    content, its joint-name map and window, the seed, the camera (and its frame rate ``rate_hz``, which the clip
+    is retargeted at), the body, the detector and the protocol's depth extraction: everything that changes its
+    rendered session, so that the render cache keys it.
 
     Raises:
         UserError: the clip's file is missing.
@@ -130,7 +132,7 @@ def clip_spec(
     return render_spec(
         clip["name"],
         motion,
-        intrinsics=scaled_intrinsics(width, height),
+        intrinsics=scaled_intrinsics(width, height, rate_hz),
         seed=seed,
         body=body,
         detector=detector,
@@ -139,8 +141,9 @@ def clip_spec(
 
 
 def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive", detector: str = "sim",
-               seconds: float = 10.0, width: int = 640, height: int = 480) -> dict:
-    """The render spec of the calibration T-pose held ``seconds`` (same camera, body and detector as the clips)."""
+               seconds: float = 10.0, width: int = 640, height: int = 480, rate_hz: float = 10.0) -> dict:
+    """The render spec of the calibration T-pose held ``seconds`` (same camera and frame rate, body and detector
+    as the clips)."""
     from akc_drake.evaluation.cache import render_spec
     from akc_drake.evaluation.experiment import scaled_intrinsics
     from akc_drake.evaluation.protocol import render_kwargs
@@ -148,7 +151,7 @@ def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive
     return render_spec(
         "tpose",
         {"kind": "hold", "pose": "tpose", "seconds": float(seconds)},
-        intrinsics=scaled_intrinsics(width, height),
+        intrinsics=scaled_intrinsics(width, height, rate_hz),
         seed=seed,
         body=body,
         detector=detector,
@@ -199,7 +202,8 @@ def evaluate_clip(item: dict) -> dict:
     clip = item["clip"]
     protocol = item.get("protocol", "paper")
     spec = clip_spec(clip, protocol=protocol, seed=int(item.get("seed", 0)), body=item.get("body", "primitive"),
-                     detector=item.get("detector", "sim"), drive=item.get("drive", "angles"))
+                     detector=item.get("detector", "sim"), drive=item.get("drive", "angles"),
+                     rate_hz=float(item.get("rate_hz", 10.0)))
     t0 = time.perf_counter()
     if item.get("frame_progress"):  # in-process only: a worker's stderr is not the user's terminal
         from tqdm import tqdm
@@ -472,6 +476,7 @@ def evaluate_motion_dir(
     clips: list | None = None,
     akc_plus: dict | None = None,
     correctors: dict | None = None,
+    rate_hz: float = 10.0,
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -497,9 +502,11 @@ def evaluate_motion_dir(
         correctors: correctors of your own, name -> import path
             (:func:`~akc_drake.evaluation.methods.parse_correctors`; ``--add-corrector``), which ``methods`` may name
             as ``NAME(KF)`` / ``NAME(EKF)``; compared with their filters as AKC and AKC+ are.
+        rate_hz: the camera's frame rate (10 Hz: the paper's). The clips are retargeted at it and the T-pose is
+            rendered at it; the filters and AKC+ take their period from the sessions (a RealSense streams at 30).
 
     Returns:
-        ``{"protocol", "seed", "body", "detector", "akc_plus", "correctors", "methods", "dims_cm",
+        ``{"protocol", "seed", "rate_hz", "body", "detector", "akc_plus", "correctors", "methods", "dims_cm",
         "clips": [evaluate_clip results],
         "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "worst_regression_seen",
         "worst_regression_seen_3d" (the same over the frames each joint was seen), "worst_regression_lost",
@@ -521,7 +528,10 @@ def evaluate_motion_dir(
     clips = find_clips(motion_dir) if clips is None else list(clips)
     from tqdm import tqdm
 
-    spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds)
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz must be a positive frame rate, got {rate_hz!r}")
+    spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds,
+                      rate_hz=rate_hz)
     with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
         tpose, tpose_hit = render_clip(spec, cache=cache, progress=lambda n, _name: bar.update(n))
     dims = calibrate_session(tpose, "tpose", method_options(protocol))
@@ -529,7 +539,7 @@ def evaluate_motion_dir(
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
-         "akc_plus": settings, "correctors": dict(correctors or {}),
+         "akc_plus": settings, "correctors": dict(correctors or {}), "rate_hz": float(rate_hz),
          "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
@@ -542,6 +552,7 @@ def evaluate_motion_dir(
     out = {
         "protocol": protocol,
         "seed": seed,
+        "rate_hz": float(rate_hz),
         "body": body,
         "detector": detector,
         "drive": drive,
@@ -579,9 +590,12 @@ def evaluate_motion_dir(
 
 
 def _setup(result: dict) -> str:
-    """", skinned body, mediapipe detector" when not the default primitive body and simulated detector."""
+    """", skinned body, mediapipe detector" when not the default primitive body and simulated detector, and ", 30
+    Hz" when not the default 10 Hz camera."""
     body, det = result.get("body", "primitive"), result.get("detector", "sim")
-    return "" if (body, det) == ("primitive", "sim") else f", {body} body, {det} detector"
+    rate = float(result.get("rate_hz", 10.0))
+    return ("" if (body, det) == ("primitive", "sim") else f", {body} body, {det} detector") + (
+        "" if rate == 10.0 else f", {rate:g} Hz")
 
 
 def motion_dir_tables(result: dict) -> list:
@@ -655,7 +669,7 @@ def plot_errors_per_clip(result: dict, path) -> Path:
         ax.bar(x + (k - (len(methods) - 1) / 2) * width, vals, width, label=m)
     ax.set_xticks(x, [c["name"] for c in clips], rotation=30, ha="right")
     ax.set_ylabel("mean arm-joint 3D RMSE (cm)")
-    ax.set_title(f"Error per real mocap clip and method ({result['protocol']} protocol)")
+    ax.set_title(f"Error per real mocap clip and method ({result['protocol']} protocol{_setup(result)})")
     ax.legend(fontsize=7, ncols=min(len(methods), 3))
     import io
 
