@@ -1052,13 +1052,13 @@ def test_a_wrist_its_own_hand_hides_is_put_behind_the_hand():
     assert err[0.0].min() > 0.05
 
 
-def _held_shoulder_error(rate_hz, period_s):
+def _held_shoulder_error(rate_hz, period_s, config=None):
     """The dropped shoulder of :func:`test_a_dropped_shoulder_is_held_on_the_torso_and_moves_with_the_hips`, as a
     motion in time sampled at ``rate_hz``: the operator steps 0.1 m/s towards the camera for 3 s, the filter's held
     shoulder's sigma grows 0.5 m/s; AKC+ built for frame period ``period_s``. The shoulder's z error at 0.5, 1, 2
     and 3 s."""
     p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.25))
-    akc = ArmKinematicCorrectorPlus(dims, None, period_s)
+    akc = ArmKinematicCorrectorPlus(dims, config, period_s)
     for _ in range(int(round(rate_hz / 2))):  # (settled on the pose for 0.5 s)
         akc.correct(p, measured=p, variance=kf_var())
     errs = []
@@ -1073,10 +1073,14 @@ def _held_shoulder_error(rate_hz, period_s):
 def test_per_frame_settings_follow_the_frame_period():
     # The same motion at 10 Hz and at 30 Hz: with the settings scaled to the period (the random walk of the held
     # shoulder per frame a third, its running mean's weight per frame smaller) the estimates at the same instants
-    # are the same; with the 10 Hz values per frame, the held shoulder's prior widens three times as fast.
+    # are the same; with the 10 Hz values per frame, the held shoulder's prior widens three times as fast. The
+    # running NIS's weight stays per frame (its noise is set by how many innovations it averages), so here it is
+    # given the same time constant in seconds too.
     at_10 = _held_shoulder_error(10.0, 0.1)
     assert at_10.max() > 0.005  # (a test of something: eq. 8 from the biased elbow pulls the shoulder off)
-    np.testing.assert_allclose(_held_shoulder_error(30.0, 1.0 / 30.0), at_10, atol=1e-9, rtol=0)
+    same_in_seconds = AKCPlusConfig(nis_alpha=1.0 - (1.0 - AKCPlusConfig().nis_alpha) ** (1.0 / 3.0))
+    np.testing.assert_allclose(_held_shoulder_error(30.0, 1.0 / 30.0, same_in_seconds), at_10, atol=1e-9, rtol=0)
+    assert np.abs(_held_shoulder_error(30.0, 1.0 / 30.0) - at_10).max() > 1e-3  # (the NIS per frame: sooner)
     assert np.abs(_held_shoulder_error(30.0, None) - at_10).max() > 0.01
     # None is the reference period, bit for bit.
     np.testing.assert_array_equal(_held_shoulder_error(10.0, None), at_10)
