@@ -504,6 +504,8 @@ def evaluate_motion_dir(
             as ``NAME(KF)`` / ``NAME(EKF)``; compared with their filters as AKC and AKC+ are.
         rate_hz: the camera's frame rate (10 Hz: the paper's). The clips are retargeted at it and the T-pose is
             rendered at it; the filters and AKC+ take their period from the sessions (a RealSense streams at 30).
+            One that is not a positive number is refused by the camera's intrinsics (ValueError) before anything
+            renders.
 
     Returns:
         ``{"protocol", "seed", "rate_hz", "body", "detector", "akc_plus", "correctors", "methods", "dims_cm",
@@ -528,8 +530,6 @@ def evaluate_motion_dir(
     clips = find_clips(motion_dir) if clips is None else list(clips)
     from tqdm import tqdm
 
-    if not (math.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"rate_hz must be a positive frame rate, got {rate_hz!r}")
     spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds,
                       rate_hz=rate_hz)
     with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
