@@ -1006,6 +1006,32 @@ def test_a_shoulder_behind_its_foreshortened_upper_arm_does_not_count_as_seen():
     np.testing.assert_array_equal(outs[0], outs[1])
 
 
+def test_a_lost_elbow_guessed_in_front_does_not_unsee_its_shoulder():
+    # The same upper arm pointing at the camera, then the detector loses the elbow, the wrist and the hand
+    # altogether (no x, y) while the operator steps back 1 cm a frame; the shoulder is read at its true depth and
+    # its filter follows 5 mm behind. The elbow's estimate (the upper arm held as last seen) stays in front of
+    # the shoulder, foreshortened, but nothing measured it: it is no evidence that the shoulder's pixel reads the
+    # arm, and the shoulder stays where its filter has it. (When the rule took the guess for evidence, the
+    # shoulder was rebuilt from the lost joints and drifted 0.5 -> 2.1 cm off; on MediaPipe's boxing clip at 30
+    # Hz, 47 cm.)
+    p, dims = arm_pose(elbow_dir_l=(0.1, 0.3, -0.95), wrist_dir_l=(0.2, -0.9, -0.3))
+    akc = settled_corrector(p, dims)
+    lost = [LE, LW, INDEX["left_index"], INDEX["left_pinky"]]
+    var = kf_var()
+    var[lost] = 0.09
+    for k in range(1, 6):
+        truth = p.copy()
+        truth[:, 2] += 0.01 * k
+        m = truth.copy()
+        m[lost] = np.nan
+        f = p.copy()
+        f[LS, 2] = truth[LS, 2] - 0.005
+        out = akc.correct(f, measured=m, variance=var).pose
+        np.testing.assert_allclose(out[LS], f[LS], rtol=0, atol=1e-9)
+        assert out[LE, 2] < out[LS, 2] - 0.2  # (the held elbow still in front: the rule would have acted)
+        assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+
+
 def test_a_rebuilt_shoulder_is_weighed_against_the_held_torso_depth():
     # An operator leaning back: the shoulders 25 cm behind the hips' depth. The rebuilt shoulder's torso term is
     # the hips' depth plus our outputs' running-mean offset (the shoulder held on the torso), with the held

@@ -12,8 +12,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   Kalman update with measurement variance ``R`` (``depth_sigma_m``) the residual ``z - fz`` has variance
   ``R - P``, so ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared; within ``gate_sigma``.
   A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's
-  occlusion filter lacks); the filter that followed such a rejected depth (passes the test and moved towards
-  it since the joint was last seen) is then no prior for it.
+  occlusion filter lacks; an elbow detected this frame: a lost one's position is a guess, no evidence); the
+  filter that followed such a rejected depth (passes the test and moved towards it since the joint was last
+  seen) is then no prior for it.
 * *Ray test*: a measured depth the innovation test rejects is an occluder's or the filter's error. The image
   measures the joint's ray (x / z, y / z), and an occluder's depth moves the measured point along it, not off
   it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
@@ -113,9 +114,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   2D elbow 5 cm off the joint made eq. 8 move such a shoulder 12-18 cm (vicon_playground, cmu_01_01).
 * A shoulder whose upper arm points towards the camera (the elbow in front, its distance in x, y ``d_xy``) reads
   the arm's surface ``r / sin(theta)`` in front of the joint, where the depth offset expects ``r``: with the
-  excess ``r (l_u / d_xy - 1)`` above ``consistency_m`` (``arm_radius_m`` = r) it does not count as seen
-  (MediaPipe and the simulated detector, bvhtools_a3: the shoulder read 6-9 cm in front; kept, it moved the
-  seen elbow 4-5 cm).
+  excess ``r (l_u / d_xy - 1)`` above ``consistency_m`` (``arm_radius_m`` = r) it does not count as seen, the
+  elbow detected (bvhtools_a3, both detectors: the shoulder read 6-9 cm in front; kept, it moved the elbow 4-5 cm).
 * A rebuilt shoulder's candidates are weighed against the torso: the held shoulder's depth (the hips' carrying
   our outputs' running-mean offset, with its random walk's variance) when known, else the hips' depth with
   ``sigma_torso_m`` (20 cm). A shoulder read on its own upper arm 24 cm in front is equidistant from both of
@@ -439,10 +439,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     (sx, sy, sz), held = hold_blind((sx, sy, sz), vs, 0, self._f0[ks], prev, self._r_z)
                     if held:
                         no_prior.add(ks)
-        # Our own proximity rule for the pair the paper's occlusion filter lacks: a shoulder within
-        # occlusion_radius_m of its elbow in the image plane may read the elbow's (upper arm's) surface; so may
-        # one whose upper arm points towards the camera (the elbow in front, foreshortened: ``arm_radius_m``).
-        if ms:
+        # Our proximity rule for the pair the paper's occlusion filter lacks: a shoulder within occlusion_radius_m of
+        # its elbow in the image, or whose upper arm points at the camera (``arm_radius_m``), may read the arm's
+        # surface. Only a detected elbow is evidence (a lost one's is a guess: docs/results.md, session 35).
+        if ms and exy:
             d2 = (sx - ex) ** 2 + (sy - ey) ** 2
             if d2 < self._occ_r2 or (ez < sz and d2 * self._fs_k2 < (self._fs_r * lu) ** 2):
                 ms = False

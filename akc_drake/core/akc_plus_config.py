@@ -50,7 +50,10 @@ class AKCPlusConfig:
             e.g. the elbow's surface read at the shoulder's pixel) ...
         gate_frames: ... unless it has been so for this many frames and fits the arm's lengths.
         occlusion_radius_m: a shoulder this close (x, y, metres) to its elbow does not count as seen (its
-            depth may be the upper arm's surface; 8 cm ~ 25 px at 2 m).
+            depth may be the upper arm's surface; 8 cm ~ 25 px at 2 m). This rule and the next act only on an
+            elbow detected this frame: a lost elbow's position is a guess (MediaPipe's boxing clip driven by
+            the rig at 30 Hz: an elbow held 54 cm in front of its shoulder unseated a shoulder read within 1 cm,
+            which was then rebuilt from the lost joints 47 cm in front).
         arm_radius_m: the upper arm's radius (a 30 cm circumference). An upper arm pointing towards the camera at
             angle theta from the line of sight covers its shoulder's pixel: the depth read there is the arm's
             surface, ``r / sin(theta)`` in front of the joint where one facing the camera reads ``r`` (which the
