@@ -11,10 +11,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
 * *Seen depth*: measured this frame after the occlusion filter, and passing the innovation test: for a
   Kalman update with measurement variance ``R`` (``depth_sigma_m``) the residual ``z - fz`` has variance
   ``R - P``, so ``(z - fz)^2 / (R - P)`` is exactly the normalised innovation squared; within ``gate_sigma``.
-  A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's
-  occlusion filter lacks; an elbow detected this frame: a lost one's position is a guess, no evidence); the
-  filter that followed such a rejected depth (passes the test and moved towards it since the joint was last
-  seen) is then no prior for it.
+  A shoulder within ``occlusion_radius_m`` of its elbow in the image is not seen (the pair the paper's occlusion
+  filter lacks; an elbow detected this frame: a lost one's position is a guess); the filter that followed such a
+  rejected depth (passes the test and moved towards it since the joint was last seen) is then no prior for it.
 * *Ray test*: a measured depth the innovation test rejects is an occluder's or the filter's error. The image
   measures the joint's ray (x / z, y / z), and an occluder's depth moves the measured point along it, not off
   it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
@@ -591,9 +590,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                                                   self._cons, pe[2], self._off_var, True)
                         return arm
                 if w_lost and vs is not None:
-                    # A wrist that is no anchor: its nearest point at l_f from the elbow in its own metric (its
-                    # x, y are no better known than its depth: no detection, or a depth the test rejected).
-                    w = sphere_point(e[0], e[1], e[2], wx, wy, wz, vs[6], vs[7], vs[8], lf)
+                    # A wrist that is no anchor: at l_f from the elbow, nearest in its own metric (a depth rejected)
+                    # or radially (not detected: its x, y are guesses no better than its depth; README "AKC+").
+                    w = (sphere_point(e[0], e[1], e[2], wx, wy, wz, vs[6], vs[7], vs[8], lf)
+                         if _isfinite(m[o_w] + m[o_w + 1]) else _radial(e[0], e[1], e[2], wx, wy, wz, lf))
                 else:
                     w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
