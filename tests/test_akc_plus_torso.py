@@ -177,6 +177,25 @@ def test_a_shoulder_depth_that_jumps_in_front_of_the_other_shoulders_is_held_unt
     assert frames == math.floor((0.302**2 / 9.0 - 0.05**2) / 0.01**2) == 76
 
 
+def test_a_shoulder_depth_that_jumps_behind_beyond_the_shoulder_width_is_held():
+    # MediaPipe read a shoulder on the wall behind a landmark off the body's edge (bvhtools_b driven by the rig, 30
+    # Hz: 1.6 m behind for three frames). No turn of the torso puts a shoulder farther from the other than the
+    # shoulder width (36 cm here, its gate 22 cm): held at the other's depth plus the learnt difference, like a
+    # jump in front. A depth behind within that reach is a torso that turns: kept.
+    akc, p = _corrector(), _pose()
+    for _ in range(5):
+        assert not _jump_frame(akc, p, 2.0)[0]
+    for n in range(1, 4):
+        held, s, _ = _jump_frame(akc, p, 3.6)
+        assert held and s == pytest.approx([0.18, 0.0, 2.0]) and akc._pair_z[0][1] == n
+    held, s, _ = _jump_frame(akc, p, 2.01)
+    assert not held and akc._pair_z[0][1] == 0.0
+    for _ in range(5):
+        _jump_frame(akc, p, 2.0)
+    held, s, _ = _jump_frame(akc, p, 2.3)  # (30 cm behind: 49 cm from the other shoulder, within 36 + 22)
+    assert not held and s[2] == pytest.approx(2.3)
+
+
 def test_a_difference_without_a_jump_of_its_own_is_not_held():
     # The right shoulder read 25 cm in front for a long time (a hand over it): the left one's difference from it
     # learnt +25 cm. The hand leaves: the left shoulder, where it always was, is now 25 cm in front of that

@@ -83,7 +83,7 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
 * A shoulder depth that jumps towards the camera alone (in front of the other shoulder's plus their running-mean
   depth difference, and of its own last depth, beyond the gate) is an occluder's too, held at that difference
   (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference._shoulder_jumped`: MediaPipe's hips, read on a bent body's
-  belly, moved with the shoulder read on the head).
+  belly, moved with the shoulder read on the head); so is one that jumps behind beyond the shoulder width (the wall).
 * A shoulder the detector lost altogether and a seen elbow that no wrist confirms (the wrist lost, or no
   anchor): the arm nearest both in their metric with the exact lengths, not the held shoulder kept (a torso that
   leaned while both were lost moved the seen elbow 7 cm onto the held shoulder; mocapbank driven bone by bone).

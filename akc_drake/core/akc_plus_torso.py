@@ -19,8 +19,9 @@ running-mean offset from a torso reference (:func:`~akc_drake.core.akc_plus_evid
 
 A measured shoulder depth is an occluder's, and the torso's depth replaces it on the pixel's ray, when the held
 shoulder and a second vote contradict it (:meth:`TorsoReference._torso_outvotes`: the seen elbow, or a measured wrist
-nearer than the arm can fold), or when it jumps towards the camera alone, against the other shoulder
-(:meth:`TorsoReference._shoulder_jumped`: the hips, misread with it, are then no vote).
+nearer than the arm can fold), or when it jumps towards the camera alone, against the other shoulder, or behind
+it farther than the shoulder width reaches (:meth:`TorsoReference._shoulder_jumped`: the hips, misread with it, are
+then no vote).
 
 :class:`TorsoReference` is a mixin of :class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`: it reads and
 sets the corrector's per-frame state (``_hips``, ``_anchor``, ``_hips_lost``, ``_pair_z``) and its settings.
@@ -166,10 +167,20 @@ class TorsoReference:
         vs[2] = vh
         return True
 
+    def _off_body(self, m, o_s, o_o):
+        """Whether the measured shoulder at ``o_s`` is farther from the measured one at ``o_o`` than the shoulder
+        width reaches (beyond the gate of both measurements' and the width's variances): no torso turn puts it
+        there, and a depth behind is the background behind a landmark off the body's edge."""
+        d: float; r: float
+        r = 2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var
+        d = _hypot(m[o_s] - m[o_o], m[o_s + 1] - m[o_o + 1], m[o_s + 2] - m[o_o + 2]) - self._ls
+        return d > 0.0 and d * d > self._gate2 * r
+
     def _shoulder_jumped(self, f, vs, m, side, held):
-        """A measured shoulder depth that jumped towards the camera, alone: replaced on its pixel's ray by the depth
-        the other shoulder carries (``f``, ``vs`` changed in place); True if so, or if ``held`` (another rule holds
-        the shoulder on the torso: then only the measured depth is recorded). Off with ``sigma_shoulder_m = 0``.
+        """A measured shoulder depth that jumped towards the camera, alone, or behind beyond the shoulder width:
+        replaced on its pixel's ray by the depth the other shoulder carries (``f``, ``vs`` changed in place); True
+        if so, or if ``held`` (another rule holds the shoulder on the torso: then only the measured depth is
+        recorded). Off with ``sigma_shoulder_m = 0``.
 
         ``_pair_z[side]``: the running mean (weight ``shoulder_alpha``) of the measured depth minus the other
         shoulder's, measured in the same frames; the frames it has held the shoulder; the depth last measured and
@@ -187,6 +198,13 @@ class TorsoReference:
         detector, bvhtools_a1's right shoulder read 25 cm in front under its hand: the left one, well seen, held
         5-10 cm off when the hand left); our last output in place of the last measured depth held a shoulder that
         a rebuild had put 24 cm off (vicon_playground driven bone by bone, MediaPipe).
+
+        A depth that jumped behind (by as much, both tests) is held so only when it puts the two measured shoulders
+        farther apart than the shoulder width reaches (:meth:`_off_body`): a turning torso moves a shoulder behind
+        the other within that reach, but the background behind a landmark off the body's edge is beyond it
+        (MediaPipe on bvhtools_b driven bone by bone, 30 Hz: the right shoulder read on the wall 1.6 m behind for
+        three frames; taken, it taught the torso holds the wall and kept the seen shoulder 20-35 cm behind for the
+        next 60 frames).
 
         MediaPipe on mocapbank driven bone by bone: bent forward, the right shoulder's pixel reads 30 cm in front
         for 65 frames from one frame to the next, with the hips (read on the belly) as far in front, so the
@@ -216,9 +234,11 @@ class TorsoReference:
         vh = v_s * (n + 1.0)
         hz = moz + pz[0]
         mx, my = m[o_s], m[o_s + 1]
-        # (held: until within the gate; not yet: the jump since the last measured depth too; NaN: False)
-        if not (mz < hz and (mz - hz) ** 2 > g2 * (rz + vh) and _isfinite(mx + my) and mz > 0.0
-                and (n > 0.0 or (mz < last and (mz - last) ** 2 > g2 * (rz + v_s * (since + 1.0))))):
+        # (held: until within the gate; not yet: the jump since the last measured depth too, the same way; NaN:
+        # False. Behind: only a depth that puts the shoulders farther apart than the width reaches, ``_off_body``.)
+        if not ((mz - hz) ** 2 > g2 * (rz + vh) and _isfinite(mx + my) and mz > 0.0
+                and (mz < hz or self._off_body(m, o_s, o_o))
+                and (n > 0.0 or ((mz < last) == (mz < hz) and (mz - last) ** 2 > g2 * (rz + v_s * (since + 1.0))))):
             pz[0] += self._a_s * (d - pz[0])
             pz[1] = 0.0
             return False
