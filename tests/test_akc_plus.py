@@ -1279,6 +1279,18 @@ def test_after_an_ekf_a_long_lost_wrist_counts_the_filter_no_surer_than_the_hold
     assert err[False][7] == pytest.approx(0.160, abs=0.005) and err[True][7] == pytest.approx(0.101, abs=0.005)
 
 
+def _recorded_frame(name):
+    """A frame of real data (tests/data/akc_plus/NAME: a MediaPipe evaluation clip's frame, after the KF) and AKC+ in
+    the state it had after the frames before: ``(corrector, dims, data)``; ``data`` holds ``pose``, ``measured``,
+    ``variance`` (the corrector's inputs) and ``truth``. Recorded with ``get_state_vector`` while the evaluation
+    ran; a change of the state's layout needs them recorded again."""
+    d = np.load(Path(__file__).parent / "data" / "akc_plus" / name)
+    dims = BodyDimensions(**dict(zip(("LUA", "LLA", "RUA", "RLA", "SW"), d["dims"].tolist(), strict=True)))
+    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=False), period_s=1.0 / float(d["rate_hz"]))
+    akc.set_state_vector(d["state"])
+    return akc, dims, d
+
+
 def test_a_wrist_lost_altogether_goes_radially_onto_the_forearm_sphere():
     # A frame of real data: MediaPipe's mocapbank clip (the skinned body, 30 Hz, after the KF), the first frame its
     # left wrist is lost altogether, with AKC+'s state after the frames before (tests/data/akc_plus). The wrist's
@@ -1286,10 +1298,7 @@ def test_a_wrist_lost_altogether_goes_radially_onto_the_forearm_sphere():
     # image, and its variance in depth is five times that in x, y (the KF's, from before the loss). Put on the
     # forearm's sphere in that metric, the shortfall went into depth: the wrist 19 cm in front of the truth (22 cm
     # off in 3D; the KF's 14). Its x, y are guesses no better than its depth: moved radially, it is 7 cm off.
-    d = np.load(Path(__file__).parent / "data" / "akc_plus" / "mediapipe_mocapbank_30hz_frame104.npz")
-    dims = BodyDimensions(**dict(zip(("LUA", "LLA", "RUA", "RLA", "SW"), d["dims"].tolist(), strict=True)))
-    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=False), period_s=1.0 / float(d["rate_hz"]))
-    akc.set_state_vector(d["state"])
+    akc, dims, d = _recorded_frame("mediapipe_mocapbank_30hz_frame104.npz")
     assert np.all(np.isnan(d["measured"][LW])) and np.all(np.isfinite(d["measured"][[LS, LE]]))
     out = akc.correct(d["pose"], d["measured"], d["variance"]).pose
     truth = d["truth"]
@@ -1298,3 +1307,21 @@ def test_a_wrist_lost_altogether_goes_radially_onto_the_forearm_sphere():
     assert abs(out[LW, 2] - truth[LW, 2]) < 0.075
     assert np.linalg.norm(out[[LS, LE]] - truth[[LS, LE]], axis=1).max() < 0.02  # (seen: MediaPipe's landmarks)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_seen_shoulder_is_not_outvoted_into_a_rebuild_in_front_of_its_own_reading():
+    # A frame of real data: MediaPipe's cmu_01_01 (the skinned body driven by the rig, 30 Hz, after the KF). The
+    # left shoulder, elbow and wrist are all seen; the shoulder's depth reads 0.2 cm from the truth, but MediaPipe's
+    # 2D landmarks put the upper arm 5.7 cm short in the image. The seen elbow fits the wrist better than the
+    # shoulder fits the elbow (two against one), and eq. 8 from the elbow put the shoulder 17.5 cm in front of its
+    # own reading. An occluder reads in front of a joint, never behind it: a rebuild in front contradicts the
+    # reason to outvote the reading, and the shoulder is kept.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_01_rig_30hz_frame470.npz")
+    truth, m = d["truth"], d["measured"]
+    assert np.all(np.isfinite(m[[LS, LE, LW]]))
+    assert abs(m[LS, 2] - truth[LS, 2]) < 0.005
+    assert np.linalg.norm(m[LS, :2] - m[LE, :2]) < dims.LUA - 0.05  # (the upper arm short in the image)
+    out = akc.correct(d["pose"], m, d["variance"]).pose
+    assert abs(out[LS, 2] - truth[LS, 2]) < 0.02
+    assert np.linalg.norm(out[[LS, LE]] - truth[[LS, LE]], axis=1).max() < 0.03
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)

@@ -505,13 +505,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         s = e = None
         df = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) if me else _inf
         te = df <= tol  # elbow seen and at l_f from the wrist
-        # A seen shoulder is trusted unless a seen elbow that fits the wrist, better than the shoulder fits it,
-        # contradicts it (two against one: e.g. an occluding upper arm's depth at the shoulder's pixel; MediaPipe's
-        # 2D elbow 5 cm short of the joint leaves both segments short, and eq. 8 put the shoulder 20-28 cm in front)
-        # and its depth is off the shoulder held on the torso (two against two: eq. 8 moved it 12-18 cm). One lost
+        # A seen shoulder is trusted unless a seen elbow that fits the wrist outvotes it (``_outvoted``). One lost
         # altogether (no x, y) is kept where held (eq. 8 needs its 2D position; a wrong elbow is likelier).
-        ts = ((ms and not (te and self._cons < abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) > df
-                           and not abs(sz - self._held_z(side)) <= self._cons))
+        ts = ((ms and not (te and self._outvoted(side, (sx, sy, sz, ex, ey, ez), w, prev, ks, lu, lf, sxy, df,
+                                                 m[o_s + 2])))
               or (not sxy and prev is not None and not te) or (kn_s and not te))
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
@@ -598,11 +595,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
-        self._set_torso(side)
-        # The depth measured at the shoulder's pixel, if within the arm's reach of the wrist (not the wall behind):
-        # whatever surface it read (the shoulder's, its upper arm's), the joint is not in front of it.
-        z = _NAN if m is None else m[o_s + 2]
-        self._s_floor = z if abs(z - wz) <= lu + lf else _NAN
+        self._prepare_rebuild(side, _NAN if m is None else m[o_s + 2], wz, lu, lf)
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         if te:
             s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,

@@ -273,6 +273,36 @@ class CandidateSearch:
                 best_j, best = je + js, (sc, ec)
         return best
 
+    def _prepare_rebuild(self, side, mz, wz, lu, lf):
+        """Before a rebuild of ``side``'s shoulder: its torso term (:meth:`_set_torso`) and its floor, the depth
+        ``mz`` measured at its pixel if within the arm's reach of the wrist's depth ``wz`` (not the wall behind):
+        whatever surface it read (the shoulder's, its upper arm's), the joint is not in front of it."""
+        self._set_torso(side)
+        self._s_floor = mz if abs(mz - wz) <= lu + lf else _NAN
+
+    def _outvoted(self, side, f, w, prev, ks, lu, lf, sxy, df, mz):
+        """Whether a seen shoulder (measured depth ``mz``) is outvoted, two against one, by the seen elbow that fits
+        the wrist ``w`` (its forearm ``df`` off its length), so that the shoulder is rebuilt from it (eq. 8).
+
+        The elbow fits the wrist better than the shoulder fits the elbow, by more than ``consistency_m`` (e.g. an
+        occluding upper arm's depth read at the shoulder's pixel), unless
+        * the shoulder's depth agrees with the shoulder held on the torso (two against two: MediaPipe's 2D elbow
+          5 cm short of the joint leaves both segments short, and eq. 8 moved such a shoulder 12-18 cm);
+        * or eq. 8's shoulder would lie in front of the depth its own pixel reads, beyond the gate: an occluder
+          reads in front of the joint, so a rebuild in front contradicts the one reason to outvote the reading
+          (MediaPipe, cmu_01_01 driven bone by bone at 30 Hz: the upper arm 5.7 cm short in the image, the
+          shoulder read within 0.1 cm and rebuilt 17.5 cm in front for six frames).
+        ``f``: the filter's shoulder and elbow (6 floats); ``prev``: the arm's last output or None.
+        """
+        sx, sy, sz, ex, ey, ez = f
+        if not (self._cons < abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) > df
+                and not abs(sz - self._held_z(side)) <= self._cons):
+            return False
+        self._prepare_rebuild(side, mz, w[2], lu, lf)
+        ps = (prev[0], prev[1], prev[2]) if prev is not None else None
+        s = self._rebuild_shoulder(f, w, ps, ks, lu, lf, sxy, self._other_shoulder(side))[0]
+        return not (s[2] < mz and (mz - s[2]) ** 2 > self._gate2 * self._r_z)
+
     def _rebuild_shoulder(self, f, w, ps, ks, lu, lf, sxy, other):
         """The elbow kept (moved radially to ``lf`` from the wrist ``w``) and the shoulder rebuilt from it (eq. 8);
         ``f``: the filter's shoulder and elbow (6 floats). Returns ``(shoulder, elbow)``."""
