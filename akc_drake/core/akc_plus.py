@@ -505,11 +505,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         s = e = None
         df = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) if me else _inf
         te = df <= tol  # elbow seen and at l_f from the wrist
-        # A seen shoulder is trusted unless a seen elbow that fits the wrist outvotes it (``_outvoted``). One lost
-        # altogether (no x, y) is kept where held (eq. 8 needs its 2D position; a wrong elbow is likelier).
-        ts = ((ms and not (te and self._outvoted(side, (sx, sy, sz, ex, ey, ez), w, prev, ks, lu, lf, sxy, df,
-                                                 m[o_s + 2])))
-              or (not sxy and prev is not None and not te) or (kn_s and not te))
+        # A seen shoulder is trusted unless a seen elbow that fits the wrist outvotes it (``_outvoted``: then its
+        # rebuild, reused below). One lost altogether (no x, y) is kept where held (eq. 8 needs its 2D position; a
+        # wrong elbow is likelier).
+        outvoted = ms and te and self._outvoted(side, (sx, sy, sz, ex, ey, ez), w, prev, ks, lu, lf, sxy, df,
+                                                m[o_s + 2])
+        ts = (ms and not outvoted) or (not sxy and prev is not None and not te) or (kn_s and not te)
         # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
         # is a wrist whose measured depth was rejected (``w_bad``: a filter that followed a depth read past the
@@ -598,8 +599,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._prepare_rebuild(side, _NAN if m is None else m[o_s + 2], wz, lu, lf)
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         if te:
-            s, e = self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,
-                                          self._other_shoulder(side))
+            s, e = outvoted or self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,
+                                                      self._other_shoulder(side))
         else:
             s, e = self._rebuild_from_wrist((sx, sy, sz, ex, ey, ez), w, pe, ps, ke, ks, lu, lf, exy, sxy,
                                             self._other_shoulder(side))

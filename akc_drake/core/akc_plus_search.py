@@ -281,8 +281,9 @@ class CandidateSearch:
         self._s_floor = mz if abs(mz - wz) <= lu + lf else _NAN
 
     def _outvoted(self, side, f, w, prev, ks, lu, lf, sxy, df, mz):
-        """Whether a seen shoulder (measured depth ``mz``) is outvoted, two against one, by the seen elbow that fits
-        the wrist ``w`` (its forearm ``df`` off its length), so that the shoulder is rebuilt from it (eq. 8).
+        """The rebuilt ``(shoulder, elbow)`` (eq. 8, :meth:`_rebuild_shoulder`) when a seen shoulder (measured depth
+        ``mz``) is outvoted, two against one, by the seen elbow that fits the wrist ``w`` (its forearm ``df`` off
+        its length); None when the shoulder is kept.
 
         The elbow fits the wrist better than the shoulder fits the elbow, by more than ``consistency_m`` (e.g. an
         occluding upper arm's depth read at the shoulder's pixel), unless
@@ -297,11 +298,12 @@ class CandidateSearch:
         sx, sy, sz, ex, ey, ez = f
         if not (self._cons < abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) > df
                 and not abs(sz - self._held_z(side)) <= self._cons):
-            return False
+            return None
         self._prepare_rebuild(side, mz, w[2], lu, lf)
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
-        s = self._rebuild_shoulder(f, w, ps, ks, lu, lf, sxy, self._other_shoulder(side))[0]
-        return not (s[2] < mz and (mz - s[2]) ** 2 > self._gate2 * self._r_z)
+        rebuilt = self._rebuild_shoulder(f, w, ps, ks, lu, lf, sxy, self._other_shoulder(side))
+        s = rebuilt[0]
+        return None if s[2] < mz and (mz - s[2]) ** 2 > self._gate2 * self._r_z else rebuilt
 
     def _rebuild_shoulder(self, f, w, ps, ks, lu, lf, sxy, other):
         """The elbow kept (moved radially to ``lf`` from the wrist ``w``) and the shoulder rebuilt from it (eq. 8);
