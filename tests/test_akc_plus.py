@@ -1325,3 +1325,23 @@ def test_a_seen_shoulder_is_not_outvoted_into_a_rebuild_in_front_of_its_own_read
     assert abs(out[LS, 2] - truth[LS, 2]) < 0.02
     assert np.linalg.norm(out[[LS, LE]] - truth[[LS, LE]], axis=1).max() < 0.03
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+
+
+def test_a_wrist_that_reads_its_forearm_goes_behind_its_reading():
+    # A frame of real motion held out of AKC+'s design (CMU subject 01, trial 06; the primitive body, the simulated
+    # detector, 10 Hz, after the KF). The right forearm points away from the camera, nearly along the ray: the
+    # wrist's pixel is 5 cm from the elbow's and reads the forearm's surface, 12 cm in front of the wrist, and the
+    # occlusion filter dropped the elbow's depth. The circle between the seen shoulder and that wrist reading put
+    # the elbow 12 cm off its image position in y. The wrist is then no anchor: the elbow goes from the shoulder at
+    # its image x, y and the wrist at the forearm's length behind its reading (``behind_reading``).
+    akc, dims, d = _recorded_frame("sim_cmu_01_06_10hz_frame346.npz")
+    truth, m = d["truth"], d["measured"]
+    assert np.isnan(m[RE, 2]) and np.all(np.isfinite(m[RE, :2])) and np.all(np.isfinite(m[[RS, RW]]))
+    assert m[RW, 2] < truth[RW, 2] - 0.10  # (the forearm's surface)
+    assert np.linalg.norm(m[RE, :2] - m[RW, :2]) < 0.3 * dims.RLA  # (the forearm along the ray)
+    out = akc.correct(d["pose"], m, d["variance"]).pose
+    assert np.linalg.norm(out[RE, :2] - m[RE, :2]) < 0.01
+    assert np.linalg.norm(out[RE] - truth[RE]) < 0.03
+    assert out[RW, 2] > m[RW, 2] and abs(out[RW, 2] - truth[RW, 2]) < 0.04
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+    assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)

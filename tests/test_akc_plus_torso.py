@@ -140,6 +140,35 @@ def test_a_shoulder_depth_read_on_its_own_hand_is_put_back_on_its_ray():
     assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 2.3
 
 
+
+def test_a_shoulder_depth_out_of_its_measured_wrists_reach_is_put_back_on_its_ray():
+    # MediaPipe's shoulder landmark off the body's edge reads the wall, 1.75 m behind; the elbow is lost and the
+    # filter followed the reading. The measured wrist is farther from it than the arm reaches (l_u + l_f +
+    # consistency_m) and within reach of the shoulder held on the torso: no arm puts the shoulder there.
+    akc, p = _corrector(), _pose()
+    akc._anchor = [((0.0, 0.5, 2.0), [0.18, -0.5, 0.0, 2.0]), None]  # the held shoulder at 2.0 m deep
+    lw = INDEX["left_wrist"]
+    p[lw] = [0.15, -0.2, 1.75]
+    p[LE, 2] = np.nan
+    m = _flat(p)
+    k = 3.75 / 2.0
+    m[3 * LS : 3 * LS + 3] = [0.18 * k, 0.0, 3.75]
+    assert math.dist(m[3 * LS : 3 * LS + 3], p[lw]) > 0.29 + 0.26 + 0.05 > math.dist([0.18, 0.0, 2.0], p[lw])
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 3.5] + _flat(p[[lw]])
+    vs = [1e-4] * 9
+    assert akc._torso_outvotes(f, vs, m, 0)
+    assert f[0:3] == pytest.approx([0.18, 0.0, 2.0]) and vs[2] == pytest.approx(1e-4 * 3.0)
+    # a wrist out of the held shoulder's reach too (itself read on the wall, or the torso's hold gone stale): no
+    # vote, the measurement kept
+    m[3 * lw : 3 * lw + 3] = [0.15 * 2.9 / 1.75, -0.2 * 2.9 / 1.75, 2.9]
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 3.5] + m[3 * lw : 3 * lw + 3]
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 3.75
+    # a wrist not measured: no vote
+    m[3 * lw : 3 * lw + 3] = [np.nan] * 3
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 3.5] + [0.15, -0.2, 1.75]
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 3.75
+
+
 def _jump_frame(akc, p, left_z, right_z=2.0):
     """One frame of ``_shoulder_jumped`` for the left shoulder: the filter and the measurement agree (the filter
     followed), the left shoulder read at ``left_z`` on its pixel's ray; returns (held, the left shoulder after)."""

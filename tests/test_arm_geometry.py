@@ -1,9 +1,12 @@
+import math
+
 import numpy as np
 import pytest
 
 from akc_drake.core.arm_geometry import (
     DEFAULT_AXES,
     behind_hand,
+    behind_reading,
     bends_backwards,
     circle_point,
     elbow_angle_deg,
@@ -222,3 +225,19 @@ def test_turn_with_is_the_smallest_rotation_between_two_directions():
     assert turn_with(0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0) == (0.1, 0.2, 0.3)
     assert turn_with(0.1, 0.2, 0.3, np.nan, 0.0, 0.0, 1.0, 0.0, 0.0) == (0.1, 0.2, 0.3)
     assert turn_with(0.1, 0.2, 0.3, 1.0, 0.0, 0.0, -2.0, 0.0, 0.0) == (0.1, 0.2, 0.3)
+
+
+def test_behind_reading_takes_the_point_nearer_the_reading_one_in_front_counting_twice():
+    # The points at 0.25 from the elbow (0, 0, 1.75) with the wrist's x, y (0.07, 0): depths 1.75 +- 0.24.
+    dz = math.sqrt(0.25**2 - 0.07**2)
+    behind, front = (0.07, 0.0, 1.75 + dz), (0.07, 0.0, 1.75 - dz)
+    assert behind_reading(0.0, 0.0, 1.75, 0.07, 0.0, 1.76, 0.25) == pytest.approx(behind)  # (the forearm's surface)
+    assert behind_reading(0.0, 0.0, 1.75, 0.07, 0.0, 1.52, 0.25) == pytest.approx(front)  # (at the joint)
+    # the reading behind the front point (0.1) or in front of both (0.2): the nearer, the front one
+    assert behind_reading(0.0, 0.0, 1.75, 0.07, 0.0, 1.75 - dz + 0.1, 0.25) == pytest.approx(front)
+    assert behind_reading(0.0, 0.0, 1.75, 0.07, 0.0, 1.75 - dz - 0.2, 0.25) == pytest.approx(front)
+    # between them: the behind point 0.27 away against the front one 0.21 in front of the reading, counting 0.42
+    assert behind_reading(0.0, 0.0, 1.75, 0.07, 0.0, 1.72, 0.25) == pytest.approx(behind)
+    # nearer the front point by more than half: 0.45 against 0.03 in front (0.06)
+    assert behind_reading(0.0, 0.0, 1.75, 0.07, 0.0, 1.75 - dz + 0.03, 0.25) == pytest.approx(front)
+    assert behind_reading(0.0, 0.0, 1.75, 0.3, 0.0, 1.75, 0.25) is None  # (beyond the length in x, y)

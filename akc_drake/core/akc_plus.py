@@ -96,6 +96,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   elbow's Pythagorean candidate behind the shoulder replaces it when that leaves the elbow behind its reading, its
   depth nearer our last output's (:func:`~akc_drake.core.akc_plus_lengths.behind_surface`; AKC+(KF)'s worst increase on
   the MediaPipe windows +1.15 -> +0.80 cm).
+* A wrist behind a lost elbow, its forearm along the ray (2D length < ``r l_f / (r + consistency_m)``, r =
+  ``arm_radius_m``), reads the forearm: if the circle to a kept shoulder moves the elbow off its x, y, the elbow
+  goes from the shoulder, the wrist behind its reading (:func:`akc_drake.core.arm_geometry.behind_reading`).
 * A measured wrist its own hand hides: the forearm (the filter's elbow to the measured wrist) toward the camera,
   the wrist's pixel reads the hand, up to a hand's length in front (the elbow's depth is dropped then, its pixel
   near the wrist's). The measured knuckles (index and pinky; their midpoint lies ``hand_length_m`` from the
@@ -149,9 +152,8 @@ revision: seen = within ``consistency_m`` of the filter and ``jump_m`` of our la
 since last seen; seen joints move only as the exact lengths require (circle / wrist follows).
 
 No shrink factor (seen depths make the near-in-plane instability moot). Every output arm has exactly the
-calibrated lengths (to rounding). Plain Python floats on the hot path (numpy calls cost more than the
-arithmetic). The evidence tests (covariance matching, the blind hold, the known-depth test) are in
-:mod:`akc_drake.core.akc_plus_evidence`, the candidate costs and choices in :mod:`akc_drake.core.akc_plus_search`.
+calibrated lengths (to rounding). Plain Python floats on the hot path (numpy calls cost more than the arithmetic).
+Evidence: :mod:`akc_drake.core.akc_plus_evidence`; candidates' costs and choices: :mod:`akc_drake.core.akc_plus_search`.
 """
 
 from __future__ import annotations
@@ -185,6 +187,7 @@ from akc_drake.core.akc_plus_lengths import (
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
 from akc_drake.core.akc_plus_torso import NO_HIPS, TorsoReference, learn_offset
+from akc_drake.core.arm_geometry import behind_reading as _behind_reading
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
@@ -234,8 +237,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
-                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost",
-                 "_s_floor", "_pair_z", "_blind_honest")
+                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost", "_s_floor",
+                 "_pair_z", "_blind_honest")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -302,7 +305,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         """The corrected arm (9 floats: shoulder, elbow, wrist) or None to hold; also updates the counters."""
         sx: float; sy: float; sz: float; ex: float; ey: float; ez: float; wx: float; wy: float; wz: float; z: float
         q: float; d: float; d0: float; d1: float; d2: float; df: float; jump: float; inv_w2: float; lf: float; lu: float
-        g2: float; rz: float; tol: float; cons: float; xy_tol: float  # (C doubles when compiled: setup.py)
+        g2: float; rz: float; tol: float; cons: float  # (C doubles when compiled: setup.py)
         o_s: cython.Py_ssize_t; o_e: cython.Py_ssize_t; o_w: cython.Py_ssize_t
         prev = self._prev[side]
         o_s, o_e, o_w = offsets = self._offsets[side]
@@ -515,7 +518,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
         # is a wrist whose measured depth was rejected (``w_bad``: a filter that followed a depth read past the
         # silhouette half-way, or one the measurement contradicts: either is wrong about it).
-        w_lost = False
+        w_lost, w_read = False, _NAN
         if vs is not None and m is not None:
             # (``w_bad``, the innovation test of the wrist's measured depth, NaN passing: run only here, where it
             # can act; the projection above returns on most frames.)
@@ -559,10 +562,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     if qq is not None:
                         q1, q2 = qq
                         # (Both off the elbow's image position: whichever is chosen is discarded below.)
-                        xy_tol = self._xy_tol
-                        if w_seen or not (_hypot(q1[0] - ex, q1[1] - ey) > xy_tol
-                                          and _hypot(q2[0] - ex, q2[1] - ey) > xy_tol):
+                        if w_seen or not (_hypot(q1[0] - ex, q1[1] - ey) > self._xy_tol
+                                          and _hypot(q2[0] - ex, q2[1] - ey) > self._xy_tol):
                             e = self._choose_elbow(qq, ex, ey, ez, pe, ke, s, w, lu, lf)
+                        if (w_seen and e is not None and e[2] < wz + self._cons and _hypot(e[0] - ex, e[1] - ey)
+                                > self._xy_tol and ((ex - wx) ** 2 + (ey - wy) ** 2) * self._fs_k2
+                                < (self._fs_r * lf) ** 2):  # (... but not a wrist that reads its forearm: see above)
+                            w_lost, w_seen, w_read, e = True, False, m[o_w + 2], None
             if e is None or (not w_seen and _hypot(e[0] - ex, e[1] - ey) > self._xy_tol):
                 # ... unless that moves the elbow off its image position (the filtered wrist lags, is off, or
                 # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen,
@@ -587,11 +593,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                             return behind_surface(arm, (*s, ex, ey, e[2], wx, wy, wz), vs, lu, lf, m[o_e + 2],
                                                   self._cons, pe[2], self._off_var, True)
                         return arm
-                if w_lost and vs is not None:
-                    # A wrist that is no anchor: at l_f from the elbow, nearest in its own metric (a depth rejected)
-                    # or radially (not detected: its x, y are guesses no better than its depth; README "AKC+").
-                    w = (sphere_point(e[0], e[1], e[2], wx, wy, wz, vs[6], vs[7], vs[8], lf)
-                         if _isfinite(m[o_w] + m[o_w + 1]) else _radial(e[0], e[1], e[2], wx, wy, wz, lf))
+                if w_lost and vs is not None:  # A wrist no anchor: at l_f from the elbow, behind a reading of its
+                    # forearm, nearest in its own metric (depth rejected) or radially (not detected: README "AKC+").
+                    w = (w_read == w_read and _behind_reading(*e, wx, wy, w_read, lf)) or (
+                        sphere_point(e[0], e[1], e[2], wx, wy, wz, vs[6], vs[7], vs[8], lf)
+                        if _isfinite(m[o_w] + m[o_w + 1]) else _radial(e[0], e[1], e[2], wx, wy, wz, lf))
                 else:
                     w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)

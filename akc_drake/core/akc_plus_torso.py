@@ -133,7 +133,10 @@ class TorsoReference:
           arm can fold (the shoulder-wrist distance at ``elbow_min_deg``, less ``consistency_m``): the hand's depth
           read at the shoulder's pixel, the arm pointing at the camera (MediaPipe on bvhtools_a3 driven bone by
           bone: the shoulder read 50 cm in front, 3 cm from the wrist's depth, for three frames; the held offset
-          learnt it and then outvoted the true depths: the shoulder's z RMSE 26.4 cm, the KF's 15.3).
+          learnt it and then outvoted the true depths: the shoulder's z RMSE 26.4 cm, the KF's 15.3); or farther
+          from the measurement than the arm reaches (``l_u + l_f + consistency_m``) while the held shoulder is
+          within that reach (MediaPipe's shoulders read on the wall 1.75 m behind, a held-out CMU clip driven bone
+          by bone; the filter followed them and the arm was rebuilt from them, 1.8 m off).
 
         Such a depth is an occluder's, the arm's own surface read at the shoulder's pixel, and a filter that had no
         prior for it (a shoulder lost for many frames, then read 26 cm in front: mocapbank driven bone by bone,
@@ -141,7 +144,7 @@ class TorsoReference:
         proximity: a shoulder at the depth of a wrist that far from it in the image, as in a T-pose, is no vote.)
         """
         g2: float; rz: float; cons: float; hz: float; vh: float; mx: float; my: float; mz: float; lu: float; lf: float
-        fold: float; ex: float; ey: float; ez: float; miss: float  # (C doubles when compiled: setup.py)
+        fold: float; ex: float; ey: float; ez: float; miss: float; dw: float; reach: float  # (C doubles: setup.py)
         o_s, o_e, o_w = self._offsets[side]
         g2, rz, cons = self._gate2, self._r_z, self._cons
         h = self._anchor[side][1]
@@ -155,7 +158,9 @@ class TorsoReference:
         hx, hy = mx * k, my * k
         lu, lf = self._lu[side], self._lf[side]
         fold = math.sqrt(lu * lu + lf * lf - 2.0 * lu * lf * self._cos_min) - cons  # (NaN wrist: no vote)
-        if not (mz < hz and _hypot(mx - m[o_w], my - m[o_w + 1], mz - m[o_w + 2]) < fold):
+        dw, reach = _hypot(mx - m[o_w], my - m[o_w + 1], mz - m[o_w + 2]), lu + lf + cons
+        if not (mz < hz and dw < fold
+                or dw > reach and _hypot(hx - m[o_w], hy - m[o_w + 1], hz - m[o_w + 2]) <= reach):
             if not (_isfinite(m[o_e] + m[o_e + 1] + m[o_e + 2]) and _seen(m[o_e + 2], f[5], self._var[o_e + 2], rz,
                                                                            g2)):
                 return False  # (the elbow not seen)

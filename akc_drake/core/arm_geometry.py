@@ -239,6 +239,21 @@ def pythagoras(ax: float, ay: float, az: float, px: float, py: float, length: fl
     return (px, py, az + r), (px, py, az - r)
 
 
+def behind_reading(ax: float, ay: float, az: float, px: float, py: float, z_read: float, length: float):
+    """Of the two points at ``length`` from anchor ``a`` with the x, y of ``p`` (eq. 7-8), the nearer to the depth
+    ``z_read`` read at ``p``'s pixel, one in front of it counting twice its distance; None when there is none.
+
+    A camera reads the first surface on the ray, so a joint is likelier behind its reading than in front of it (a
+    wrist behind its forearm, whose pixel shows the forearm's surface).
+    """
+    pair = pythagoras(ax, ay, az, px, py, length)
+    if pair is None:
+        return None
+    b, f = pair  # (behind, in front)
+    db, df = b[2] - z_read, f[2] - z_read  # (each candidate's depth behind the reading)
+    return b if (db if db >= 0.0 else -2.0 * db) <= (df if df >= 0.0 else -2.0 * df) else f
+
+
 def rebuild_variance(ax: float, ay: float, vax: float, vay: float, vaz: float, px: float, py: float, vpx: float,
                      vpy: float, length: float, length_var: float, prior_var: float = 0.0):
     """The variance of the depth eq. 7-8 gives joint ``p`` from anchor ``a`` (first order, regularised).
