@@ -110,6 +110,7 @@ mocap-data: install
 
 # A held-out real-motion set (akc-drake evaluate --motion-dir data/mocap_heldout): recordings from packages the set
 # above does not use (an npm tarball and a Debian package, 45 MB), sources and licences in
-# akc_drake/data/mocap_heldout_sources.json. Not fetched by `make test`.
+# data/mocap_heldout_sources.json (outside the package: its data files are in the render cache's key). Not fetched by
+# `make test`.
 mocap-heldout: install
-	$(PY) tools/fetch_mocap.py data/mocap_heldout --manifest akc_drake/data/mocap_heldout_sources.json
+	$(PY) tools/fetch_mocap.py data/mocap_heldout --manifest data/mocap_heldout_sources.json

@@ -78,11 +78,11 @@ def test_the_held_out_windows_are_the_unused_parts_of_the_sets_takes(tmp_path):
 
 
 def test_the_held_out_set_pins_archives_and_shares_no_recording_with_the_set():
-    # akc_drake/data/mocap_heldout_sources.json (make mocap-heldout): each package an archive at a URL with its
+    # data/mocap_heldout_sources.json (make mocap-heldout): each package an archive at a URL with its
     # SHA-256 and a licence; its clips none of the main set's files (by digest) nor names; a clip's file name is
     # unique, so that the fetcher writes each once.
     repo = Path(__file__).resolve().parents[1]
-    held = json.loads((repo / "akc_drake" / "data" / "mocap_heldout_sources.json").read_text())
+    held = json.loads((repo / "data" / "mocap_heldout_sources.json").read_text())
     main = json.loads((repo / "akc_drake" / "data" / "mocap_sources.json").read_text())
     for pkg in held["packages"].values():
         assert pkg["url"].startswith("https://") and len(pkg["archive_sha256"]) == 64 and pkg["licence"]

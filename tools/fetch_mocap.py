@@ -5,7 +5,7 @@ package with ``apt-get download``, or any package archive at the ``url`` its man
 ``archive_sha256``: an npm tarball, a Debian package no longer in this machine's release), checked against its
 SHA-256 (:mod:`akc_drake.io.registry`), repaired where the manifest says so, and written under its clip file name
 with a copy of the manifest. ``--manifest`` names another set's (``make mocap-heldout``:
-akc_drake/data/mocap_heldout_sources.json). Nothing here runs when akc-drake runs.
+data/mocap_heldout_sources.json). Nothing here runs when akc-drake runs.
 
 Usage: python tools/fetch_mocap.py DEST [--cache DIR] [--manifest FILE]
 """
