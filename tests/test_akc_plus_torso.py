@@ -169,6 +169,32 @@ def test_a_shoulder_depth_out_of_its_measured_wrists_reach_is_put_back_on_its_ra
     assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 3.75
 
 
+
+def test_a_shoulder_depth_farther_from_our_last_output_than_the_arm_reaches_is_put_back_on_its_ray():
+    # The same wall, the elbow and the wrist lost too: no measured joint votes. The measurement is farther from our
+    # last output's shoulder than the arm reaches, where the held shoulder is within that reach: no shoulder moves
+    # that far in a frame.
+    akc, p = _corrector(), _pose()
+    akc._anchor = [((0.0, 0.5, 2.0), [0.18, -0.5, 0.0, 2.0]), None]  # the held shoulder at 2.0 m deep
+    lw = INDEX["left_wrist"]
+    p[[LE, lw]] = np.nan
+    m = _flat(p)
+    m[3 * LS : 3 * LS + 3] = [0.18 * 3.75 / 2.0, 0.0, 3.75]
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 3.5] + [0.15, -0.2, 3.4]
+    assert not akc._torso_outvotes(f[:], [1e-4] * 9, m, 0)  # (no last output yet: no vote)
+    akc._prev[0] = (0.18, 0.0, 2.02, 0.2, 0.29, 2.0, 0.15, -0.2, 1.8)
+    vs = [1e-4] * 9
+    assert akc._torso_outvotes(f, vs, m, 0)
+    assert f[0:3] == pytest.approx([0.18, 0.0, 2.0]) and vs[2] == pytest.approx(1e-4 * 3.0)
+    # a last output itself out of the held shoulder's reach (one of them wrong): no vote
+    akc._prev[0] = (0.18, 0.0, 2.7, 0.2, 0.29, 2.7, 0.15, -0.2, 2.5)
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 3.5] + [0.15, -0.2, 3.4]
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 3.75
+    # a depth within the arm's reach of our last output (a torso that moved): no vote
+    akc._prev[0] = (0.18, 0.0, 3.3, 0.2, 0.29, 3.3, 0.15, -0.2, 3.1)
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 3.75
+
+
 def _jump_frame(akc, p, left_z, right_z=2.0):
     """One frame of ``_shoulder_jumped`` for the left shoulder: the filter and the measurement agree (the filter
     followed), the left shoulder read at ``left_z`` on its pixel's ray; returns (held, the left shoulder after)."""

@@ -124,7 +124,7 @@ class TorsoReference:
         frames.
 
         The measurement is off the held shoulder's depth beyond the gate of their variances (the hold's random walk
-        and the measurement's). The second vote is either
+        and the measurement's). The second vote is one of
 
         * the seen elbow (measured, its depth passing the innovation test): the upper arm from the measurement to
           it misses the calibrated length by more than ``consistency_m`` where the held shoulder at the same pixel
@@ -136,7 +136,9 @@ class TorsoReference:
           learnt it and then outvoted the true depths: the shoulder's z RMSE 26.4 cm, the KF's 15.3); or farther
           from the measurement than the arm reaches (``l_u + l_f + consistency_m``) while the held shoulder is
           within that reach (MediaPipe's shoulders read on the wall 1.75 m behind, a held-out CMU clip driven bone
-          by bone; the filter followed them and the arm was rebuilt from them, 1.8 m off).
+          by bone; the filter followed them and the arm was rebuilt from them, 1.8 m off); or
+        * our last output: the measurement is farther from its depth than the arm reaches, where the held depth is
+          within that reach (no shoulder moves that far in a frame; the same wall, the elbow and the wrist lost).
 
         Such a depth is an occluder's, the arm's own surface read at the shoulder's pixel, and a filter that had no
         prior for it (a shoulder lost for many frames, then read 26 cm in front: mocapbank driven bone by bone,
@@ -159,8 +161,10 @@ class TorsoReference:
         lu, lf = self._lu[side], self._lf[side]
         fold = math.sqrt(lu * lu + lf * lf - 2.0 * lu * lf * self._cos_min) - cons  # (NaN wrist: no vote)
         dw, reach = _hypot(mx - m[o_w], my - m[o_w + 1], mz - m[o_w + 2]), lu + lf + cons
+        pv = self._prev[side]
         if not (mz < hz and dw < fold
-                or dw > reach and _hypot(hx - m[o_w], hy - m[o_w + 1], hz - m[o_w + 2]) <= reach):
+                or dw > reach and _hypot(hx - m[o_w], hy - m[o_w + 1], hz - m[o_w + 2]) <= reach
+                or pv is not None and abs(mz - pv[2]) > reach and abs(hz - pv[2]) <= reach):
             if not (_isfinite(m[o_e] + m[o_e + 1] + m[o_e + 2]) and _seen(m[o_e + 2], f[5], self._var[o_e + 2], rz,
                                                                            g2)):
                 return False  # (the elbow not seen)
