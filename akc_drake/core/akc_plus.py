@@ -602,14 +602,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     w = _follow(e[0], e[1], e[2], wx, wy, wz, lf)
             return (*s, *e, *w)
         # Neither joint kept: the elbow from the wrist (a seen elbow radially) and the shoulder from the elbow.
-        self._prepare_rebuild(side, _NAN if m is None else m[o_s + 2], wz, lu, lf)
-        ps = (prev[0], prev[1], prev[2]) if prev is not None else None
-        if te:
-            s, e = outvoted or self._rebuild_shoulder((sx, sy, sz, ex, ey, ez), w, ps, ks, lu, lf, sxy,
-                                                      self._other_shoulder(side))
+        if outvoted:  # (rebuilt already, by ``_outvoted``)
+            s, e = outvoted
         else:
-            s, e = self._rebuild_from_wrist((sx, sy, sz, ex, ey, ez), w, pe, ps, ke, ks, lu, lf, exy, sxy,
-                                            self._other_shoulder(side))
+            self._prepare_rebuild(side, _NAN if m is None else m[o_s + 2], wz, lu, lf)
+            ps = (prev[0], prev[1], prev[2]) if prev is not None else None
+            f6, other = (sx, sy, sz, ex, ey, ez), self._other_shoulder(side)
+            s, e = (self._rebuild_shoulder(f6, w, ps, ks, lu, lf, sxy, other) if te
+                    else self._rebuild_from_wrist(f6, w, pe, ps, ke, ks, lu, lf, exy, sxy, other))
         if (vs is not None and not projected and exy and sxy and m is not None and ke not in no_prior
                 and ks not in no_prior and _isfinite(m[offsets[2]] + m[offsets[2] + 1])):
             # The candidates chose the configuration (which side of the image plane each segment points to);
