@@ -1345,3 +1345,22 @@ def test_a_wrist_that_reads_its_forearm_goes_behind_its_reading():
     assert out[RW, 2] > m[RW, 2] and abs(out[RW, 2] - truth[RW, 2]) < 0.04
     assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
     assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
+
+
+def test_a_wrist_read_on_the_wall_behind_its_seen_elbow_is_no_anchor():
+    # A frame of real motion held out of AKC+'s design (CMU subject 13, trial 26, driven bone by bone; MediaPipe on
+    # the skinned body, 10 Hz, after the KF). The left wrist's pixel read the wall 1.7 m behind two frames running;
+    # the KF followed the second (its depth variance 100 cm^2 against the seen elbow's 2.4). The upper arm points at
+    # the camera, so the seen shoulder is no anchor (the proximity rule). Taken as the anchor, that wrist rebuilt the
+    # whole arm on the wall: shoulder and elbow 1.4-1.7 m off. A wrist beyond its seen elbow's reach and known worse
+    # than it is no anchor (``wrist_misfit``): the shoulder and the elbow stay where the filter has them.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_13_26_rig_10hz_frame19.npz")
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    assert np.all(np.isfinite(m[[LS, LE, LW]]))
+    assert m[LW, 2] > truth[LW, 2] + 1.5 and pose[LW, 2] > pose[LE, 2] + dims.LLA + 1.0  # (the wall, followed)
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert np.linalg.norm(out[[LS, LE]] - truth[[LS, LE]], axis=1).max() < 0.04
+    assert np.linalg.norm(out[[LS, LE]] - pose[[LS, LE]], axis=1).max() < 0.005
+    assert out[LW, 2] < truth[LW, 2] + 0.3  # (off the wall: the forearm's length from the elbow)
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)

@@ -6,8 +6,8 @@ from akc_drake.core.akc_plus_evidence import (
     fuse_held,
     hold_blind,
     known_depths,
-    nearer_wrist_misfit,
     unreachable_replacements,
+    wrist_misfit,
 )
 
 R_XY, R_Z = 0.01**2, 0.05**2
@@ -328,16 +328,33 @@ def test_the_nearer_wrist_of_a_too_long_forearm_is_the_odd_one():
     # camera): a forearm 0.10 m too long (lf = 0.30) whose wrist is its nearer end
     s, e = (0.0, 0.0, 2.0), (0.0, 0.30, 2.0)
     f = (*s, *e, 0.0, 0.30, 1.60)
-    assert nearer_wrist_misfit(f, 0.30, 0.30, 0.05)
-    # the same length with the wrist behind the elbow: the elbow's depth is as likely wrong
-    assert not nearer_wrist_misfit((*s, *e, 0.0, 0.30, 2.40), 0.30, 0.30, 0.05)
+    vs = [1e-4] * 9  # (the nearer end: the variances are not asked)
+    assert wrist_misfit(f, vs, 0.30, 0.30, 0.05, True)
+    # the shoulder neither seen nor held: one against one
+    assert not wrist_misfit(f, vs, 0.30, 0.30, 0.05, False)
+    # the same length with the wrist behind the elbow, known as well as it: the elbow's depth is as likely wrong
+    assert not wrist_misfit((*s, *e, 0.0, 0.30, 2.40), vs, 0.30, 0.30, 0.05, True)
     # a forearm within its length, or shorter: nothing to take
-    assert not nearer_wrist_misfit((*s, *e, 0.0, 0.30, 1.705), 0.30, 0.30, 0.05)
-    assert not nearer_wrist_misfit((*s, *e, 0.0, 0.30, 1.75), 0.30, 0.30, 0.05)
-    assert nearer_wrist_misfit((*s, *e, 0.0, 0.30, 1.695), 0.30, 0.30, 0.05)
+    assert not wrist_misfit((*s, *e, 0.0, 0.30, 1.705), vs, 0.30, 0.30, 0.05, True)
+    assert not wrist_misfit((*s, *e, 0.0, 0.30, 1.75), vs, 0.30, 0.30, 0.05, True)
+    assert wrist_misfit((*s, *e, 0.0, 0.30, 1.695), vs, 0.30, 0.30, 0.05, True)
     # an upper arm 6 cm off its length: the elbow does not fit its shoulder (one against one)
-    assert not nearer_wrist_misfit(f, 0.36, 0.30, 0.05)
-    assert nearer_wrist_misfit(f, 0.34, 0.30, 0.05)
+    assert not wrist_misfit(f, vs, 0.36, 0.30, 0.05, True)
+    assert wrist_misfit(f, vs, 0.34, 0.30, 0.05, True)
+
+
+def test_a_wrist_behind_its_seen_elbow_beyond_reach_and_known_worse_is_the_odd_one():
+    # The held-out MediaPipe case: the wrist read on the wall 1.65 m behind the seen elbow, the filter following it
+    # (its depth variance 100 cm^2 against the elbow's 2.4), the shoulder no anchor.
+    s, e = (0.136, -0.097, 2.024), (0.259, -0.063, 1.761)
+    vs = [0.6e-5, 0.2e-5, 0.9e-4, 0.45e-4, 0.7e-4, 2.4e-4, 6.5e-4, 6.7e-4, 102.5e-4]
+    assert wrist_misfit((*s, *e, 0.545, -0.605, 3.409), vs, 0.29, 0.28, 0.05, False)
+    # the elbow known worse than the wrist: as likely the elbow's depth that is wrong
+    vs_e = vs[:5] + [200e-4] + vs[6:]
+    assert not wrist_misfit((*s, *e, 0.545, -0.605, 3.409), vs_e, 0.29, 0.28, 0.05, False)
+    # behind, but within the forearm's reach and the tolerance: a forearm pointing away, nothing to take
+    assert not wrist_misfit((*s, *e, 0.259, -0.063, 1.761 + 0.32), vs, 0.29, 0.28, 0.05, False)
+    assert wrist_misfit((*s, *e, 0.259, -0.063, 1.761 + 0.34), vs, 0.29, 0.28, 0.05, False)
 
 
 def test_a_joint_lost_altogether_beyond_the_measured_elbows_reach_is_no_evidence():

@@ -172,8 +172,8 @@ from akc_drake.core.akc_plus_evidence import (
     hidden_wrist,
     hold_blind,
     known_depths,
-    nearer_wrist_misfit,
     unreachable_replacements,
+    wrist_misfit,
 )
 from akc_drake.core.akc_plus_lengths import (
     behind_surface,
@@ -526,9 +526,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             w_lost = z == z and (z - wz) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
             if not w_lost and not _isfinite(m[o_w] + m[o_w + 1]):
                 w_lost = vs[8] > vs[2] and vs[8] > vs[5]
-            if not w_lost and me and (ms or s_held) and z == z and _isfinite(m[o_w] + m[o_w + 1]):
-                # Two against one: the wrist the nearer end of a too-long forearm, the elbow fitting its shoulder.
-                w_lost = nearer_wrist_misfit((sx, sy, sz, ex, ey, ez, wx, wy, wz), lu, lf, self._cons)
+            if not w_lost and me and z == z and _isfinite(m[o_w] + m[o_w + 1]):
+                # A wrist too far from a seen elbow: its nearer end (two against one), or behind beyond reach.
+                w_lost = wrist_misfit((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, self._cons, ms or s_held)
         if w_lost:
             ts, te = True, False
         if vs is not None and not sxy and me and not te and prev is not None:
