@@ -1364,3 +1364,20 @@ def test_a_wrist_read_on_the_wall_behind_its_seen_elbow_is_no_anchor():
     assert out[LW, 2] < truth[LW, 2] + 0.3  # (off the wall: the forearm's length from the elbow)
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_seen_elbow_is_not_moved_to_a_shoulder_its_own_reading_contradicts():
+    # A frame of real motion held out of AKC+'s design (CMU subject 01, trial 06, driven bone by bone; MediaPipe on
+    # the skinned body, 10 Hz, after the KF). The left shoulder's pixel read the wall for six frames; the KF followed
+    # and lags 90 cm behind now that the reading is back on the body, so the reading fails its innovation test.
+    # The wrist is lost altogether (no anchor), which used to keep that lagging shoulder and move the seen elbow,
+    # 2 cm from its reading, 85 cm back to the upper arm's length from it. The seen elbow is the anchor now.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_06_rig_10hz_frame368.npz")
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    assert np.all(np.isnan(m[LW])) and np.all(np.isfinite(m[[LS, LE]]))
+    assert pose[LS, 2] > m[LS, 2] + 0.5 and abs(pose[LE, 2] - m[LE, 2]) < 0.03  # (the lagging shoulder)
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert np.linalg.norm(out[LE] - pose[LE]) < 1e-9  # (the seen elbow kept)
+    assert abs(out[LS, 2] - truth[LS, 2]) < 0.06 and np.linalg.norm(out[LE] - truth[LE]) < 0.05
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)

@@ -252,16 +252,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
         self._hand = tuple((*o, config.hand_length_m) for o in _HAND if config.hand_length_m > 0)
         self._pf = pf = per_frame(config, period_s)  # (the rate-dependent settings at this frame period)
-        self._inv_t2 = 1.0 / pf.step_sigma_m**2
+        self._inv_t2, self._t_cap = 1.0 / pf.step_sigma_m**2, config.temporal_cap**2
         self._v_t, self._v_s, self._a_s = pf.temporal_walk_var, pf.shoulder_walk_var, pf.shoulder_alpha
-        self._t_cap = config.temporal_cap**2
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
         self._inv_torso2 = 1.0 / config.sigma_torso_m**2 if config.sigma_torso_m > 0 else 0.0
         self._no_prior, self._fits = set(), set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
-        self._r_z = config.depth_sigma_m**2
-        self._len_var = config.length_sigma_m**2
+        self._r_z, self._len_var = config.depth_sigma_m**2, config.length_sigma_m**2
         # The length projections' landmark-offset variance per coordinate (see ``_arm``): half the calibrated
         # length's variance, so that a segment's two ends together account for all of it.
         self._off_var = 0.5 * self._len_var
@@ -514,14 +512,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         outvoted = ms and te and self._outvoted(side, (sx, sy, sz, ex, ey, ez), w, prev, ks, lu, lf, sxy, df,
                                                 m[o_s + 2])
         ts = (ms and not outvoted) or (not sxy and prev is not None and not te) or (kn_s and not te)
-        # A wrist lost altogether (no x, y), known worse than the elbow and shoulder, is no anchor (eq. 7-8 would
-        # carry its extrapolation into the joints the camera sees): the arm is built from the shoulder out. Nor
-        # is a wrist whose measured depth was rejected (``w_bad``: a filter that followed a depth read past the
-        # silhouette half-way, or one the measurement contradicts: either is wrong about it).
+        # A wrist lost altogether (no x, y) and known worse than the elbow and shoulder is no anchor (eq. 7-8 would
+        # carry its extrapolation into the seen joints): the arm is built from the shoulder out; so is a wrist whose
+        # measured depth was rejected (``w_bad``: the filter or the measurement is wrong about it).
         w_lost, w_read = False, _NAN
         if vs is not None and m is not None:
-            # (``w_bad``, the innovation test of the wrist's measured depth, NaN passing: run only here, where it
-            # can act; the projection above returns on most frames.)
+            # (``w_bad``: the innovation test of the wrist's depth, NaN passing; run only here, where it can act.)
             z, q = m[o_w + 2], self._r_z - self._var[o_w + 2]
             w_lost = z == z and (z - wz) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
             if not w_lost and not _isfinite(m[o_w] + m[o_w + 1]):
@@ -530,6 +526,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 # A wrist too far from a seen elbow: its nearer end (two against one), or behind beyond reach.
                 w_lost = wrist_misfit((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, self._cons, ms or s_held)
         if w_lost:
+            if me and not ts and not s_held and abs(m[o_e + 2] - ez) <= self._cons:
+                # The shoulder then kept only for want of the wrist, its depth rejected, against an elbow seen within
+                # consistency_m of its reading: that elbow is the anchor, the shoulder at l_u from it (``follow``).
+                sx, sy, sz = _follow(ex, ey, ez, sx, sy, sz, lu)
             ts, te = True, False
         if vs is not None and not sxy and me and not te and prev is not None:
             # A shoulder the detector lost altogether (its x, y too: held on the torso, a random walk) and a seen
