@@ -10,6 +10,8 @@ from akc_drake.core.arm_geometry import (
     bends_backwards,
     circle_point,
     elbow_angle_deg,
+    follow,
+    nearest_depth,
     ray_check,
     signed_elbow_angle_deg,
     torso_axes,
@@ -241,3 +243,19 @@ def test_behind_reading_takes_the_point_nearer_the_reading_one_in_front_counting
     # nearer the front point by more than half: 0.45 against 0.03 in front (0.06)
     assert behind_reading(0.0, 0.0, 1.75, 0.07, 0.0, 1.75 - dz + 0.03, 0.25) == pytest.approx(front)
     assert behind_reading(0.0, 0.0, 1.75, 0.3, 0.0, 1.75, 0.25) is None  # (beyond the length in x, y)
+
+
+def test_nearest_depth_keeps_x_y_and_takes_the_depth_nearer_the_joints_own():
+    # A shoulder the filter has 90 cm behind its seen elbow (0.21, -0.05, 1.59), upper arm 0.293: the two points
+    # with its x, y at that length are 1.59 +- 0.281; the one behind is nearer its own depth.
+    e, s = (0.207, -0.052, 1.588), (0.126, -0.064, 2.714)
+    dz = math.sqrt(0.293**2 - (s[0] - e[0]) ** 2 - (s[1] - e[1]) ** 2)
+    got = nearest_depth(*e, *s, 0.293)
+    assert got == pytest.approx((s[0], s[1], e[2] + dz))
+    assert math.dist(got, e) == pytest.approx(0.293, abs=1e-12)
+    # the same shoulder 40 cm in front of the elbow: the point in front
+    assert nearest_depth(*e, s[0], s[1], 1.2, 0.293) == pytest.approx((s[0], s[1], e[2] - dz))
+    # x, y out of reach of the length: as ``follow`` (moved towards the elbow)
+    far = (0.6, -0.064, 2.0)
+    assert nearest_depth(*e, *far, 0.293) == pytest.approx(follow(*e, *far, 0.293))
+    assert math.dist(nearest_depth(*e, *far, 0.293), e) == pytest.approx(0.293, abs=1e-12)

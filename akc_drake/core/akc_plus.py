@@ -54,7 +54,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`; its x, y are no better known than its depth). Nor is a
   wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
   measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
-  silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
+  silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m). A shoulder
+  kept only for want of the wrist (its own reading rejected, not held) yields to a seen elbow within
+  ``consistency_m`` of its reading: at l_u from it, x, y kept (a KF lagging 90 cm had moved the elbow 85 cm).
 * An elbow lost altogether likewise: the filter's extrapolation times the upper arm held at this frame's shoulder,
   and a wrist lost with it moves with that elbow (MediaPipe lost bvhtools_a2's left arm for 20 frames: the filter's
   elbow ran 25 cm off in depth, and the elbow rebuilt between it and the held wrist 37 cm). After an EKF
@@ -106,11 +108,11 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   (:func:`~akc_drake.core.arm_geometry.behind_hand`, the teleoperation's rule; the simulated detector read the
   wrist 10-16 cm in front on bvhtools_a4, MediaPipe 10-14 on cmu_01_01, where the elbow put on the circle to it
   was as far off).
-* A seen forearm too long for the lengths' test, its wrist the nearer end, and a seen elbow that fits its
-  shoulder (seen or held on the torso): the wrist's depth takes the correction and the elbow stays. A depth
-  camera reads a joint in front of where it is (an occluder: the hand over the wrist) far more often than
-  behind it (a silhouette's edge, which the gates catch); shared by their variances, the seen elbow took 3-6 cm
-  of the wrist's error (MediaPipe on the skinned body, bvhtools_a1: the wrist read 6-12 cm in front).
+* A seen forearm too long, its wrist the nearer end and the seen elbow fitting its shoulder (seen or held), or
+  its wrist behind beyond reach and known worse than the elbow (the wall, followed): the wrist takes the
+  correction (``wrist_misfit``). A camera reads a joint in front of where it is (the hand over the wrist) far
+  more often than behind (a silhouette's edge, which the gates catch unless the filter followed it); shared, the
+  seen elbow took 3-6 cm of the wrist's error (MediaPipe, bvhtools_a1: the wrist read 6-12 cm in front).
 * A seen shoulder whose depth agrees with the shoulder held on the torso (within ``consistency_m``) is kept
   against a seen elbow that fits the wrist better than the shoulder fits the elbow (two against two): MediaPipe's
   2D elbow 5 cm off the joint made eq. 8 move such a shoulder 12-18 cm (vicon_playground, cmu_01_01).
@@ -192,6 +194,7 @@ from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
 from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import follow as _follow
+from akc_drake.core.arm_geometry import nearest_depth as _nearest_depth
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
 from akc_drake.core.arm_geometry import ray_check
@@ -260,8 +263,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._no_prior, self._fits = set(), set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
         self._r_z, self._len_var = config.depth_sigma_m**2, config.length_sigma_m**2
-        # The length projections' landmark-offset variance per coordinate (see ``_arm``): half the calibrated
-        # length's variance, so that a segment's two ends together account for all of it.
+        # The projections' landmark-offset variance per coordinate (``_arm``): a segment's two ends carry the length's.
         self._off_var = 0.5 * self._len_var
         self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
         # Flat indices of each arm's nine coordinates, and (position in the arm, flat index, R) per coordinate.
@@ -270,8 +272,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             tuple((i, j, self._r_axes[i % 3], 9 * side + i) for i, j in enumerate(idx))
             for side, idx in enumerate(self._arm_index)
         )
-        self._no_measurement = [_NAN] * (3 * NUM_LANDMARKS)
-        self._gate2 = config.gate_sigma**2
+        self._no_measurement, self._gate2 = [_NAN] * (3 * NUM_LANDMARKS), config.gate_sigma**2
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
         self._nis_a, self._nis_floor, self._tol = pf.nis_alpha, config.nis_floor, config.length_tol_m
         self._refit = config.constrained_filter is True  # (None: not resolved for a filter, off)
@@ -526,10 +527,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 # A wrist too far from a seen elbow: its nearer end (two against one), or behind beyond reach.
                 w_lost = wrist_misfit((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, self._cons, ms or s_held)
         if w_lost:
-            if me and not ts and not s_held and abs(m[o_e + 2] - ez) <= self._cons:
-                # The shoulder then kept only for want of the wrist, its depth rejected, against an elbow seen within
-                # consistency_m of its reading: that elbow is the anchor, the shoulder at l_u from it (``follow``).
-                sx, sy, sz = _follow(ex, ey, ez, sx, sy, sz, lu)
+            if me and not ts and not s_held and _hypot(m[o_e] - ex, m[o_e + 1] - ey, m[o_e + 2] - ez) <= self._cons:
+                # (A shoulder kept only for want of the wrist yields to a seen elbow: the module's docstring.)
+                sx, sy, sz = _nearest_depth(ex, ey, ez, sx, sy, sz, lu)
             ts, te = True, False
         if vs is not None and not sxy and me and not te and prev is not None:
             # A shoulder the detector lost altogether (its x, y too: held on the torso, a random walk) and a seen

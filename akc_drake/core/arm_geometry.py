@@ -321,6 +321,16 @@ def radial(ax: float, ay: float, az: float, px: float, py: float, pz: float, len
     return ax + dx * f, ay + dy * f, az + dz * f
 
 
+def nearest_depth(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
+    """Joint ``p`` moved to ``length`` from ``a`` with its x, y kept (eq. 7-8): of the two depths, the one nearer its
+    own; :func:`follow` when its x, y are out of reach."""
+    pair = pythagoras(ax, ay, az, px, py, length)
+    if pair is None:
+        return follow(ax, ay, az, px, py, pz, length)
+    b, f = pair
+    return b if abs(b[2] - pz) <= abs(f[2] - pz) else f
+
+
 def follow(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
     """Joint ``p`` moved to ``length`` from ``a``: its x, y kept (the image is the reliable part) at the
     Pythagorean depth nearest its own when that moves it less than 1.5 times the radial move, else radially."""
