@@ -1381,3 +1381,24 @@ def test_a_seen_elbow_is_not_moved_to_a_shoulder_its_own_reading_contradicts():
     assert abs(out[LS, 2] - truth[LS, 2]) < 0.06 and np.linalg.norm(out[LE] - truth[LE]) < 0.05
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_shoulders_read_beyond_the_shoulder_widths_bound_keep_our_last_output():
+    # A frame of real motion held out of AKC+'s design (CMU subject 01, trial 06, driven bone by bone; MediaPipe on
+    # the skinned body, 30 Hz, after the KF). Both shoulders read the wall at 3.5 m (the truth 1.8 m), the KF has
+    # followed the left one, the hips are no reference (their filter lags) and the left elbow and wrist are lost.
+    # The angle between the shoulders' rays bounds their range to (SW + consistency_m) / sin t, 2.9 m here: the
+    # left shoulder stays on its ray at our last output's depth, and the arm is not rebuilt on the wall.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_06_rig_30hz_frame665.npz")
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    assert m[LS, 2] > truth[LS, 2] + 1.5 and m[RS, 2] > truth[RS, 2] + 1.5 and pose[LS, 2] > 3.5
+    assert np.all(np.isnan(m[[LE, LW]]))
+    u, v = m[LS] / np.linalg.norm(m[LS]), m[RS] / np.linalg.norm(m[RS])
+    bound = (dims.SW + 0.05) / np.linalg.norm(np.cross(u, v))
+    assert truth[LS, 2] < bound < m[LS, 2]
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert out[LS, 2] < bound and np.linalg.norm(out[LS] - truth[LS]) < 0.6  # (the KF's: 2.0 m)
+    assert out[LS, :2] / out[LS, 2] == pytest.approx(m[LS, :2] / m[LS, 2], abs=1e-9)  # (on the measured ray)
+    assert np.linalg.norm(out[[LE, LW]] - truth[[LE, LW]], axis=1).max() < 0.2
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)

@@ -195,6 +195,42 @@ def test_a_shoulder_depth_farther_from_our_last_output_than_the_arm_reaches_is_p
     assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 3.75
 
 
+def test_a_shoulder_depth_beyond_the_shoulder_widths_bound_keeps_our_last_output_without_a_torso_reference():
+    # Both shoulders read on the wall at 3.75 m, on their own pixels' rays, and no torso reference (no anchor). Rays
+    # at angle t put a point at range r at least r sin t from the other ray: at sin t = 0.179 the shoulders are at
+    # most (0.36 + 0.05) / 0.179 = 2.3 m away, and 3.75 m is the background. Our last output (2.02 m) is within
+    # the bound: the shoulder stays at its depth on the measured ray.
+    akc, p = _corrector(), _pose()
+    assert akc._anchor == [None, None]
+    m = _flat(p)
+    m[3 * LS : 3 * LS + 3] = [0.18 * 3.75 / 2.0, 0.0, 3.75]
+    m[3 * RS : 3 * RS + 3] = [-0.18 * 3.75 / 2.0, 0.0, 3.75]
+    a, b = np.array([0.09, 0.0, 1.0]), np.array([-0.09, 0.0, 1.0])
+    sin_t = np.linalg.norm(np.cross(a, b)) / (a @ a)
+    assert 3.76 * sin_t > 0.41 > 2.03 * sin_t and 2.2 * sin_t < 0.41 < 2.5 * sin_t
+    wall = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 3.5] + [0.15, -0.2, 3.4]
+    f = list(wall)
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0)  # (no last output yet: nothing to keep)
+    akc._prev[0] = (0.18, 0.0, 2.02, 0.2, 0.29, 2.0, 0.15, -0.2, 1.8)
+    vs = [1e-4] * 9
+    assert akc._torso_outvotes(f, vs, m, 0)
+    assert f[0:3] == pytest.approx([0.18 * 2.02 / 2.0, 0.0, 2.02]) and vs[2] == pytest.approx(R_Z)
+    # our last output beyond the bound too: nothing to keep
+    akc._prev[0] = (0.18, 0.0, 2.5, 0.2, 0.29, 2.5, 0.15, -0.2, 2.3)
+    f = list(wall)
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 3.75
+    # a reading within the bound (2.2 m) is never outvoted so, whatever our last output
+    akc._prev[0] = (0.18, 0.0, 1.6, 0.2, 0.29, 1.6, 0.15, -0.2, 1.4)
+    m[3 * LS : 3 * LS + 3] = [0.18 * 2.2 / 2.0, 0.0, 2.2]
+    f = m[3 * LS : 3 * LS + 3] + [0.2, 0.29, 2.0] + [0.15, -0.2, 1.8]
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0) and f[2] == 2.2
+    # shoulders far apart in the image (a wide angle) bound the depth far less: 3.75 m is then possible
+    m[3 * LS : 3 * LS + 3] = [0.05 * 3.75, 0.0, 3.75]
+    m[3 * RS : 3 * RS + 3] = [-0.05 * 3.75, 0.0, 3.75]
+    f = list(wall)
+    assert not akc._torso_outvotes(f, [1e-4] * 9, m, 0)
+
+
 def _jump_frame(akc, p, left_z, right_z=2.0):
     """One frame of ``_shoulder_jumped`` for the left shoulder: the filter and the measurement agree (the filter
     followed), the left shoulder read at ``left_z`` on its pixel's ray; returns (held, the left shoulder after)."""

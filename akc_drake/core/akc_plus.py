@@ -345,7 +345,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 if a is not None and vs[2] == vs[2]:
                     fuse_held(f, vs, a[1], a[0], self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
                     s_held = True
-            elif m is not None and self._anchor[side] is not None and vs[2] == vs[2]:
+            elif m is not None and vs[2] == vs[2]:
                 s_held = self._torso_outvotes(f, vs, m, side)
             if m is not None:  # (a depth that jumped towards the camera, alone)
                 s_held = self._shoulder_jumped(f, vs, m, side, s_held)
