@@ -147,10 +147,10 @@ class TorsoReference:
         """
         g2: float; rz: float; cons: float; hz: float; vh: float; mx: float; my: float; mz: float; lu: float; lf: float
         fold: float; ex: float; ey: float; ez: float; miss: float; dw: float; reach: float  # (C doubles: setup.py)
-        o_s, o_e, o_w = self._offsets[side]
-        g2, rz, cons = self._gate2, self._r_z, self._cons
         if self._anchor[side] is None:  # (no torso reference: only the shoulder width's bound, ``_beyond_width``)
             return self._beyond_width(f, vs, m, side)
+        o_s, o_e, o_w = self._offsets[side]
+        g2, rz, cons = self._gate2, self._r_z, self._cons
         h = self._anchor[side][1]
         hz, vh = self._anchor[side][0][2] + h[2], self._v_s * (h[3] + 1.0)
         mx, my, mz = m[o_s], m[o_s + 1], m[o_s + 2]
