@@ -541,10 +541,10 @@ def _hips_unseen(m):
     return m
 
 
-def _settled_without_the_hips(p, dims, frames=None):
+def _settled_without_the_hips(p, dims, frames=None, config=None):
     """A corrector that has seen the pose ``p`` measured exactly, but the hips' depths, for ``frames`` frames
     (default: as long as it takes the other shoulder to become the torso's reference, ``hips_lost_frames``)."""
-    akc = ArmKinematicCorrectorPlus(dims)
+    akc = ArmKinematicCorrectorPlus(dims, config)
     for _ in range(int(akc.config.hips_lost_frames) + 1 if frames is None else frames):
         akc.correct(p, measured=_hips_unseen(p.copy()), variance=kf_var())
     return akc
@@ -689,17 +689,20 @@ def test_a_seen_shoulder_is_not_outvoted_by_an_elbow_that_fits_the_wrist_worse()
     # towards the shoulder (MediaPipe: 5 cm on bvhtools_test 60-120 s) and the wrist reads 8 cm deep: the upper arm
     # is 6 cm short, the forearm 8 cm off. The elbow "fits" the wrist within length_tol_m, but worse than the
     # shoulder fits the elbow: two against one does not hold, the seen shoulder stays (eq. 8 from that elbow put
-    # it 11 cm off). A 6 cm upper arm against a 5 mm forearm still outvotes the shoulder, unless the shoulder's
-    # depth agrees with the shoulder held on the torso (two against two): the hips' depths measured, or, without
-    # them for a second (out of the image), the other shoulder seen.
+    # it 11 cm off). A 6 cm upper arm against a 5 mm forearm does not outvote it either: the rebuild lies behind
+    # the reading, and nothing of the arm covers the shoulder's pixel (``arm_cover_deg``). With that test off
+    # (90 degrees) it outvotes the shoulder, unless the shoulder's depth agrees with the shoulder held on the
+    # torso (two against two): the hips' depths measured, or, without them for a second (out of the image), the
+    # other shoulder seen.
     p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.05), wrist_dir_l=(0.2, -0.3, -0.9))
     u = (p[LS, :2] - p[LE, :2]) / np.linalg.norm(p[LS, :2] - p[LE, :2])
-    moved = {}
-    for dwz, torso in ((0.08, "hips"), (0.0, None), (0.0, "hips"), (0.0, "other shoulder")):
+    moved, off = {}, AKCPlusConfig(arm_cover_deg=90.0)
+    for dwz, torso in ((0.08, "hips"), (0.0, None), (0.0, "none, test off"), (0.0, "hips"), (0.0, "other shoulder")):
         if torso == "hips":
-            akc = settled_corrector(p, dims)
+            akc = settled_corrector(p, dims, off)
         else:  # (the hips lost for half a second: no reference yet; for a second: the other shoulder)
-            akc = _settled_without_the_hips(p, dims, 5 if torso is None else None)
+            akc = _settled_without_the_hips(p, dims, None if torso == "other shoulder" else 5,
+                                            None if torso is None else off)
         f = p.copy()
         f[LE, :2] += 0.06 * u
         f[LW, 2] += dwz
@@ -712,7 +715,8 @@ def test_a_seen_shoulder_is_not_outvoted_by_an_elbow_that_fits_the_wrist_worse()
         assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
         moved[dwz, torso] = np.linalg.norm(out[LS] - f[LS])
     assert moved[0.08, "hips"] < 1e-9
-    assert moved[0.0, None] > 0.1
+    assert moved[0.0, None] < 1e-9
+    assert moved[0.0, "none, test off"] > 0.1
     assert moved[0.0, "hips"] < 1e-9
     assert moved[0.0, "other shoulder"] < 1e-9
 
@@ -1402,3 +1406,43 @@ def test_shoulders_read_beyond_the_shoulder_widths_bound_keep_our_last_output():
     assert np.linalg.norm(out[[LE, LW]] - truth[[LE, LW]], axis=1).max() < 0.2
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_shoulder_read_behind_its_elbow_beyond_the_upper_arm_is_no_arm_surface():
+    # A frame of real motion (CMU subject 01, trial 03, driven bone by bone; MediaPipe on the skinned body, 10 Hz,
+    # after the KF). The right forearm crosses in front of the elbow: its depth reads 31 cm in front, and the KF has
+    # followed it. The upper arm points towards the camera, so our proximity rule doubted the shoulder's reading
+    # (the arm's surface?), and the shoulder was rebuilt from that elbow, 26 cm in front of the truth. Read 54 cm
+    # behind the elbow, farther than the upper arm reaches, it is no surface of that arm: the shoulder is kept.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_03_rig_10hz_frame115.npz")
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    assert np.all(np.isnan(m[RW])) and truth[RE, 2] - m[RE, 2] > 0.3 and abs(m[RS, 2] - truth[RS, 2]) < 0.005
+    assert m[RS, 2] - pose[RE, 2] > dims.RUA + 0.05
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert np.linalg.norm(out[RS] - pose[RS]) < 1e-9  # (kept: the old rule put it at 1.36, truth 1.63)
+    assert abs(out[RE, 2] - truth[RE, 2]) < 0.06  # (the filter's elbow: 30 cm in front)
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+    assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
+
+
+@pytest.mark.parametrize("cover_deg, kept", [(37.0, True), (90.0, False)])
+def test_a_seen_shoulder_is_outvoted_only_where_its_own_arm_can_cover_its_pixel(cover_deg, kept):
+    # A frame of real motion (CMU subject 01, trial 03, driven bone by bone; MediaPipe on the skinned body, 10 Hz,
+    # after the KF). Shoulder, elbow and wrist are all seen, the shoulder within 0.3 cm of the truth; MediaPipe's
+    # 2D elbow lies 6 cm short of the joint, so the upper arm is 7 cm short and the forearm fits. Two against one
+    # rebuilt the shoulder 17 cm behind. But the upper arm lies 49 degrees from the line of sight and the forearm
+    # passes 21 cm from the shoulder's pixel: nothing of the arm covers it, and the reading stays
+    # (``arm_cover_deg``; 90 turns the test off and shows the old rebuild).
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_03_rig_10hz_frame213.npz")
+    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=False, arm_cover_deg=cover_deg),
+                                    period_s=1.0 / float(d["rate_hz"]))
+    akc.set_state_vector(d["state"])
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    assert np.all(np.isfinite(m[[RS, RE, RW]])) and abs(m[RS, 2] - truth[RS, 2]) < 0.005
+    out = akc.correct(pose, m, d["variance"]).pose
+    if kept:
+        assert np.linalg.norm(out[RS] - pose[RS]) < 1e-9
+        assert np.linalg.norm(out[RE] - truth[RE]) < 0.04
+    else:
+        assert out[RS, 2] - truth[RS, 2] > 0.15
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)

@@ -23,7 +23,7 @@ def test_defaults_are_the_measurement_model_of_the_kf():
                                           ("nis_alpha", True), ("nis_alpha", 0.0), ("nis_alpha", 1.2),
                                           ("shoulder_alpha", 0.0),
                                           ("shoulder_alpha", 1.5), ("sigma_shoulder_m", -0.01),
-                                          ("arm_radius_m", -0.05), ("constrained_filter", 1),
+                                          ("arm_radius_m", -0.05), ("arm_cover_deg", 90.5), ("constrained_filter", 1),
                                           ("constrained_filter", "yes")])
 def test_bad_settings_name_the_field(field, value):
     with pytest.raises(ValueError, match=field):

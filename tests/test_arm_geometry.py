@@ -13,6 +13,7 @@ from akc_drake.core.arm_geometry import (
     follow,
     nearest_depth,
     ray_check,
+    segment_distance2,
     signed_elbow_angle_deg,
     torso_axes,
     turn_with,
@@ -259,3 +260,13 @@ def test_nearest_depth_keeps_x_y_and_takes_the_depth_nearer_the_joints_own():
     far = (0.6, -0.064, 2.0)
     assert nearest_depth(*e, *far, 0.293) == pytest.approx(follow(*e, *far, 0.293))
     assert math.dist(nearest_depth(*e, *far, 0.293), e) == pytest.approx(0.293, abs=1e-12)
+
+
+def test_segment_distance2_is_to_the_nearest_point_of_the_segment_in_the_image():
+    # elbow (0, 0), wrist (0.3, 0): a shoulder above the forearm's middle, beyond each end, and on it
+    assert segment_distance2(0.1, 0.05, 0.0, 0.0, 0.3, 0.0) == pytest.approx(0.05**2)
+    assert segment_distance2(-0.03, 0.04, 0.0, 0.0, 0.3, 0.0) == pytest.approx(0.05**2)  # (nearest the elbow)
+    assert segment_distance2(0.34, -0.03, 0.0, 0.0, 0.3, 0.0) == pytest.approx(0.05**2)  # (nearest the wrist)
+    assert segment_distance2(0.2, 0.0, 0.0, 0.0, 0.3, 0.0) == pytest.approx(0.0, abs=1e-15)
+    # a forearm pointing at the camera (both ends on one pixel): the distance to that point
+    assert segment_distance2(0.03, 0.04, 0.1, 0.1, 0.1, 0.1) == pytest.approx(0.07**2 + 0.06**2)

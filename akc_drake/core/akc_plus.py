@@ -115,11 +115,13 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   seen elbow took 3-6 cm of the wrist's error (MediaPipe, bvhtools_a1: the wrist read 6-12 cm in front).
 * A seen shoulder whose depth agrees with the shoulder held on the torso (within ``consistency_m``) is kept
   against a seen elbow that fits the wrist better than the shoulder fits the elbow (two against two): MediaPipe's
-  2D elbow 5 cm off the joint made eq. 8 move such a shoulder 12-18 cm (vicon_playground, cmu_01_01).
+  2D elbow 5 cm off the joint made eq. 8 move such a shoulder 12-18 cm (vicon_playground, cmu_01_01). So is one
+  whose rebuild would lie behind its reading while nothing of its own arm covers its pixel (``arm_cover_deg``).
 * A shoulder whose upper arm points towards the camera (the elbow in front, its distance in x, y ``d_xy``) reads
   the arm's surface ``r / sin(theta)`` in front of the joint, where the depth offset expects ``r``: with the
   excess ``r (l_u / d_xy - 1)`` above ``consistency_m`` (``arm_radius_m`` = r) it does not count as seen, the
-  elbow detected (bvhtools_a3, both detectors: the shoulder read 6-9 cm in front; kept, it moved the elbow 4-5 cm).
+  elbow detected (bvhtools_a3, both detectors: the shoulder read 6-9 cm in front; kept, it moved the elbow 4-5 cm),
+  unless read behind the elbow beyond ``l_u`` (no surface of that arm) and no measured wrist fits the elbow.
 * A rebuilt shoulder's candidates are weighed against the torso: the held shoulder's depth (the hips' carrying
   our outputs' running-mean offset, with its random walk's variance) when known, else the hips' depth with
   ``sigma_torso_m`` (20 cm). A shoulder read on its own upper arm 24 cm in front is equidistant from both of
@@ -241,7 +243,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost", "_s_floor",
-                 "_pair_z", "_blind_honest")
+                 "_pair_z", "_blind_honest", "_cover2")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -263,8 +265,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._no_prior, self._fits = set(), set()
         self._cos_min = math.cos(math.radians(config.elbow_min_deg))
         self._r_z, self._len_var = config.depth_sigma_m**2, config.length_sigma_m**2
-        # The projections' landmark-offset variance per coordinate (``_arm``): a segment's two ends carry the length's.
-        self._off_var = 0.5 * self._len_var
+        self._off_var = 0.5 * self._len_var  # (the projections' landmark-offset variance per coordinate: ``_arm``)
         self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
         # Flat indices of each arm's nine coordinates, and (position in the arm, flat index, R) per coordinate.
         self._arm_index = tuple(tuple(o + ax for o in offs for ax in range(3)) for offs in self._offsets)
@@ -278,10 +279,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._refit = config.constrained_filter is True  # (None: not resolved for a filter, off)
         # A constrained filter's variance of a joint lost altogether is no error measure after ``recent_frames``.
         self._blind_honest = pf.recent_frames if self._refit else _inf
-        self._cons, self._xy_tol = config.consistency_m, config.xy_tol_m
-        self._occ_r2 = config.occlusion_radius_m**2
+        self._cons, self._xy_tol, self._occ_r2 = config.consistency_m, config.xy_tol_m, config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
         self._fs_r, self._fs_k2 = config.arm_radius_m, (config.arm_radius_m + config.consistency_m) ** 2
+        self._cover2 = math.sin(math.radians(config.arm_cover_deg)) ** 2  # (``_outvoted``: d_xy^2 < l_u^2 that)
         # chi2 with 2 degrees of freedom at the tail probability of gate_sigma (1 dof): -2 ln(erfc(g / sqrt 2)).
         self._chi2_gate = -2.0 * math.log(max(math.erfc(config.gate_sigma / math.sqrt(2.0)), 1e-300))
         self._var = self._v = self._v0 = self._axes = self._cur_var = None
@@ -442,11 +443,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                         no_prior.add(ks)
         # Our proximity rule for the pair the paper's occlusion filter lacks: a shoulder within occlusion_radius_m of
         # its elbow in the image, or whose upper arm points at the camera (``arm_radius_m``), may read the arm's
-        # surface. Only a detected elbow is evidence (a lost one's is a guess: docs/results.md, session 35).
+        # surface. Only a detected elbow is evidence (a lost one's is a guess: docs/results.md, session 35). Not one
+        # farther behind the elbow than l_u reaches (no arm's surface) unless a measured wrist fits the elbow.
         if ms and exy:
             d2 = (sx - ex) ** 2 + (sy - ey) ** 2
             if d2 < self._occ_r2 or (ez < sz and d2 * self._fs_k2 < (self._fs_r * lu) ** 2):
-                ms = False
+                ms = sz - ez > lu + self._cons and not (me and m[o_w + 2] == m[o_w + 2]
+                                                         and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol)
         if vs is not None:
             # A depth that another rule (proximity) rejects but the filter followed (``*_nis``): the filter's
             # estimate and (small) variance are no independent evidence; its prior is left out.
@@ -467,17 +470,14 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         # depth while blind is no evidence for it; one that stays where it was is).
         f0, travel, lost = self._f0, self._travel, self._lost
         if me or f0[ke] is None:
-            f0[ke] = (ex, ey, ez)
-            travel[ke] = 0.0
+            f0[ke], travel[ke] = (ex, ey, ez), 0.0
         else:
             travel[ke] = abs(ez - f0[ke][2])
         if ms or f0[ks] is None:
-            f0[ks] = (sx, sy, sz)
-            travel[ks] = 0.0
+            f0[ks], travel[ks] = (sx, sy, sz), 0.0
         else:
             travel[ks] = abs(sz - f0[ks][2])
-        lost[ke] = 0.0 if me else lost[ke] + 1.0
-        lost[ks] = 0.0 if ms else lost[ks] + 1.0
+        lost[ke], lost[ks] = (0.0 if me else lost[ke] + 1.0), (0.0 if ms else lost[ks] + 1.0)
         # With the covariance: a depth not measured this frame that the filter knows as well as a measurement or
         # better than eq. 7-8 would rebuild it counts as known (a rejected or held one does not; ``known_depths``).
         kn_e, kn_s = me, ms

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from akc_drake.core.arm_geometry import bends_backwards, torso_axes
+from akc_drake.core.arm_geometry import bends_backwards, segment_distance2, torso_axes
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import d2 as _d2
 from akc_drake.core.arm_geometry import radial as _radial
@@ -292,7 +292,12 @@ class CandidateSearch:
         * or eq. 8's shoulder would lie in front of the depth its own pixel reads, beyond the gate: an occluder
           reads in front of the joint, so a rebuild in front contradicts the one reason to outvote the reading
           (MediaPipe, cmu_01_01 driven bone by bone at 30 Hz: the upper arm 5.7 cm short in the image, the
-          shoulder read within 0.1 cm and rebuilt 17.5 cm in front for six frames).
+          shoulder read within 0.1 cm and rebuilt 17.5 cm in front for six frames);
+        * or eq. 8's shoulder lies behind the reading but nothing of its own arm can cover its pixel: the upper
+          arm farther than ``arm_cover_deg`` from the line of sight (its image length at least ``l_u`` times the
+          sine) and the forearm (elbow to wrist, in the image) farther than ``occlusion_radius_m`` from it
+          (MediaPipe, cmu_01_03 driven bone by bone: the 2D elbow 6 cm short of the joint, the wrist read 8 cm
+          in front, and the shoulder, read within 0.5 cm, rebuilt 17 cm behind).
         ``f``: the filter's shoulder and elbow (6 floats); ``prev``: the arm's last output or None.
         """
         sx, sy, sz, ex, ey, ez = f
@@ -303,7 +308,10 @@ class CandidateSearch:
         ps = (prev[0], prev[1], prev[2]) if prev is not None else None
         rebuilt = self._rebuild_shoulder(f, w, ps, ks, lu, lf, sxy, self._other_shoulder(side))
         s = rebuilt[0]
-        return None if s[2] < mz and (mz - s[2]) ** 2 > self._gate2 * self._r_z else rebuilt
+        if s[2] > mz:
+            return rebuilt if ((sx - ex) ** 2 + (sy - ey) ** 2 < self._cover2 * lu * lu
+                               or segment_distance2(sx, sy, ex, ey, w[0], w[1]) < self._occ_r2) else None
+        return None if (mz - s[2]) ** 2 > self._gate2 * self._r_z else rebuilt
 
     def _rebuild_shoulder(self, f, w, ps, ks, lu, lf, sxy, other):
         """The elbow kept (moved radially to ``lf`` from the wrist ``w``) and the shoulder rebuilt from it (eq. 8);

@@ -321,6 +321,15 @@ def radial(ax: float, ay: float, az: float, px: float, py: float, pz: float, len
     return ax + dx * f, ay + dy * f, az + dz * f
 
 
+def segment_distance2(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
+    """The squared distance in the image plane (x, y) from point ``p`` to the segment from ``a`` to ``b``."""
+    dx, dy = bx - ax, by - ay
+    n: float = dx * dx + dy * dy
+    t: float = 0.0 if n < 1e-24 else ((px - ax) * dx + (py - ay) * dy) / n
+    t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+    return (px - ax - t * dx) ** 2 + (py - ay - t * dy) ** 2
+
+
 def nearest_depth(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
     """Joint ``p`` moved to ``length`` from ``a`` with its x, y kept (eq. 7-8): of the two depths, the one nearer its
     own; :func:`follow` when its x, y are out of reach."""
