@@ -121,7 +121,7 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   the arm's surface ``r / sin(theta)`` in front of the joint, where the depth offset expects ``r``: with the
   excess ``r (l_u / d_xy - 1)`` above ``consistency_m`` (``arm_radius_m`` = r) it does not count as seen, the
   elbow detected (bvhtools_a3, both detectors: the shoulder read 6-9 cm in front; kept, it moved the elbow 4-5 cm),
-  unless read behind the elbow beyond ``l_u`` (no surface of that arm) and no measured wrist fits the elbow.
+  unless read behind the elbow's reading beyond ``l_u`` (no surface of that arm) and no measured wrist fits it.
 * A rebuilt shoulder's candidates are weighed against the torso: the held shoulder's depth (the hips' carrying
   our outputs' running-mean offset, with its random walk's variance) when known, else the hips' depth with
   ``sigma_torso_m`` (20 cm). A shoulder read on its own upper arm 24 cm in front is equidistant from both of
@@ -444,12 +444,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         # Our proximity rule for the pair the paper's occlusion filter lacks: a shoulder within occlusion_radius_m of
         # its elbow in the image, or whose upper arm points at the camera (``arm_radius_m``), may read the arm's
         # surface. Only a detected elbow is evidence (a lost one's is a guess: docs/results.md, session 35). Not one
-        # farther behind the elbow than l_u reaches (no arm's surface) unless a measured wrist fits the elbow.
+        # read behind the elbow's reading beyond l_u's reach (no arm's surface) unless a measured wrist fits the elbow.
         if ms and exy:
             d2 = (sx - ex) ** 2 + (sy - ey) ** 2
             if d2 < self._occ_r2 or (ez < sz and d2 * self._fs_k2 < (self._fs_r * lu) ** 2):
-                ms = sz - ez > lu + self._cons and not (me and m[o_w + 2] == m[o_w + 2]
-                                                         and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol)
+                ms = m[o_s + 2] - m[o_e + 2] > lu + self._cons and not (
+                    me and m[o_w + 2] == m[o_w + 2] and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol)
         if vs is not None:
             # A depth that another rule (proximity) rejects but the filter followed (``*_nis``): the filter's
             # estimate and (small) variance are no independent evidence; its prior is left out.
