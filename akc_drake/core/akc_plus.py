@@ -19,8 +19,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   it: a filtered point that, scaled to the measured depth, is off the measured ray by more than the gate
   (chi2, 2 dof) is the filter's error (e.g. the paper's per-joint EKF, whose bone constraint moves a seen
   joint towards a lost neighbour), and the measured point replaces it, with the measurement's variance; so does
-  an EKF's depth that jumped from our last output when the measurement agrees with it, or that moved in front of
-  it when the measurement is behind (an occluder is in front of the joint, not behind it: ``ray_check``).
+  a filter's depth that jumped from our last output when the measurement agrees with it (an EKF's constraint, a
+  KF lagging after a wall reading), or that moved in front of it when the measurement is behind (``ray_check``).
 * *Reach*: a measured point that replaced the filter's (ray test, covariance matching) farther from another
   joint measured this frame than the arm's calibrated lengths reach (chi2 of the stretch) is no reading of the
   joint (the background behind a landmark off the body's edge, 1-1.5 m deep with MediaPipe): the filter's point
@@ -357,7 +357,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 if (d0 * d0 > g2 * (rz - var[o_s + 2]) or d1 * d1 > g2 * (rz - var[o_e + 2])
                         or d2 * d2 > g2 * (rz - var[o_w + 2])):
                     ray_check(m, offsets, f, vs, var, self._r_axes[0], rz, g2, self._chi2_gate,
-                              prev if self._refit else None, self._cons)
+                              prev, self._cons)
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:

@@ -157,10 +157,13 @@ def ray_check(m, offsets, f, vs, var, r_xy: float, r_z: float, g2: float, gate: 
     the joint (e.g. an EKF whose bone constraint moved a seen joint towards a lost neighbour) and is no evidence:
     the measured point replaces it in ``f``, with the measurement's variances in ``vs`` (both changed in place).
     A rejected depth on the filter's ray stays rejected (an occluder's), unless ``prev`` (our last output of the
-    arm, given for a filter whose constraints move seen joints: an EKF) sides with the measurement:
+    arm) sides with the measurement:
     * it agrees with it within ``agree`` while the filter's depth is beyond the gate of ``r_z`` from that output:
       two against one, the filter jumped (the paper's per-joint EKF swung mocapbank's seen shoulder 23 cm behind
-      and 28 in front on alternate frames, on the ray);
+      and 28 in front on alternate frames, on the ray) or lags (a KF that followed a wrist read on the wall, 84 cm
+      behind the reading back on the body, which our last output took the frame before: MediaPipe, held-out
+      cmu_05_11 driven bone by bone at 30 Hz; given for the EKF only, the elbow rebuilt from that KF's wrist went
+      43 cm behind);
     * or the measured depth is behind the filter's and nearer our last output than the filter's is: no occluder
       reads behind the joint, and the filter moved away from it (the paper's per-joint EKF, its bone constraint
       pulling a seen elbow 20-28 cm in front of its reading towards a lost wrist: mocapbank, simulated detector,
