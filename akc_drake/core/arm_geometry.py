@@ -333,14 +333,17 @@ def segment_distance2(px: float, py: float, ax: float, ay: float, bx: float, by:
     return (px - ax - t * dx) ** 2 + (py - ay - t * dy) ** 2
 
 
-def nearest_depth(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
-    """Joint ``p`` moved to ``length`` from ``a`` with its x, y kept (eq. 7-8): of the two depths, the one nearer its
-    own; :func:`follow` when its x, y are out of reach."""
-    pair = pythagoras(ax, ay, az, px, py, length)
-    if pair is None:
-        return follow(ax, ay, az, px, py, pz, length)
+def _nearer(pair, pz: float):
+    """Of a Pythagorean pair (:func:`pythagoras`), the point whose depth is nearer ``pz`` (the first on a tie)."""
     b, f = pair
     return b if abs(b[2] - pz) <= abs(f[2] - pz) else f
+
+
+def nearest_depth(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
+    """Joint ``p`` moved to ``length`` from ``a`` with its x, y kept (eq. 7-8): of the two depths, the one nearer its
+    own; radially (as :func:`follow`) when its x, y are out of reach."""
+    pair = pythagoras(ax, ay, az, px, py, length)
+    return radial(ax, ay, az, px, py, pz, length) if pair is None else _nearer(pair, pz)
 
 
 def follow(ax: float, ay: float, az: float, px: float, py: float, pz: float, length: float):
@@ -350,7 +353,7 @@ def follow(ax: float, ay: float, az: float, px: float, py: float, pz: float, len
     pair = pythagoras(ax, ay, az, px, py, length)
     if pair is None:
         return r
-    q = pair[0] if abs(pair[0][2] - pz) <= abs(pair[1][2] - pz) else pair[1]
+    q = _nearer(pair, pz)
     if abs(q[2] - pz) <= 1.5 * _hypot(r[0] - px, r[1] - py, r[2] - pz):
         return q
     return r
