@@ -230,7 +230,8 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
     systems = dict(source["systems"])
     width = image_width or cfg.camera.width
     occ = builder.AddSystem(
-        OcclusionFilter(width, visibility_threshold=cfg.visibility_threshold, proximity=cfg.proximity)
+        OcclusionFilter(width, visibility_threshold=cfg.visibility_threshold, proximity=cfg.proximity,
+                        period_s=period, stage_offset_s=cfg.stage_offset_s)
     )
     occ.set_name("OcclusionFilter")
     builder.Connect(source["landmarks_C"], occ.GetInputPort("landmarks_C"))

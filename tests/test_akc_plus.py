@@ -1283,14 +1283,15 @@ def test_after_an_ekf_a_long_lost_wrist_counts_the_filter_no_surer_than_the_hold
     assert err[False][7] == pytest.approx(0.160, abs=0.005) and err[True][7] == pytest.approx(0.101, abs=0.005)
 
 
-def _recorded_frame(name):
-    """A frame of real data (tests/data/akc_plus/NAME: a MediaPipe evaluation clip's frame, after the KF) and AKC+ in
-    the state it had after the frames before: ``(corrector, dims, data)``; ``data`` holds ``pose``, ``measured``,
-    ``variance`` (the corrector's inputs) and ``truth``. Recorded with ``get_state_vector`` while the evaluation
-    ran; a change of the state's layout needs them recorded again."""
+def _recorded_frame(name, constrained_filter=False):
+    """A frame of real data (tests/data/akc_plus/NAME: a MediaPipe evaluation clip's frame, after the KF, or after
+    the EKF with ``constrained_filter``) and AKC+ in the state it had after the frames before: ``(corrector, dims,
+    data)``; ``data`` holds ``pose``, ``measured``, ``variance`` (the corrector's inputs) and ``truth``. Recorded
+    with ``get_state_vector`` while the evaluation ran; a change of the state's layout needs them recorded again."""
     d = np.load(Path(__file__).parent / "data" / "akc_plus" / name)
     dims = BodyDimensions(**dict(zip(("LUA", "LLA", "RUA", "RLA", "SW"), d["dims"].tolist(), strict=True)))
-    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=False), period_s=1.0 / float(d["rate_hz"]))
+    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=constrained_filter),
+                                    period_s=1.0 / float(d["rate_hz"]))
     akc.set_state_vector(d["state"])
     return akc, dims, d
 
@@ -1461,3 +1462,22 @@ def test_a_kf_lagging_behind_a_reading_our_last_output_took_is_the_filters_error
     assert np.linalg.norm(out[RW] - truth[RW]) < 0.04 and abs(out[RE, 2] - truth[RE, 2]) < 0.03
     assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
     assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
+
+
+def test_a_shoulder_reading_the_torso_confirms_is_not_undone_by_an_elbow_and_a_wrist_on_the_wall():
+    # MediaPipe, bvhtools_b2's window at 30 Hz, after the EKF (tests/data/akc_plus): the left elbow's and wrist's
+    # pixels read the wall 1.5 m behind; the EKF, pulled behind by them, took the shoulder 29 cm behind its reading
+    # (its bone constraints), which is right and agrees with the torso. The ray test took the shoulder's and the
+    # wrist's readings; the reach test then undid the shoulder's, as out of the wall wrist's reach, and the arm
+    # rebuilt from that wrist put the shoulder on the wall, 1.5 m behind. Two against one: the reading and the
+    # torso; the wall wrist is the one undone.
+    akc, dims, d = _recorded_frame("mediapipe_bvhtools_b2_window_30hz_frame636.npz", constrained_filter=True)
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    LS, LE, LW = INDEX["left_shoulder"], INDEX["left_elbow"], INDEX["left_wrist"]
+    assert abs(m[LS, 2] - truth[LS, 2]) < 0.03 and pose[LS, 2] - m[LS, 2] > 0.25
+    assert m[LE, 2] - truth[LE, 2] > 1.0 and m[LW, 2] - truth[LW, 2] > 1.0
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert abs(out[LS, 2] - m[LS, 2]) < 1e-9
+    assert abs(out[LE, 2] - truth[LE, 2]) < 0.1 and abs(out[LW, 2] - truth[LW, 2]) < 0.1
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)

@@ -279,8 +279,9 @@ def test_methods_are_the_compositions_of_the_core_stages(sessions):
         ArmKinematicCorrector(DIMS, WEIGHT_PRESETS["Wb"]),
     )
     exp_kf, exp_ekf, exp_akc = [], [], []
+    held = np.full((NUM_LANDMARKS, 3), np.nan)  # (ours: the occlusion filter holds the last accepted positions)
     for k in range(s.num_frames):
-        acc, _ = occlusion_filter(s.raw[k], s.pixels[k], s.visibility[k], s.intrinsics.width)
+        acc, _ = occlusion_filter(s.raw[k], s.pixels[k], s.visibility[k], s.intrinsics.width, held=held)
         exp_kf.append(kf.step(acc, 0.1))
         exp_ekf.append(ekf.step(acc, 0.1))
         exp_akc.append(akc.correct(exp_kf[-1]).pose)

@@ -76,7 +76,8 @@ def test_any_subset_lost_from_one_frame_to_60_s(subset, start, duration):
     # injected loss, and the occlusion filter's own rejections), and its output is NaN then.
     measured = np.isfinite(run.accepted).any(axis=2)
     L, P, V = meas.landmarks_C, meas.pixels, meas.visibility
-    ref = [occlusion_filter(L[k], P[k], V[k], 640)[0] for k in range(T)]
+    held = np.full((NUM_LANDMARKS, 3), np.nan)  # (the diagram's occlusion filter holds accepted positions)
+    ref = [occlusion_filter(L[k], P[k], V[k], 640, held=held)[0] for k in range(T)]
     np.testing.assert_array_equal(run.accepted, np.array(ref))
     missed = np.zeros(NUM_LANDMARKS, dtype=int)
     seen = np.zeros(NUM_LANDMARKS, dtype=bool)

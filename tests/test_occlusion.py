@@ -208,3 +208,68 @@ def test_paper_rules_use_only_the_wrist_pairs_and_any_detected_distal_joint():
     _, pinfo = occlusion_filter(points, pixels, vis, W, **PAPER_RULES)
     assert pinfo.depth_dropped[e] and pinfo.depth_dropped[s]
     assert not info.depth_dropped[e]
+
+
+def test_a_dropped_depths_x_y_go_on_its_pixel_ray_at_its_last_accepted_depth():
+    points, pixels, vis = scene()
+    le, lw = INDEX["left_elbow"], INDEX["left_wrist"]
+    held = np.full((NUM_LANDMARKS, 3), np.nan)
+    # Frame 1: all accepted; the state records every position.
+    accepted, _ = occlusion_filter(points, pixels, vis, W, held=held)
+    np.testing.assert_array_equal(accepted, points)
+    np.testing.assert_array_equal(held, points)
+    # Frame 2: the forearm crosses in front of the elbow at 2.06 m. The joint is at (0.3, -0.1, 2.5) and S2
+    # deprojected its pixel at the forearm's depth: x, y 2.06 / 2.5 of the joint's.
+    joint = np.array([0.3, -0.1, 2.5])
+    held[le] = joint
+    read = joint * 2.06 / 2.5
+    p2 = points.copy()
+    p2[le] = read
+    pixels[le] = pixels[lw] + [10.0, 0.0]
+    before = held.copy()
+    accepted, info = occlusion_filter(p2, pixels, vis, W, held=held)
+    assert info.depth_dropped[le] and np.isnan(accepted[le, 2])
+    np.testing.assert_allclose(accepted[le, :2], joint[:2], rtol=1e-12)  # 6 cm in x moved back onto the joint
+    np.testing.assert_array_equal(held[le], joint)  # a dropped depth leaves the state
+    keep = np.arange(NUM_LANDMARKS) != le
+    np.testing.assert_array_equal(accepted[keep], p2[keep])
+    np.testing.assert_array_equal(held[keep], p2[keep])
+    # Stateless (no held), the paper's rules (the state untouched), or no depth accepted yet: x, y as deprojected.
+    for kw in ({}, {"held": before, "hold_rays": False}, {"held": np.full((NUM_LANDMARKS, 3), np.nan)}):
+        accepted, _ = occlusion_filter(p2, pixels, vis, W, **kw)
+        np.testing.assert_array_equal(accepted[le, :2], read[:2])
+    assert PAPER_RULES["hold_rays"] is False
+    np.testing.assert_array_equal(before[le], joint)
+    # A rejected landmark leaves its held position too.
+    vis[lw] = 0.1
+    held[lw] = [0.5, 0.0, 1.0]
+    occlusion_filter(points, pixels, vis, W, held=held)
+    np.testing.assert_array_equal(held[lw], [0.5, 0.0, 1.0])
+
+
+def test_a_left_right_swapped_frame_reads_and_records_the_held_rows_of_the_other_side():
+    from akc_drake.core.kalman import LEFT_RIGHT_SWAP
+
+    points, pixels, vis = scene()
+    le, lw = INDEX["left_elbow"], INDEX["left_wrist"]
+    pixels[le] = pixels[lw] + [10.0, 0.0]
+    points[le] = np.array([0.3, -0.1, 2.5]) * 0.8
+    held = np.full((NUM_LANDMARKS, 3), np.nan)
+    occlusion_filter(scene()[0], scene()[1], vis, W, held=held)  # a first frame, as labelled
+    held[le] = [0.3, -0.1, 2.5]
+    held_s = held.copy()
+    straight, _ = occlusion_filter(points, pixels, vis, W, held=held)
+    # The same frame with the whole body labelled mirror-wise: the rows exchanged, nothing else.
+    swapped, _ = occlusion_filter(points[LEFT_RIGHT_SWAP], pixels[LEFT_RIGHT_SWAP], vis[LEFT_RIGHT_SWAP], W,
+                                  held=held_s)
+    np.testing.assert_array_equal(swapped, straight[LEFT_RIGHT_SWAP])
+    np.testing.assert_array_equal(held_s, held)
+    np.testing.assert_allclose(straight[le, :2], [0.3, -0.1], rtol=1e-12)
+
+
+@pytest.mark.parametrize("bad", [np.zeros((11, 3)), np.zeros((NUM_LANDMARKS, 3), dtype=np.float32),
+                                 [[2.0] * 3] * NUM_LANDMARKS, np.zeros(NUM_LANDMARKS)])
+def test_held_must_be_a_float64_state_array(bad):
+    points, pixels, vis = scene()
+    with pytest.raises(ValueError, match="held"):
+        occlusion_filter(points, pixels, vis, W, held=bad)

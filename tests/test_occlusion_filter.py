@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
 from akc_drake.core.occlusion import occlusion_filter
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS
+from akc_drake.systems.measurement_replay import MeasurementReplay
 from akc_drake.systems.occlusion_filter import AddOcclusionFilter, OcclusionFilter
 
 
@@ -102,3 +104,59 @@ def test_add_helper_wires_a_diagram():
 def test_bad_parameters(args, kwargs, match):
     with pytest.raises(ValueError, match=match):
         OcclusionFilter(*args, **kwargs)
+
+
+def test_with_a_period_it_holds_the_last_accepted_depths_as_the_core_function_over_the_sequence():
+    # Three frames: the right elbow seen, then hidden behind its wrist (its depth read on the forearm 40 cm in
+    # front, x, y deprojected there: 2.0 / 2.4 of the joint's), then seen again.
+    period, e = 0.1, INDEX["right_elbow"]
+    points, pixels, vis = frame(2)
+    P = np.repeat(points[None], 3, axis=0)
+    X = np.repeat(pixels[None], 3, axis=0)
+    V = np.repeat(vis[None], 3, axis=0)
+    joint = np.array([0.3, -0.2, 2.4])
+    P[:, e] = joint
+    P[1, e] = joint * 2.0 / 2.4
+    X[[0, 2], e] = X[[0, 2], INDEX["right_wrist"]] + [0.0, 150.0]  # apart in frames 0 and 2
+    builder = DiagramBuilder()
+    src = builder.AddSystem(MeasurementReplay(P, V, X, period_s=period))
+    occ = AddOcclusionFilter(builder, src.GetOutputPort("landmarks_C"), src.GetOutputPort("visibility"),
+                             src.GetOutputPort("pixels"), image_width=640, period_s=period)
+    stateless = AddOcclusionFilter(builder, src.GetOutputPort("landmarks_C"), src.GetOutputPort("visibility"),
+                                   src.GetOutputPort("pixels"), image_width=640, name="stateless")
+    diagram = builder.Build()
+    assert occ.CreateDefaultContext().num_discrete_state_groups() == 1
+    assert stateless.CreateDefaultContext().num_total_states() == 0
+    sim = Simulator(diagram)
+    held = np.full((NUM_LANDMARKS, 3), np.nan)
+    for k in range(3):
+        sim.AdvanceTo(k * period + 0.005)  # after the replay's and the filter's updates of frame k
+        root = sim.get_context()
+        out = occ.GetOutputPort("landmarks_C_accepted").Eval(occ.GetMyContextFromRoot(root)).reshape(-1, 3)
+        expected, info = occlusion_filter(P[k], X[k], V[k], 640, held=held)
+        np.testing.assert_array_equal(out, expected)
+        flat = stateless.GetOutputPort("landmarks_C_accepted").Eval(stateless.GetMyContextFromRoot(root))
+        np.testing.assert_array_equal(flat.reshape(-1, 3), occlusion_filter(P[k], X[k], V[k], 640)[0])
+        if k == 1:
+            assert info.depth_dropped[e]
+            np.testing.assert_allclose(out[e, :2], joint[:2], rtol=1e-12)  # back on the joint, not 5 cm short
+            np.testing.assert_allclose(flat.reshape(-1, 3)[e, :2], P[1, e, :2])
+    np.testing.assert_array_equal(
+        occ.GetMyContextFromRoot(sim.get_context()).get_discrete_state(0).get_value(), held.reshape(-1))
+
+
+def test_hold_rays_off_keeps_the_deprojected_x_y_and_a_bad_period_is_refused():
+    points, pixels, vis = frame()
+    e = INDEX["right_elbow"]
+    for hold, expect in ((False, points[e, :2]), (True, points[e, :2] * 3.0 / points[e, 2])):
+        system = OcclusionFilter(640, period_s=0.1, hold_rays=hold)
+        context = system.CreateDefaultContext()
+        context.SetDiscreteState(0, np.full(3 * NUM_LANDMARKS, 3.0))
+        system.GetInputPort("landmarks_C").FixValue(context, points.reshape(-1))
+        system.GetInputPort("visibility").FixValue(context, vis)
+        system.GetInputPort("pixels").FixValue(context, pixels.reshape(-1))
+        out = system.GetOutputPort("landmarks_C_accepted").Eval(context).reshape(-1, 3)
+        np.testing.assert_allclose(out[e, :2], expect, rtol=1e-12)
+    for bad in (0.0, -1.0, float("inf")):
+        with pytest.raises(ValueError, match="period_s"):
+            OcclusionFilter(640, period_s=bad)

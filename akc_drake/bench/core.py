@@ -330,7 +330,8 @@ class BenchInput:
 
         w = self.intrinsics.width
         frames = zip(self.raw, self.pixels, self.visibility, strict=True)
-        self.accepted = np.stack([occlusion_filter(z, p, v, w)[0] for z, p, v in frames])
+        held = np.full(self.raw.shape[1:], np.nan)  # (the filter's state over the sequence)
+        self.accepted = np.stack([occlusion_filter(z, p, v, w, held=held)[0] for z, p, v in frames])
         kf, ekf = ConstantVelocityKF(), ExtendedKalmanFilterCV(self.dims)
         dt = self.dt
         kf_out, kf_var = [], []
@@ -455,7 +456,9 @@ def bench_core(inp: BenchInput, s: BenchSettings, progress: Callable[[str], None
     frames = list(zip(inp.raw, inp.pixels, inp.visibility, strict=True))
 
     say("core: occlusion filter")
-    ns = time_calls(lambda f: occlusion_filter(f[0], f[1], f[2], width), frames, repeats=reps, warmup=wu)
+    held = np.full(inp.raw.shape[1:], np.nan)
+    ns = time_calls(lambda f: occlusion_filter(f[0], f[1], f[2], width, held=held), frames, repeats=reps,
+                    warmup=wu)
     out["occlusion"] = summarize(ns / 1e3, "us")
 
     say("core: KF")

@@ -87,7 +87,7 @@ def bench_systems(inp: BenchInput, core: dict, s: BenchSettings,
 
     n_coik = min(T, max(s.coik_frames, 10))
     cases = [
-        ("OcclusionFilter", lambda: OcclusionFilter(inp.intrinsics.width), inp.raw,
+        ("OcclusionFilter", lambda: OcclusionFilter(inp.intrinsics.width, period_s=period), inp.raw,
          ("landmarks_C", "visibility", "pixels"), "landmarks_C_accepted", "occlusion", T),
         ("LandmarkKalmanFilter(KF)", lambda: LandmarkKalmanFilter("KF", dims=inp.dims, period_s=period),
          inp.accepted, ("landmarks_C",), None, "kf", T),

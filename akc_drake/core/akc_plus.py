@@ -381,8 +381,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             if m is not None and (f[2] != sz or f[5] != ez or f[8] != wz):
                 # A measured point that replaced the filter's must be within the arm's reach of its neighbours.
                 unreachable_replacements(f, vs, (sx, sy, sz, ex, ey, ez, wx, wy, wz), m, offsets, self._sub_index[side],
-                                         var, self._nis, self._nis_floor, self._lu[side], self._lf[side],
-                                         self._r_axes, self._len_var, self._gate2, s_held)
+                                         var, self._nis, self._nis_floor, self._lu[side], self._lf[side], self._r_axes,
+                                         self._len_var, self._gate2, s_held or self._torso_confirms(f, m, side))
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             vs = self._cur_var = None

@@ -295,7 +295,8 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
         lu, lf: the calibrated upper and lower arm lengths; r_axes: the measurement's x, y, z variances;
         length_var: the lengths' variance.
         g2: the gate squared.
-        s_held: the shoulder (``f[0:3]``) is held on the torso; it is never restored.
+        s_held: the shoulder (``f[0:3]``) is held on the torso, or its reading replaced the filter's and agrees
+            with the torso's (``TorsoReference._torso_confirms``); it is never restored.
 
     Returns:
         How many joints were restored.

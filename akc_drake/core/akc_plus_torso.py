@@ -178,6 +178,22 @@ class TorsoReference:
         vs[2] = vh
         return True
 
+    def _torso_confirms(self, f, m, side):
+        """Whether the measured shoulder depth, which replaced the filter's in ``f`` (the ray test), lies within the
+        gate of the shoulder held on the torso: two against one, the filter's shoulder is the wrong one, whatever
+        an elbow and a wrist read on the wall behind it say (:func:`~akc_drake.core.akc_plus_evidence.
+        unreachable_replacements` then keeps it, as a held shoulder). An EKF pulled behind by an elbow and a wrist
+        read on the wall 1.5 m behind took the seen shoulder 29 cm with it (its bone constraints); the ray test
+        took the shoulder's and the wrist's readings, the reach test undid the shoulder's, on the torso, as out of
+        the wall wrist's reach, and the arm rebuilt from that wrist put the shoulder on the wall (MediaPipe,
+        bvhtools_b2's window at 30 Hz, frame 636)."""
+        a = self._anchor[side]
+        mz = m[self._offsets[side][0] + 2]
+        if a is None or f[2] != mz:
+            return False
+        h = a[1]
+        return (mz - a[0][2] - h[2]) ** 2 <= self._gate2 * (self._v_s * (h[3] + 1.0) + self._r_z)
+
     def _beyond_width(self, f, vs, m, side):
         """A measured shoulder farther from the camera than the shoulder width allows: put on its pixel's ray at
         our last output's depth when that is within the bound (``f``, ``vs`` changed in place); True if so.

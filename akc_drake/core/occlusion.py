@@ -15,6 +15,13 @@ Two checks discard unreliable measurements before the Kalman filter:
    visibility is most likely the hidden one (behind the proximal joint), in which case the
    proximal joint's depth is the right one and is kept.
 
+   The 2D detection is reliable, but S2 deprojected it at the occluder's depth: ``x`` and ``y`` lie
+   on the landmark's pixel ray at that depth, short of the joint by the depth ratio (an elbow read on
+   the forearm 40 cm in front, at 2 m, is 20 % short: 6 cm at 0.3 m off the optical axis). With
+   ``held`` (our rule, not the paper's: ``hold_rays``) the filter keeps each landmark's last accepted
+   position and moves a dropped depth's ``x``, ``y`` along the ray to its depth (docs/results.md,
+   session 39).
+
 Pure numpy, vectorised over the fixed pair list (no Python loop per landmark).
 """
 
@@ -25,6 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from akc_drake.core.kalman import LEFT_RIGHT_SWAP
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PAPER_PROXIMAL_DISTAL_PAIRS, PROXIMAL_DISTAL_PAIRS
 
 #: Paper defaults (§II-C).
@@ -49,8 +57,9 @@ def _pair_indices(pairs) -> tuple[np.ndarray, np.ndarray]:
     return got
 
 
-#: The paper's occlusion filter: its pairs, and any detected distal joint may occlude.
-PAPER_RULES = {"pairs": PAPER_PROXIMAL_DISTAL_PAIRS, "distal_must_be_accepted": False}
+#: The paper's occlusion filter: its pairs, any detected distal joint may occlude, and a dropped depth's x, y
+#: stay where S2 deprojected them.
+PAPER_RULES = {"pairs": PAPER_PROXIMAL_DISTAL_PAIRS, "distal_must_be_accepted": False, "hold_rays": False}
 
 
 class OcclusionInfo(NamedTuple):
@@ -89,6 +98,44 @@ def check_parameters(image_width: float, visibility_threshold: float, proximity:
         raise ValueError(f"proximity must be a non-negative fraction of the image width, got {proximity!r}")
 
 
+_SWAP = LEFT_RIGHT_SWAP.tolist()
+
+
+def _hold_rays(accepted: np.ndarray, points: np.ndarray, dropped: np.ndarray, held: np.ndarray) -> None:
+    """``occlusion_filter``'s hold, in place (plain floats: 12 rows cost less than the numpy calls would).
+
+    A detector's left/right swap (a whole body labelled mirror-wise for a frame) is told as the KF tells it
+    (:func:`akc_drake.core.kalman.left_right_swapped`, here against the held positions): on such a frame each
+    row reads and records the held row of the label it swapped with, so that the hold stays the person's and
+    the output is the unswapped frame's with its rows exchanged.
+    """
+    a, h, sw = accepted.tolist(), held.tolist(), _SWAP
+    fin = [math.isfinite(r[0] + r[1] + r[2]) for r in a]
+    fh = [math.isfinite(r[0] + r[1] + r[2]) for r in h]
+    e_given = e_swap = 0.0
+    pairs = 0
+    for i in range(NUM_LANDMARKS):
+        j = sw[i]
+        if fin[i] and fh[i] and fin[j] and fh[j]:
+            ai, aj, hi = a[i], a[j], h[i]
+            e_given += (ai[0] - hi[0]) ** 2 + (ai[1] - hi[1]) ** 2 + (ai[2] - hi[2]) ** 2
+            e_swap += (aj[0] - hi[0]) ** 2 + (aj[1] - hi[1]) ** 2 + (aj[2] - hi[2]) ** 2
+            pairs += 1
+    swap = pairs >= 4 and e_swap < 0.25 * e_given  # (``left_right_swapped``'s ratio and min_pairs)
+    for i in np.flatnonzero(dropped).tolist():
+        zr, z = h[sw[i] if swap else i][2], points[i, 2]
+        if 0.0 < zr < math.inf and 0.0 < z < math.inf:  # (a garbage depth of 0 or inf is no ray's depth)
+            accepted[i, 0] *= zr / z
+            accepted[i, 1] *= zr / z
+    changed = False
+    for i in range(NUM_LANDMARKS):
+        if fin[i]:
+            h[sw[i] if swap else i] = a[i]
+            changed = True
+    if changed:
+        held[:] = h
+
+
 def occlusion_filter(
     points_C,
     pixels,
@@ -99,6 +146,8 @@ def occlusion_filter(
     proximity: float = DEFAULT_PROXIMITY,
     pairs: tuple[tuple[str, str], ...] = PROXIMAL_DISTAL_PAIRS,
     distal_must_be_accepted: bool = True,
+    hold_rays: bool = True,
+    held: np.ndarray | None = None,
 ) -> tuple[np.ndarray, OcclusionInfo]:
     """Discard occluded landmarks and corrupted proximal depths (paper §II-C).
 
@@ -115,6 +164,11 @@ def occlusion_filter(
             :data:`~akc_drake.core.skeleton.PAPER_PROXIMAL_DISTAL_PAIRS` (``PAPER_RULES``).
         distal_must_be_accepted: our rule that a distal joint rejected for low visibility does not occlude
             (it is most likely the hidden one); the paper has no such rule (False).
+        hold_rays: with ``held``, put a dropped depth's ``x``, ``y`` on the landmark's pixel ray at its last
+            accepted depth (False: the paper's filter, which keeps them; ``held`` is then left as it is).
+        held: the state of a filter run over a sequence: a ``(12, 3)`` float64 array of each landmark's last
+            accepted position (all three axes accepted; NaN rows: none yet, start with all NaN), updated in
+            place with this frame's. None (default): stateless, ``x``, ``y`` kept as deprojected.
 
     Returns:
         ``(accepted_C, info)``: ``accepted_C`` is a new ``(12, 3)`` array (rejected rows all NaN,
@@ -145,4 +199,8 @@ def occlusion_filter(
     accepted = points.copy()
     accepted[rejected] = np.nan
     accepted[depth_dropped, 2] = np.nan
+    if held is not None and hold_rays:
+        if not (isinstance(held, np.ndarray) and held.shape == (NUM_LANDMARKS, 3) and held.dtype == np.float64):
+            raise ValueError(f"held must be a float64 array of shape ({NUM_LANDMARKS}, 3)")
+        _hold_rays(accepted, points, depth_dropped, held)
     return accepted, OcclusionInfo(rejected, depth_dropped)

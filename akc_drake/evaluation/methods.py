@@ -156,6 +156,7 @@ def _occlusion_pass(session: Session, visibility_threshold: float, proximity: fl
     T = session.num_frames
     out = np.empty((T, NUM_LANDMARKS, 3))
     dt = np.empty(T)
+    held = np.full((NUM_LANDMARKS, 3), np.nan)  # (the filter's state: each landmark's last accepted position)
     width = session.intrinsics.width
     clock = time.perf_counter
     for k in range(T):
@@ -167,6 +168,7 @@ def _occlusion_pass(session: Session, visibility_threshold: float, proximity: fl
             width,
             visibility_threshold=visibility_threshold,
             proximity=proximity,
+            held=held,
             **(rules or {}),
         )
         dt[k] = clock() - t0

@@ -334,10 +334,12 @@ def export_evaluation(ev, formats, out_dir, *, frame: str = "world") -> dict:
     files, gains = [], {}
     for motion, run in ev.runs.items():
         s = run.session
+        held = np.full(s.raw.shape[1:], np.nan)  # (the occlusion filter's state, as in the evaluation)
         accepted = np.stack([
             np.asarray(occlusion_filter(s.raw[k], s.pixels[k], s.visibility[k], s.intrinsics.width,
                                         visibility_threshold=opts.visibility_threshold,
-                                        proximity=opts.proximity)[0]) for k in range(s.num_frames)])
+                                        proximity=opts.proximity, held=held,
+                                        **(opts.occlusion_rules or {}))[0]) for k in range(s.num_frames)])
         base = PoseSet(t=np.asarray(s.t, dtype=float), stages={"accepted": accepted}, dims=ev.dims, source=motion)
         world = world_frame_for(base, frame=frame)
         outputs = {"truth": s.truth, **{m: r.estimates for m, r in run.methods.items()}}

@@ -1,9 +1,10 @@
-"""Stage S3a: the occlusion filter (paper §II-C) as a stateless Drake system."""
+"""Stage S3a: the occlusion filter (paper §II-C) as a Drake system (stateless, or holding each landmark's last
+accepted position at the camera period)."""
 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem, OutputPort
 
 from akc_drake.core.occlusion import (
     DEFAULT_PROXIMITY,
@@ -12,6 +13,7 @@ from akc_drake.core.occlusion import (
     occlusion_filter,
 )
 from akc_drake.core.skeleton import NUM_LANDMARKS
+from akc_drake.systems import timing
 
 _J = NUM_LANDMARKS
 
@@ -19,8 +21,12 @@ _J = NUM_LANDMARKS
 class OcclusionFilter(LeafSystem):
     """Rejects low-visibility landmarks and drops the depth of proximal joints hidden by distal ones.
 
-    A direct-feedthrough wrapper of :func:`akc_drake.core.occlusion.occlusion_filter`: no state,
-    each output is computed from the current inputs.
+    A direct-feedthrough wrapper of :func:`akc_drake.core.occlusion.occlusion_filter`. Without ``period_s``
+    it has no state and each output is computed from the current inputs (``x``, ``y`` of a dropped depth kept
+    as deprojected, at the occluder's depth). With ``period_s`` (as :func:`akc_drake.diagrams` builds it) it
+    holds each landmark's last accepted position (discrete state, 36, row-major ``(12, 3)``, NaN: none yet),
+    updated at the camera period with the filter's stage offset, and puts a dropped depth's ``x``, ``y`` on
+    its pixel's ray at that depth (``hold_rays``; the module docstring of :mod:`akc_drake.core.occlusion`).
 
     .. pydrake_system::
 
@@ -44,6 +50,10 @@ class OcclusionFilter(LeafSystem):
         image_width: image width in pixels (the proximity radius is a fraction of it).
         visibility_threshold: landmarks with visibility below this are rejected (paper: 0.7).
         proximity: proximity radius as a fraction of the image width (paper: 0.05).
+        period_s: camera period, seconds: hold the last accepted positions (None: stateless).
+        hold_rays: with ``period_s``, move a dropped depth's ``x``, ``y`` along its ray (False: the paper's
+            filter; the state then stays NaN).
+        stage_offset_s: the per-stage offset of :func:`akc_drake.systems.timing.stage_offset`.
 
     Raises:
         ValueError: a parameter is out of range (the message names it).
@@ -55,23 +65,37 @@ class OcclusionFilter(LeafSystem):
         *,
         visibility_threshold: float = DEFAULT_VISIBILITY_THRESHOLD,
         proximity: float = DEFAULT_PROXIMITY,
+        period_s: float | None = None,
+        hold_rays: bool = True,
+        stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
     ):
         super().__init__()
         check_parameters(image_width, visibility_threshold, proximity)
         self.image_width = float(image_width)
         self.visibility_threshold = float(visibility_threshold)
         self.proximity = float(proximity)
+        self.hold_rays = bool(hold_rays)
         self._u_landmarks = self.DeclareVectorInputPort("landmarks_C", 3 * _J)
         self._u_visibility = self.DeclareVectorInputPort("visibility", _J)
         self._u_pixels = self.DeclareVectorInputPort("pixels", 2 * _J)
         ports = (self._u_landmarks, self._u_visibility, self._u_pixels)
-        inputs = {self.input_port_ticket(p.get_index()) for p in ports}
+        deps = {self.input_port_ticket(p.get_index()) for p in ports}
+        self._x_held = None
+        if period_s is not None:
+            if not (isinstance(period_s, (int, float)) and 0.0 < period_s < float("inf")):
+                raise ValueError(f"period_s must be a positive number of seconds, got {period_s!r}")
+            self._x_held = self.DeclareDiscreteState(BasicVector(np.full(3 * _J, np.nan)))
+            deps.add(self.discrete_state_ticket(self._x_held))
+            self.DeclarePeriodicDiscreteUpdateEvent(
+                period_sec=float(period_s), offset_sec=timing.stage_offset("filter", stage_offset_s),
+                update=self._update,
+            )
         self.DeclareVectorOutputPort(
-            "landmarks_C_accepted", 3 * _J, self._calc_accepted, prerequisites_of_calc=inputs
+            "landmarks_C_accepted", 3 * _J, self._calc_accepted, prerequisites_of_calc=deps
         )
-        self.DeclareVectorOutputPort("rejected", 2 * _J, self._calc_rejected, prerequisites_of_calc=inputs)
+        self.DeclareVectorOutputPort("rejected", 2 * _J, self._calc_rejected, prerequisites_of_calc=deps)
 
-    def _run(self, context):
+    def _run(self, context, held=None):
         landmarks = self._u_landmarks.Eval(context).reshape(_J, 3)
         if self._u_visibility.HasValue(context):
             visibility = self._u_visibility.Eval(context)
@@ -88,14 +112,27 @@ class OcclusionFilter(LeafSystem):
             self.image_width,
             visibility_threshold=self.visibility_threshold,
             proximity=self.proximity,
+            hold_rays=self.hold_rays,
+            held=held,
         )
 
+    def _held(self, context) -> np.ndarray | None:
+        """A ``(12, 3)`` copy of the held positions (None when stateless)."""
+        if self._x_held is None:
+            return None
+        return np.array(context.get_discrete_state(self._x_held).get_value(), dtype=np.float64).reshape(_J, 3)
+
+    def _update(self, context, discrete_state) -> None:
+        held = self._held(context)
+        self._run(context, held)
+        discrete_state.get_mutable_vector(self._x_held).SetFromVector(held.reshape(-1))
+
     def _calc_accepted(self, context, output) -> None:
-        accepted, _ = self._run(context)
+        accepted, _ = self._run(context, self._held(context))
         output.SetFromVector(accepted.reshape(-1))
 
     def _calc_rejected(self, context, output) -> None:
-        _, info = self._run(context)
+        _, info = self._run(context, self._held(context))
         output.SetFromVector(np.concatenate((info.rejected, info.depth_dropped)).astype(np.float64))
 
 
@@ -108,6 +145,8 @@ def AddOcclusionFilter(
     image_width: float = 640,
     visibility_threshold: float = DEFAULT_VISIBILITY_THRESHOLD,
     proximity: float = DEFAULT_PROXIMITY,
+    period_s: float | None = None,
+    hold_rays: bool = True,
     name: str = "OcclusionFilter",
 ) -> OcclusionFilter:
     """Add an :class:`OcclusionFilter` to ``builder`` and connect the given source ports.
@@ -116,14 +155,15 @@ def AddOcclusionFilter(
         builder: the diagram builder.
         landmarks_C, visibility, pixels: output ports to connect to the inputs of the same name
             (None leaves that input unconnected).
-        image_width, visibility_threshold, proximity: as for :class:`OcclusionFilter`.
+        image_width, visibility_threshold, proximity, period_s, hold_rays: as for :class:`OcclusionFilter`.
         name: the system's name.
 
     Returns:
         The added system.
     """
     system = builder.AddSystem(
-        OcclusionFilter(image_width, visibility_threshold=visibility_threshold, proximity=proximity)
+        OcclusionFilter(image_width, visibility_threshold=visibility_threshold, proximity=proximity,
+                        period_s=period_s, hold_rays=hold_rays)
     )
     system.set_name(name)
     for port, input_name in ((landmarks_C, "landmarks_C"), (visibility, "visibility"), (pixels, "pixels")):
