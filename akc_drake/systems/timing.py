@@ -8,7 +8,10 @@ same instant would add one camera period of latency per stage. Instead each stag
 control frames at ``t_k + 4 * offset``. The offsets model the pipeline's own processing latency (a few
 milliseconds), keep the chain deterministic, and keep every output a pure function of state.
 
-Stateless stages (the occlusion filter) are direct-feedthrough and need no offset.
+The occlusion filter is direct-feedthrough: its outputs follow the extractor's within the same instant. Built
+with a period, it also records each landmark's last accepted position at the filter's instant, from the same
+inputs the filter reads then; the record changes none of frame ``k``'s outputs (a row recorded is one the
+hold does not move).
 """
 
 DEFAULT_CAMERA_RATE_HZ = 10.0
