@@ -1481,3 +1481,19 @@ def test_a_shoulder_reading_the_torso_confirms_is_not_undone_by_an_elbow_and_a_w
     assert abs(out[LE, 2] - truth[LE, 2]) < 0.1 and abs(out[LW, 2] - truth[LW, 2]) < 0.1
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_shoulder_held_on_the_torso_out_of_the_seen_wrists_reach_is_not_held():
+    # The simulated detector on boxing driven bone by bone, after the EKF (tests/data/akc_plus): the trunk leant
+    # back 40 cm in four frames while the right shoulder was hidden; lost altogether, it was held on the torso at
+    # its old offset, 38 cm in front and 80 cm from the seen wrist, farther than the arm reaches. The EKF's
+    # shoulder, within reach, was 2 cm off: the hold is not taken.
+    akc, dims, d = _recorded_frame("sim_boxing_rig_10hz_frame242.npz", constrained_filter=True)
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    RS, RW = INDEX["right_shoulder"], INDEX["right_wrist"]
+    assert np.isnan(m[RS]).all() and np.isfinite(m[RW]).all() and abs(m[RW, 2] - truth[RW, 2]) < 0.03
+    reach = dims.RUA + dims.RLA
+    assert np.linalg.norm(pose[RS] - m[RW]) < reach and abs(pose[RS, 2] - truth[RS, 2]) < 0.03
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert abs(out[RS, 2] - truth[RS, 2]) < 0.15  # (held: 38 cm in front)
+    assert np.linalg.norm(out[RS] - out[INDEX["right_elbow"]]) == pytest.approx(dims.RUA, abs=1e-12)

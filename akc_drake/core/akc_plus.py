@@ -190,7 +190,7 @@ from akc_drake.core.akc_plus_lengths import (
 )
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
-from akc_drake.core.akc_plus_torso import NO_HIPS, TorsoReference, learn_offset
+from akc_drake.core.akc_plus_torso import _XYZ, NO_HIPS, TorsoReference, learn_offset
 from akc_drake.core.arm_geometry import behind_reading as _behind_reading
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -220,7 +220,6 @@ def _as_f64(x):
 _FLAT, _SHAPE = 3 * NUM_LANDMARKS, (NUM_LANDMARKS, 3)
 
 _HAND = tuple(tuple(3 * INDEX[f"{s}_{j}"] for j in ("elbow", "wrist", "index", "pinky")) for s in SIDES)
-_Z, _XYZ = (2,), (0, 1, 2)  # (the held shoulder's axes: its depth dropped; lost altogether)
 
 
 class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
@@ -344,8 +343,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 # as it is; ``_anchor`` None: the hold off, or neither the hips nor the other shoulder seen).
                 a = self._anchor[side]
                 if a is not None and vs[2] == vs[2]:
-                    fuse_held(f, vs, a[1], a[0], self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
-                    s_held = True
+                    s_held = self._hold_on_torso(f, vs, m, side, a)
             elif m is not None and vs[2] == vs[2]:
                 s_held = self._torso_outvotes(f, vs, m, side)
             if m is not None:  # (a depth that jumped towards the camera, alone)
