@@ -188,15 +188,19 @@ class TorsoReference:
         shoulder was hidden, and its held offset no longer holds (the simulated detector on boxing driven bone by
         bone: the trunk leant back 40 cm in four frames, the lost shoulder held 38 cm in front, 80 cm from the
         seen wrist; the EKF's, within reach, was 2 cm off). The blind frame is counted either way."""
+        x: float; y: float; z: float; wx: float; wy: float; wz: float; reach: float  # (C doubles: setup.py)
         o_s, o_w = self._offsets[side][0], self._offsets[side][2]
-        f0, v0 = f[0:3], vs[0:3]
+        x, y, z = f[0], f[1], f[2]
+        v0 = (vs[0], vs[1], vs[2])
         fuse_held(f, vs, a[1], a[0], self._v_s, 0, _Z if _isfinite(m[o_s] + m[o_s + 1]) else _XYZ)
         wx, wy, wz = m[o_w], m[o_w + 1], m[o_w + 2]
+        if not _isfinite(wx + wy + wz):
+            return True
         reach = self._lu[side] + self._lf[side] + self._cons
-        if (_isfinite(wx + wy + wz) and _seen(wz, self._v[o_w + 2], self._var[o_w + 2], self._r_z, self._gate2)
-                and _hypot(f[0] - wx, f[1] - wy, f[2] - wz) > reach
-                and _hypot(f0[0] - wx, f0[1] - wy, f0[2] - wz) <= reach):
-            f[0:3], vs[0:3] = f0, v0
+        if (_hypot(f[0] - wx, f[1] - wy, f[2] - wz) > reach and _hypot(x - wx, y - wy, z - wz) <= reach
+                and _seen(wz, self._v[o_w + 2], self._var[o_w + 2], self._r_z, self._gate2)):
+            f[0], f[1], f[2] = x, y, z
+            vs[0], vs[1], vs[2] = v0
             return False
         return True
 
