@@ -507,7 +507,11 @@ LEFT_RIGHT_SWAP: np.ndarray = np.array(
 )
 
 
-def left_right_swapped(z, predicted, *, ratio: float = 0.25, min_pairs: int = 2) -> bool:
+#: How much better a swapped labelling must fit, and the left/right pairs it needs (:func:`left_right_swapped`).
+SWAP_RATIO, SWAP_MIN_PAIRS = 0.25, 2
+
+
+def left_right_swapped(z, predicted, *, ratio: float = SWAP_RATIO, min_pairs: int = SWAP_MIN_PAIRS) -> bool:
     """Whether the detector swapped the person's left and right in measurement ``z``.
 
     A 2D pose detector sometimes labels a whole body mirror-wise for a frame. Compared with the filter's

@@ -22,7 +22,7 @@ Two checks discard unreliable measurements before the Kalman filter:
    position and moves a dropped depth's ``x``, ``y`` along the ray to its depth (docs/results.md,
    session 39).
 
-Pure numpy, vectorised over the fixed pair list (no Python loop per landmark).
+The checks are numpy, vectorised over the fixed pair list; the hold runs on plain floats (12 rows).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from akc_drake.core.kalman import LEFT_RIGHT_SWAP
+from akc_drake.core.kalman import LEFT_RIGHT_SWAP, SWAP_MIN_PAIRS, SWAP_RATIO
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PAPER_PROXIMAL_DISTAL_PAIRS, PROXIMAL_DISTAL_PAIRS
 
 #: Paper defaults (§II-C).
@@ -121,7 +121,7 @@ def _hold_rays(accepted: np.ndarray, points: np.ndarray, dropped: np.ndarray, he
             e_given += (ai[0] - hi[0]) ** 2 + (ai[1] - hi[1]) ** 2 + (ai[2] - hi[2]) ** 2
             e_swap += (aj[0] - hi[0]) ** 2 + (aj[1] - hi[1]) ** 2 + (aj[2] - hi[2]) ** 2
             pairs += 1
-    swap = pairs >= 4 and e_swap < 0.25 * e_given  # (``left_right_swapped``'s ratio and min_pairs)
+    swap = pairs >= 2 * SWAP_MIN_PAIRS and e_swap < SWAP_RATIO * e_given  # (both rows of each pair count)
     for i in np.flatnonzero(dropped).tolist():
         zr, z = h[sw[i] if swap else i][2], points[i, 2]
         if 0.0 < zr < math.inf and 0.0 < z < math.inf:  # (a garbage depth of 0 or inf is no ray's depth)
