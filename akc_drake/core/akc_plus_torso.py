@@ -62,6 +62,13 @@ def learn_offset(held, side, out, anchor, a):
         h[3] = 0.0
 
 
+def _held_depth(a, v_s):
+    """The depth of the shoulder held on the torso reference ``a`` (``_anchor[side]``: the anchor point and the
+    held offset with its blind frames) and the variance its random walk has reached (``v_s`` per frame)."""
+    h = a[1]
+    return a[0][2] + h[2], v_s * (h[3] + 1.0)
+
+
 class TorsoReference:
     """The torso references of AKC+'s held shoulders (a mixin: the corrector holds the state it reads)."""
 
@@ -153,8 +160,7 @@ class TorsoReference:
             return self._beyond_width(f, vs, m, side)
         o_s, o_e, o_w = self._offsets[side]
         g2, rz, cons = self._gate2, self._r_z, self._cons
-        h = self._anchor[side][1]
-        hz, vh = self._anchor[side][0][2] + h[2], self._v_s * (h[3] + 1.0)
+        hz, vh = _held_depth(self._anchor[side], self._v_s)
         mx, my, mz = m[o_s], m[o_s + 1], m[o_s + 2]
         if not (mz - hz) ** 2 > g2 * (vh + rz) or hz <= 0.0:  # (NaN: False)
             return False
@@ -217,8 +223,8 @@ class TorsoReference:
         mz = m[self._offsets[side][0] + 2]
         if a is None or f[2] != mz:
             return False
-        h = a[1]
-        return (mz - a[0][2] - h[2]) ** 2 <= self._gate2 * (self._v_s * (h[3] + 1.0) + self._r_z)
+        hz, vh = _held_depth(a, self._v_s)
+        return (mz - hz) ** 2 <= self._gate2 * (vh + self._r_z)
 
     def _beyond_width(self, f, vs, m, side):
         """A measured shoulder farther from the camera than the shoulder width allows: put on its pixel's ray at

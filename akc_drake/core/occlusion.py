@@ -127,12 +127,10 @@ def _hold_rays(accepted: np.ndarray, points: np.ndarray, dropped: np.ndarray, he
         if 0.0 < zr < math.inf and 0.0 < z < math.inf:  # (a garbage depth of 0 or inf is no ray's depth)
             accepted[i, 0] *= zr / z
             accepted[i, 1] *= zr / z
-    changed = False
     for i in range(NUM_LANDMARKS):
         if fin[i]:
             h[sw[i] if swap else i] = a[i]
-            changed = True
-    if changed:
+    if any(fin):
         held[:] = h
 
 

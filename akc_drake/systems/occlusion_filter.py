@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem, OutputPort
 
+from akc_drake.core.landmark_tracking import filter_period
 from akc_drake.core.occlusion import (
     DEFAULT_PROXIMITY,
     DEFAULT_VISIBILITY_THRESHOLD,
@@ -82,12 +83,11 @@ class OcclusionFilter(LeafSystem):
         deps = {self.input_port_ticket(p.get_index()) for p in ports}
         self._x_held = None
         if period_s is not None:
-            if not (isinstance(period_s, (int, float)) and 0.0 < period_s < float("inf")):
-                raise ValueError(f"period_s must be a positive number of seconds, got {period_s!r}")
+            period_s = filter_period(period_s)  # (checked: a positive number of seconds)
             self._x_held = self.DeclareDiscreteState(BasicVector(np.full(3 * _J, np.nan)))
             deps.add(self.discrete_state_ticket(self._x_held))
             self.DeclarePeriodicDiscreteUpdateEvent(
-                period_sec=float(period_s), offset_sec=timing.stage_offset("filter", stage_offset_s),
+                period_sec=period_s, offset_sec=timing.stage_offset("filter", stage_offset_s),
                 update=self._update,
             )
         self.DeclareVectorOutputPort(
@@ -132,7 +132,7 @@ class OcclusionFilter(LeafSystem):
         output.SetFromVector(accepted.reshape(-1))
 
     def _calc_rejected(self, context, output) -> None:
-        _, info = self._run(context, self._held(context))
+        _, info = self._run(context)  # (the flags do not depend on the hold)
         output.SetFromVector(np.concatenate((info.rejected, info.depth_dropped)).astype(np.float64))
 
 
