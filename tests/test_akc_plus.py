@@ -1497,3 +1497,38 @@ def test_a_shoulder_held_on_the_torso_out_of_the_seen_wrists_reach_is_not_held()
     out = akc.correct(pose, m, d["variance"]).pose
     assert abs(out[RS, 2] - truth[RS, 2]) < 0.15  # (held: 38 cm in front)
     assert np.linalg.norm(out[RS] - out[INDEX["right_elbow"]]) == pytest.approx(dims.RUA, abs=1e-12)
+
+
+def test_hips_wider_apart_than_the_shoulders_hold_no_hidden_shoulder():
+    # MediaPipe on cmu_01_06 driven bone by bone, after the KF (tests/data/akc_plus), frame 216: the torso leans
+    # towards the camera and each hip's pixel reads the body one frame and the wall 1.5 m behind the next; the KF
+    # follows, so both hips pass their own innovation test, 1.6 m apart in depth. The right shoulder's depth is
+    # dropped. Held on those hips at the offset learnt from them, it went 80-90 cm behind (the filter's was 1 cm
+    # off), and the arm with it. Hips farther apart than the shoulders are no torso reference.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_06_rig_10hz_frame216.npz")
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    LH, RH = INDEX["left_hip"], INDEX["right_hip"]
+    assert np.isnan(m[RS, 2]) and np.isfinite(m[RS, :2]).all() and abs(pose[RS, 2] - truth[RS, 2]) < 0.02
+    assert m[LH, 2] > truth[LH, 2] + 1.0 and np.linalg.norm(pose[LH] - pose[RH]) > 1.5  # (a hip on the wall)
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert np.isnan(akc._hips).all()  # (no reference: the shoulders carry each other after a second without)
+    assert abs(out[RS, 2] - truth[RS, 2]) < 0.03  # (held on the hips: 0.9 m behind)
+    assert abs(out[RE, 2] - truth[RE, 2]) < 0.06  # (the seen elbow's reading is 3 cm off; rebuilt: 0.9 m)
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+    assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
+
+
+def test_hips_within_the_shoulder_width_are_the_hidden_shoulders_reference():
+    # The other side of the rule above: the same frame with both hips at the depth that carries the seen left
+    # shoulder at its learnt offset, and the filter's right shoulder (its depth still dropped) 10 cm behind the
+    # depth the hips carry: the hips are the reference, and the held right shoulder goes there.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_06_rig_10hz_frame216.npz")
+    m, pose, var = d["measured"].copy(), d["pose"].copy(), d["variance"]
+    LH, RH = INDEX["left_hip"], INDEX["right_hip"]
+    off_l, off_r = list(akc._held_sh[0]), list(akc._held_sh[1])
+    hz = m[LS, 2] - off_l[2]
+    m[[LH, RH], 2] = pose[[LH, RH], 2] = hz
+    pose[RS, 2] = hz + off_r[2] + 0.10
+    out = akc.correct(pose, m, var).pose
+    assert akc._hips[2] == pytest.approx(hz) and akc._anchor[1][0] == akc._hips
+    assert abs(out[RS, 2] - (hz + off_r[2])) < 0.03

@@ -72,9 +72,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   fuse_held`): a constant-velocity filter that holds the landmark claims a variance that grows without
   bound, and the arm rebuilt from the elbow then carried the elbow's depth error into a shoulder the filter held
   well (the bench's Motion I, bvhtools_a1's left shoulder behind the right hand); one that extrapolates a lost
-  shoulder ran 30 cm off in x. The hips count only when both their measured depths pass the innovation test;
-  where they have been no reference for a second (out of the image, as at a desk), the other shoulder carries
-  the held shoulder (:mod:`akc_drake.core.akc_plus_torso`).
+  shoulder ran 30 cm off in x. The hips count only when both their measured depths pass the innovation test
+  and they are no farther apart than the shoulders; where they have been no reference for a second (out of the
+  image, as at a desk), the other shoulder carries the held shoulder (:mod:`akc_drake.core.akc_plus_torso`).
 * A measured shoulder depth that both the shoulder held on the torso (beyond the gate of the hold's and the
   measurement's variances) and the seen elbow contradict (the upper arm from it misses its length by more than
   ``consistency_m``, from the held depth at the same pixel by that much less), or one in front of the held depth

@@ -7,7 +7,8 @@ running-mean offset from a torso reference (:func:`~akc_drake.core.akc_plus_evid
   hip that a hand hides carried the velocity it had, 38 cm in ten frames, into the held offsets: bvhtools_test
   60-120 s, simulated; one that follows a hip read on the wall behind the body's edge, where a bending torso puts
   the landmark, ran 50-120 cm off for five frames and taught the held shoulder 20 cm: bvhtools_a1 driven bone by
-  bone);
+  bone) and the filter's hips are no farther apart than the shoulder width reaches (:meth:`TorsoReference.
+  _hips_apart`: a filter that follows hips read on the wall by turns passes that test);
 * where the hips have been no reference for ``hips_lost_frames`` (1 s at 10 Hz: out of the image, an operator at
   a desk or a camera close to the chest), the other shoulder, which the clavicles carry with the chest: the
   filter's, seen this frame and agreeing with our last output of it, the offset from it learnt while the hips are
@@ -84,7 +85,7 @@ class TorsoReference:
         """
         pair = self._v_s and m is not None and self._var is not None
         hold = (pair and _isfinite(m[_LHIP + 2] + m[_RHIP + 2]) and _isfinite(v[_LHIP + 2] + v[_RHIP + 2])
-                and self._hips_consistent(v, m))
+                and self._hips_consistent(v, m) and not self._hips_apart(v))
         hips = self._hips = ((0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]),
                               0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else NO_HIPS)
         self._hips_lost = 0.0 if hold else self._hips_lost + 1.0
@@ -108,6 +109,19 @@ class TorsoReference:
         var, rz, g2 = self._var, self._r_z, self._gate2
         o, p = _LHIP + 2, _RHIP + 2
         return _seen(m[o], v[o], var[o], rz, g2) and _seen(m[p], v[p], var[p], rz, g2)
+
+    def _hips_apart(self, v):
+        """Whether the filter's hips are farther apart than the shoulder width reaches (beyond the gate of two
+        measurements' and the width's variances): no body has hips wider than its shoulders (MediaPipe's hip
+        landmarks are the hip joints', nearer each other still), so one of them reads something else. A filter
+        that follows hips read on the wall behind a body leaning towards the camera (each hip's pixel on the body one
+        frame and on the wall 1.5 m behind the next) passes the hips' own innovation test; the right shoulder held
+        on such hips, 1.6 m apart in depth, went 80 cm behind, where the filter's was 1 cm off (MediaPipe on
+        cmu_01_06 driven bone by bone, frame 216)."""
+        d: float; r: float  # (C doubles when compiled: setup.py)
+        r = 2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var
+        d = _hypot(v[_LHIP] - v[_RHIP], v[_LHIP + 1] - v[_RHIP + 1], v[_LHIP + 2] - v[_RHIP + 2]) - self._ls
+        return d > 0.0 and d * d > self._gate2 * r
 
     def _other_anchor(self, v, m, k):
         """Shoulder ``k`` as the torso's reference of the other side's held shoulder: the filter's, when its depth
