@@ -166,8 +166,9 @@ def test_a_garbage_frame_is_gated_like_a_missing_frame(kind):
     run, gap = run_target_chain(garbage), run_target_chain(missing)
     np.testing.assert_array_equal(run.estimated, gap.estimated)
     np.testing.assert_array_equal(run.corrected, gap.corrected)
-    # ... and the occlusion filter did not catch it (visibility is high): the gate did.
-    assert np.isfinite(run.accepted[k]).all()
+    # ... and the occlusion filter rejected none of it (visibility is high; its background check may drop a depth
+    # that landed far behind its neighbours): the gate did.
+    assert np.isfinite(run.accepted[k][:, :2]).all()
 
 
 def test_visibility_nan_is_a_missing_landmark():

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from akc_drake.core.occlusion import PAPER_RULES, occlusion_filter
+from akc_drake.core.occlusion import BACKGROUND_M, DEPTH_NEIGHBOURS, PAPER_RULES, occlusion_filter
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PROXIMAL_DISTAL_PAIRS
 
 W = 640  # 5 % of the width = 32 px
@@ -173,7 +173,7 @@ def test_pairs_cover_elbow_and_shoulder_against_all_distal_joints():
     proximity=st.floats(0.0, 0.5),
 )
 def test_output_is_input_with_entries_removed(points, pixels, vis, proximity):
-    accepted, info = occlusion_filter(points, pixels, vis, W, proximity=proximity)
+    accepted, info = occlusion_filter(points, pixels, vis, W, proximity=proximity, background_m=None)
     kept = ~np.isnan(accepted)
     np.testing.assert_array_equal(accepted[kept], points[kept])
     # rejected rows are all NaN; a dropped depth only removes z
@@ -208,6 +208,60 @@ def test_paper_rules_use_only_the_wrist_pairs_and_any_detected_distal_joint():
     _, pinfo = occlusion_filter(points, pixels, vis, W, **PAPER_RULES)
     assert pinfo.depth_dropped[e] and pinfo.depth_dropped[s]
     assert not info.depth_dropped[e]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    points=arrays(np.float64, (NUM_LANDMARKS, 3), elements=st.floats(-5, 5) | st.just(np.nan)),
+    vis=arrays(np.float64, (NUM_LANDMARKS,), elements=st.floats(0, 1)),
+)
+def test_the_background_check_drops_exactly_the_depths_behind_every_accepted_neighbour(points, vis):
+    pixels = scene()[1]  # (apart: the proximity check drops nothing)
+    accepted, info = occlusion_filter(points, pixels, vis, W)
+    z = points[:, 2]
+    kept = ~info.rejected & np.isfinite(z)
+    for i in range(NUM_LANDMARKS):
+        nb = [INDEX[q] for p, q in DEPTH_NEIGHBOURS if INDEX[p] == i and kept[INDEX[q]]]
+        behind = kept[i] and len(nb) > 0 and all(z[i] - z[q] > BACKGROUND_M for q in nb)
+        assert info.depth_dropped[i] == behind
+        if behind:
+            assert np.isnan(accepted[i, 2]) and (accepted[i, :2] == points[i, :2]).all()
+
+
+def test_an_elbow_read_on_the_wall_behind_its_shoulder_and_wrist_goes_back_on_its_ray():
+    # MediaPipe's elbow on the silhouette's edge reads the wall 1.5 m behind (bvhtools_b, the skinned body): S2
+    # deprojected its pixel there, x, y 1.7 times the joint's. Its depth is dropped, and x, y go back on the ray at
+    # the depth last accepted; the shoulder and the wrist, which the elbow's reading does not move, are kept.
+    points, pixels, vis = scene()
+    ls, le, lw = INDEX["left_shoulder"], INDEX["left_elbow"], INDEX["left_wrist"]
+    held = np.full((NUM_LANDMARKS, 3), np.nan)
+    occlusion_filter(points, pixels, vis, W, held=held)
+    wall = points.copy()
+    wall[le] = points[le] * 3.5 / points[le, 2]
+    accepted, info = occlusion_filter(wall, pixels, vis, W, held=held)
+    assert info.depth_dropped.tolist() == [i == le for i in range(NUM_LANDMARKS)]
+    np.testing.assert_allclose(accepted[le, :2], points[le, :2], rtol=1e-12)
+    np.testing.assert_array_equal(accepted[[ls, lw]], points[[ls, lw]])
+    # A wrist on the wall behind its elbow, its one neighbour, likewise; a hip behind the other hip.
+    for j in (lw, INDEX["right_hip"]):
+        wall = points.copy()
+        wall[j, 2] += 1.5
+        assert occlusion_filter(wall, pixels, vis, W)[1].depth_dropped.tolist() == [i == j for i in range(12)]
+    # Within the margin (an upper arm pointing away from the camera: 0.4 m behind), or behind the shoulder but
+    # not the wrist (the forearm pointing back at the camera), or with no neighbour accepted: kept.
+    for dz, wrist_dz, vis_nb in ((0.4, 0.0, 0.95), (1.5, 1.5, 0.95), (1.5, 0.0, 0.1)):
+        p, v = points.copy(), vis.copy()
+        p[le, 2] += dz
+        p[lw, 2] += wrist_dz
+        v[[ls, lw]] = vis_nb
+        assert not occlusion_filter(p, pixels, v, W)[1].depth_dropped[le]
+    # The paper's filter has no such check; a margin that is no positive number of metres is refused.
+    assert PAPER_RULES["background_m"] is None
+    wall[le] = points[le] * 3.5 / points[le, 2]
+    assert not occlusion_filter(wall, pixels, vis, W, **PAPER_RULES)[1].depth_dropped.any()
+    for bad in (0.0, -1.0, "0.6"):
+        with pytest.raises(ValueError, match="background_m"):
+            occlusion_filter(wall, pixels, vis, W, background_m=bad)
 
 
 def test_a_dropped_depths_x_y_go_on_its_pixel_ray_at_its_last_accepted_depth():

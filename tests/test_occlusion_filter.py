@@ -16,7 +16,7 @@ from akc_drake.systems.occlusion_filter import AddOcclusionFilter, OcclusionFilt
 
 def frame(seed=0):
     rng = np.random.default_rng(seed)
-    points = rng.uniform(-0.5, 0.5, (NUM_LANDMARKS, 3)) + [0, 0, 2]
+    points = rng.uniform(-0.5, 0.5, (NUM_LANDMARKS, 3)) * [1.0, 1.0, 0.5] + [0, 0, 2]  # (a body's depths: within 0.5 m)
     pixels = np.array([[30.0 + 50.0 * j, 240.0] for j in range(NUM_LANDMARKS)])
     vis = np.full(NUM_LANDMARKS, 0.9)
     pixels[INDEX["right_elbow"]] = pixels[INDEX["right_wrist"]] + [10.0, 10.0]  # occluded elbow
@@ -63,6 +63,22 @@ def test_outputs_equal_the_core_function():
     loose.GetInputPort("visibility").FixValue(c2, vis)
     loose.GetInputPort("pixels").FixValue(c2, pixels.reshape(-1))
     np.testing.assert_array_equal(loose.GetOutputPort("landmarks_C_accepted").Eval(c2), points.reshape(-1))
+
+
+def test_a_depth_read_on_the_background_is_dropped_unless_the_check_is_off():
+    points, pixels, vis = frame()
+    le = INDEX["left_elbow"]
+    points[le] *= 3.6 / points[le, 2]  # (the wall 1.5 m behind the shoulder and the wrist)
+    for margin, dropped in ((0.6, True), (None, False), (2.0, False)):
+        system = OcclusionFilter(640, background_m=margin)
+        context = system.CreateDefaultContext()
+        for name, value in (("landmarks_C", points), ("visibility", vis), ("pixels", pixels)):
+            system.GetInputPort(name).FixValue(context, value.reshape(-1))
+        flags = system.GetOutputPort("rejected").Eval(context)
+        accepted = system.GetOutputPort("landmarks_C_accepted").Eval(context).reshape(NUM_LANDMARKS, 3)
+        assert flags[12 + le] == float(dropped) and np.isnan(accepted[le, 2]) == dropped
+    with pytest.raises(ValueError, match="background_m"):
+        OcclusionFilter(640, background_m=-0.5)
 
 
 def test_unconnected_visibility_and_pixels_pass_landmarks_through():

@@ -1,6 +1,6 @@
 """The occlusion filter of stage S3 (paper §II-C, "Stage 3: Temporal Landmark Filtering").
 
-Two checks discard unreliable measurements before the Kalman filter:
+Three checks discard unreliable measurements before the Kalman filter (the third is ours, not the paper's):
 
 1. **Visibility.** A landmark whose detector visibility is below ``visibility_threshold`` (0.7 in
    the paper), or is NaN, is rejected entirely: its whole row becomes NaN.
@@ -22,7 +22,16 @@ Two checks discard unreliable measurements before the Kalman filter:
    position and moves a dropped depth's ``x``, ``y`` along the ray to its depth (docs/results.md,
    session 39).
 
-The checks are numpy, vectorised over the fixed pair list; the hold runs on plain floats (12 rows).
+3. **Background** (our rule, not the paper's: ``background_m``). A landmark's pixel on the silhouette's edge, or
+   just past it, reads the background: MediaPipe's elbow or wrist on the wall 1.5 m behind the body, a hip on the
+   wall behind a body that leans towards the camera. The detector's visibility stays high there, the proximity
+   check has nothing to say, and a filter that follows the reading runs a metre off. A depth read farther behind
+   every accepted neighbour on the body (the joints a segment joins it to: :data:`DEPTH_NEIGHBOURS`) than
+   ``background_m``, longer than any such segment, is dropped as the proximity check drops one (``x``, ``y``
+   kept, and with ``held`` put back on the ray).
+
+The first two checks are numpy, vectorised over the fixed pair list; the background check and the hold run on plain
+floats (12 rows).
 """
 
 from __future__ import annotations
@@ -57,9 +66,50 @@ def _pair_indices(pairs) -> tuple[np.ndarray, np.ndarray]:
     return got
 
 
-#: The paper's occlusion filter: its pairs, any detected distal joint may occlude, and a dropped depth's x, y
-#: stay where S2 deprojected them.
-PAPER_RULES = {"pairs": PAPER_PROXIMAL_DISTAL_PAIRS, "distal_must_be_accepted": False, "hold_rays": False}
+#: The background check's margin (metres): longer than any segment between :data:`DEPTH_NEIGHBOURS` (an adult's
+#: upper arm is at most about 0.40 m, the shoulder breadth 0.46, MediaPipe's hip landmarks nearer each other than
+#: the shoulders), so no pose puts a landmark that far behind all of them.
+BACKGROUND_M = 0.6
+
+#: Each landmark and a neighbour on the body whose depth bounds its own (a segment joins them): the background
+#: check. The knuckles are left out (the hand's landmarks are read on one small surface, and go with the wrist).
+DEPTH_NEIGHBOURS: tuple[tuple[str, str], ...] = tuple(
+    pair
+    for side, other in (("left", "right"), ("right", "left"))
+    for pair in (
+        (f"{side}_shoulder", f"{side}_elbow"),
+        (f"{side}_shoulder", f"{other}_shoulder"),
+        (f"{side}_elbow", f"{side}_shoulder"),
+        (f"{side}_elbow", f"{side}_wrist"),
+        (f"{side}_wrist", f"{side}_elbow"),
+        (f"{side}_hip", f"{other}_hip"),
+    )
+)
+_NB = tuple((INDEX[p], INDEX[q]) for p, q in DEPTH_NEIGHBOURS)
+
+
+def _drop_background(z: list, out: list, margin: float, depth_dropped: np.ndarray) -> None:
+    """The background check, in place on ``depth_dropped``: a depth ``z[i]`` more than ``margin`` behind every
+    neighbour whose depth is accepted (not ``out``: rejected or dropped) and finite, and at least one (plain floats:
+    twelve pairs cost less than the numpy calls would)."""
+    n_ok = [0] * NUM_LANDMARKS
+    n_behind = [0] * NUM_LANDMARKS
+    isfinite = math.isfinite
+    for p, q in _NB:
+        zp, zq = z[p], z[q]
+        if out[p] or out[q] or not isfinite(zp + zq):
+            continue
+        n_ok[p] += 1
+        if zp - zq > margin:
+            n_behind[p] += 1
+    for i in range(NUM_LANDMARKS):
+        if n_ok[i] and n_behind[i] == n_ok[i]:
+            depth_dropped[i] = True
+
+#: The paper's occlusion filter: its pairs, any detected distal joint may occlude, a dropped depth's x, y stay
+#: where S2 deprojected them, and no background check.
+PAPER_RULES = {"pairs": PAPER_PROXIMAL_DISTAL_PAIRS, "distal_must_be_accepted": False, "hold_rays": False,
+               "background_m": None}
 
 
 class OcclusionInfo(NamedTuple):
@@ -68,7 +118,7 @@ class OcclusionInfo(NamedTuple):
     Attributes:
         rejected: ``(12,)`` bool, landmark rejected entirely (visibility below threshold or NaN).
         depth_dropped: ``(12,)`` bool, landmark kept but its depth ``z`` dropped by the proximity
-            check (never set for a rejected landmark).
+            check or the background check (never set for a rejected landmark).
     """
 
     rejected: np.ndarray
@@ -146,6 +196,7 @@ def occlusion_filter(
     distal_must_be_accepted: bool = True,
     hold_rays: bool = True,
     held: np.ndarray | None = None,
+    background_m: float | None = BACKGROUND_M,
 ) -> tuple[np.ndarray, OcclusionInfo]:
     """Discard occluded landmarks and corrupted proximal depths (paper §II-C).
 
@@ -167,6 +218,9 @@ def occlusion_filter(
         held: the state of a filter run over a sequence: a ``(12, 3)`` float64 array of each landmark's last
             accepted position (all three axes accepted; NaN rows: none yet, start with all NaN), updated in
             place with this frame's. None (default): stateless, ``x``, ``y`` kept as deprojected.
+        background_m: drop the depth of a landmark read more than this (metres) behind every neighbour in
+            :data:`DEPTH_NEIGHBOURS` whose depth is accepted (at least one); None: no background check (the
+            paper's filter).
 
     Returns:
         ``(accepted_C, info)``: ``accepted_C`` is a new ``(12, 3)`` array (rejected rows all NaN,
@@ -193,6 +247,11 @@ def occlusion_filter(
     depth_dropped = np.zeros(NUM_LANDMARKS, dtype=bool)
     depth_dropped[prox[near]] = True
     depth_dropped &= ~rejected
+    if background_m is not None:
+        if not (isinstance(background_m, (int, float, np.integer, np.floating)) and background_m > 0.0):
+            raise ValueError(f"background_m must be a positive number of metres or None, got {background_m!r}")
+        _drop_background(points[:, 2].tolist(), (rejected | depth_dropped).tolist(), float(background_m),
+                         depth_dropped)
 
     accepted = points.copy()
     accepted[rejected] = np.nan

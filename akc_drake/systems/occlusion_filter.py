@@ -8,6 +8,7 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem, O
 
 from akc_drake.core.landmark_tracking import filter_period
 from akc_drake.core.occlusion import (
+    BACKGROUND_M,
     DEFAULT_PROXIMITY,
     DEFAULT_VISIBILITY_THRESHOLD,
     check_parameters,
@@ -20,7 +21,8 @@ _J = NUM_LANDMARKS
 
 
 class OcclusionFilter(LeafSystem):
-    """Rejects low-visibility landmarks and drops the depth of proximal joints hidden by distal ones.
+    """Rejects low-visibility landmarks and drops the depth of proximal joints hidden by distal ones, and of
+    landmarks read on the background behind the body (``background_m``).
 
     A direct-feedthrough wrapper of :func:`akc_drake.core.occlusion.occlusion_filter`. Without ``period_s``
     it has no state and each output is computed from the current inputs (``x``, ``y`` of a dropped depth kept
@@ -43,7 +45,7 @@ class OcclusionFilter(LeafSystem):
     ``landmarks_C`` and ``landmarks_C_accepted`` are the ``(12, 3)`` camera-frame landmarks flattened
     row-major (36, NaN where missing); ``visibility`` is 12 numbers in [0, 1]; ``pixels`` is the
     ``(12, 2)`` pixel array flattened row-major (24). ``rejected`` is 24 flags (0/1): 12 "landmark
-    rejected" (visibility below threshold) followed by 12 "depth dropped" (proximity check).
+    rejected" (visibility below threshold) followed by 12 "depth dropped" (proximity or background check).
     An unconnected ``visibility`` counts as fully visible and unconnected ``pixels`` as unknown
     (no proximity check), so ground-truth or recorded 3D landmarks can be fed in directly.
 
@@ -55,6 +57,8 @@ class OcclusionFilter(LeafSystem):
         hold_rays: with ``period_s``, move a dropped depth's ``x``, ``y`` along its ray (False: the paper's
             filter; the state then stays NaN).
         stage_offset_s: the per-stage offset of :func:`akc_drake.systems.timing.stage_offset`.
+        background_m: drop a depth read farther than this behind every accepted neighbour on the body (ours;
+            None: off, as in the paper's filter).
 
     Raises:
         ValueError: a parameter is out of range (the message names it).
@@ -69,6 +73,7 @@ class OcclusionFilter(LeafSystem):
         period_s: float | None = None,
         hold_rays: bool = True,
         stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
+        background_m: float | None = BACKGROUND_M,
     ):
         super().__init__()
         check_parameters(image_width, visibility_threshold, proximity)
@@ -76,6 +81,9 @@ class OcclusionFilter(LeafSystem):
         self.visibility_threshold = float(visibility_threshold)
         self.proximity = float(proximity)
         self.hold_rays = bool(hold_rays)
+        self.background_m = None if background_m is None else float(background_m)
+        occlusion_filter(np.full((_J, 3), np.nan), np.full((_J, 2), np.nan), np.ones(_J), self.image_width,
+                         background_m=self.background_m)  # (a bad margin is refused here, naming it)
         self._u_landmarks = self.DeclareVectorInputPort("landmarks_C", 3 * _J)
         self._u_visibility = self.DeclareVectorInputPort("visibility", _J)
         self._u_pixels = self.DeclareVectorInputPort("pixels", 2 * _J)
@@ -114,6 +122,7 @@ class OcclusionFilter(LeafSystem):
             proximity=self.proximity,
             hold_rays=self.hold_rays,
             held=held,
+            background_m=self.background_m,
         )
 
     def _held(self, context) -> np.ndarray | None:
@@ -147,6 +156,7 @@ def AddOcclusionFilter(
     proximity: float = DEFAULT_PROXIMITY,
     period_s: float | None = None,
     hold_rays: bool = True,
+    background_m: float | None = BACKGROUND_M,
     name: str = "OcclusionFilter",
 ) -> OcclusionFilter:
     """Add an :class:`OcclusionFilter` to ``builder`` and connect the given source ports.
@@ -155,7 +165,8 @@ def AddOcclusionFilter(
         builder: the diagram builder.
         landmarks_C, visibility, pixels: output ports to connect to the inputs of the same name
             (None leaves that input unconnected).
-        image_width, visibility_threshold, proximity, period_s, hold_rays: as for :class:`OcclusionFilter`.
+        image_width, visibility_threshold, proximity, period_s, hold_rays, background_m: as for
+            :class:`OcclusionFilter`.
         name: the system's name.
 
     Returns:
@@ -163,7 +174,7 @@ def AddOcclusionFilter(
     """
     system = builder.AddSystem(
         OcclusionFilter(image_width, visibility_threshold=visibility_threshold, proximity=proximity,
-                        period_s=period_s, hold_rays=hold_rays)
+                        period_s=period_s, hold_rays=hold_rays, background_m=background_m)
     )
     system.set_name(name)
     for port, input_name in ((landmarks_C, "landmarks_C"), (visibility, "visibility"), (pixels, "pixels")):
