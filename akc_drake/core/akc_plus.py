@@ -242,7 +242,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost", "_s_floor",
-                 "_pair_z", "_blind_honest", "_cover2")
+                 "_pair_z", "_blind_honest", "_cover2", "_width_gate")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -273,6 +273,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             for side, idx in enumerate(self._arm_index)
         )
         self._no_measurement, self._gate2 = [_NAN] * (3 * NUM_LANDMARKS), config.gate_sigma**2
+        # (two measured points' distance beyond a width's reach: the gate of both measurements' and the width's variances)
+        self._width_gate = self._gate2 * (2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var)
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
         self._nis_a, self._nis_floor, self._tol = pf.nis_alpha, config.nis_floor, config.length_tol_m
         self._refit = config.constrained_filter is True  # (None: not resolved for a filter, off)

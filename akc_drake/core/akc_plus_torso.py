@@ -8,7 +8,7 @@ running-mean offset from a torso reference (:func:`~akc_drake.core.akc_plus_evid
   60-120 s, simulated; one that follows a hip read on the wall behind the body's edge, where a bending torso puts
   the landmark, ran 50-120 cm off for five frames and taught the held shoulder 20 cm: bvhtools_a1 driven bone by
   bone) and the filter's hips are no farther apart than the shoulder width reaches (:meth:`TorsoReference.
-  _hips_apart`: a filter that follows hips read on the wall by turns passes that test);
+  _torso_anchors`: a filter that follows hips read on the wall by turns passes that test);
 * where the hips have been no reference for ``hips_lost_frames`` (1 s at 10 Hz: out of the image, an operator at
   a desk or a camera close to the chest), the other shoulder, which the clavicles carry with the chest: the
   filter's, seen this frame and agreeing with our last output of it, the offset from it learnt while the hips are
@@ -79,13 +79,26 @@ class TorsoReference:
         """This frame's torso references: sets ``_hips`` (the hips' centre, NaN when they are none) and
         ``_anchor`` (per side the anchor point and the held offset from it, or None), counts ``_hips_lost``.
 
+        The hips are a reference when both their measured depths pass the innovation test
+        (:meth:`_hips_consistent`) and the filter's hips are no farther apart than the shoulder width reaches
+        (beyond the gate of two measurements' and the width's variances): no body has hips wider than its
+        shoulders (MediaPipe's hip landmarks are the hip joints', nearer each other still), so one of them reads
+        something else. A filter that follows hips read on the wall behind a body leaning towards the camera (each
+        hip's pixel on the body one frame and on the wall 1.5 m behind the next) passes the innovation test; the
+        right shoulder held on such hips, 1.6 m apart in depth, went 80 cm behind, where the filter's was 1 cm off
+        (MediaPipe on cmu_01_06 driven bone by bone, frame 216).
+
         Returns:
             ``(hold, hips, others)``: whether the hips are a reference, their centre, and per side the shoulder
             that may carry the other side's (:meth:`_other_anchor`; None where none).
         """
+        d: float  # (a C double when compiled: setup.py)
         pair = self._v_s and m is not None and self._var is not None
         hold = (pair and _isfinite(m[_LHIP + 2] + m[_RHIP + 2]) and _isfinite(v[_LHIP + 2] + v[_RHIP + 2])
-                and self._hips_consistent(v, m) and not self._hips_apart(v))
+                and self._hips_consistent(v, m))
+        if hold:  # (hips farther apart than the shoulders: see above)
+            d = _hypot(v[_LHIP] - v[_RHIP], v[_LHIP + 1] - v[_RHIP + 1], v[_LHIP + 2] - v[_RHIP + 2]) - self._ls
+            hold = not (d > 0.0 and d * d > self._width_gate)
         hips = self._hips = ((0.5 * (v[_LHIP] + v[_RHIP]), 0.5 * (v[_LHIP + 1] + v[_RHIP + 1]),
                               0.5 * (v[_LHIP + 2] + v[_RHIP + 2])) if hold else NO_HIPS)
         self._hips_lost = 0.0 if hold else self._hips_lost + 1.0
@@ -109,19 +122,6 @@ class TorsoReference:
         var, rz, g2 = self._var, self._r_z, self._gate2
         o, p = _LHIP + 2, _RHIP + 2
         return _seen(m[o], v[o], var[o], rz, g2) and _seen(m[p], v[p], var[p], rz, g2)
-
-    def _hips_apart(self, v):
-        """Whether the filter's hips are farther apart than the shoulder width reaches (beyond the gate of two
-        measurements' and the width's variances): no body has hips wider than its shoulders (MediaPipe's hip
-        landmarks are the hip joints', nearer each other still), so one of them reads something else. A filter
-        that follows hips read on the wall behind a body leaning towards the camera (each hip's pixel on the body one
-        frame and on the wall 1.5 m behind the next) passes the hips' own innovation test; the right shoulder held
-        on such hips, 1.6 m apart in depth, went 80 cm behind, where the filter's was 1 cm off (MediaPipe on
-        cmu_01_06 driven bone by bone, frame 216)."""
-        d: float; r: float  # (C doubles when compiled: setup.py)
-        r = 2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var
-        d = _hypot(v[_LHIP] - v[_RHIP], v[_LHIP + 1] - v[_RHIP + 1], v[_LHIP + 2] - v[_RHIP + 2]) - self._ls
-        return d > 0.0 and d * d > self._gate2 * r
 
     def _other_anchor(self, v, m, k):
         """Shoulder ``k`` as the torso's reference of the other side's held shoulder: the filter's, when its depth
@@ -277,10 +277,9 @@ class TorsoReference:
         """Whether the measured shoulder at ``o_s`` is farther from the measured one at ``o_o`` than the shoulder
         width reaches (beyond the gate of both measurements' and the width's variances): no torso turn puts it
         there, and a depth behind is the background behind a landmark off the body's edge."""
-        d: float; r: float
-        r = 2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var
+        d: float
         d = _hypot(m[o_s] - m[o_o], m[o_s + 1] - m[o_o + 1], m[o_s + 2] - m[o_o + 2]) - self._ls
-        return d > 0.0 and d * d > self._gate2 * r
+        return d > 0.0 and d * d > self._width_gate
 
     def _shoulder_jumped(self, f, vs, m, side, held):
         """A measured shoulder depth that jumped towards the camera, alone, or behind beyond the shoulder width:
