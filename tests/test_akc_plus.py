@@ -1532,3 +1532,17 @@ def test_hips_within_the_shoulder_width_are_the_hidden_shoulders_reference():
     out = akc.correct(pose, m, var).pose
     assert akc._hips[2] == pytest.approx(hz) and akc._anchor[1][0] == akc._hips
     assert abs(out[RS, 2] - (hz + off_r[2])) < 0.03
+
+
+def test_a_held_shoulder_keeps_its_hold_while_the_other_shoulders_reading_agrees_with_our_output():
+    # MediaPipe on boxing driven bone by bone, after the EKF (tests/data/akc_plus), frame 244: the left arm reads
+    # the right glove 50-70 cm in front, and the left shoulder's jump was held last frame (``_shoulder_jumped``).
+    # The EKF's right shoulder, pulled towards the glove's readings, is 17 cm off its own correct reading and fails
+    # the innovation test; that reading, within consistency_m of our last output, still carries the hold.
+    akc, dims, d = _recorded_frame("mediapipe_boxing_rig_10hz_frame244.npz", constrained_filter=True)
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    assert m[LS, 2] < truth[LS, 2] - 0.4 and akc._pair_z[0][1] > 0  # (read on the glove; held last frame)
+    assert abs(m[RS, 2] - truth[RS, 2]) < 0.01 and abs(pose[RS, 2] - m[RS, 2]) > 0.15
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert abs(out[LS, 2] - truth[LS, 2]) < 0.05  # (the glove taken: 44 cm in front)
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)

@@ -329,8 +329,14 @@ class TorsoReference:
         if held or mz != mz or vs[2] != vs[2] or not self._v_s:
             return held
         g2, rz = self._gate2, self._r_z
-        if po[1] > 0.0 or not _seen(moz, self._v[o_o + 2], self._var[o_o + 2], rz, g2):
-            return False  # (NaN: not seen)
+        if po[1] > 0.0 or not (_seen(moz, self._v[o_o + 2], self._var[o_o + 2], rz, g2) or (
+                pz[1] > 0.0 and self._prev[1 - side] is not None
+                and abs(moz - self._prev[1 - side][2]) <= self._cons)):
+            # (NaN: not seen.) While it holds, the other shoulder's reading also counts where it agrees with our
+            # last output of it: a filter that went after the held one's occluder fails it (boxing driven bone by
+            # bone, MediaPipe, frames 243-245: the left arm read on the right glove 45-70 cm in front, the coupled
+            # EKF's right shoulder 17 cm off its correct reading, and the left shoulder taken on the glove).
+            return False
         d = mz - moz
         if pz[0] != pz[0]:
             pz[0] = d
