@@ -273,7 +273,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             for side, idx in enumerate(self._arm_index)
         )
         self._no_measurement, self._gate2 = [_NAN] * (3 * NUM_LANDMARKS), config.gate_sigma**2
-        # (two measured points' distance beyond a width's reach: the gate of both measurements' and the width's variances)
+        # (two measured points farther apart than a width reaches: the gate of both their variances and the width's)
         self._width_gate = self._gate2 * (2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var)
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
         self._nis_a, self._nis_floor, self._tol = pf.nis_alpha, config.nis_floor, config.length_tol_m
