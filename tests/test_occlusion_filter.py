@@ -77,8 +77,9 @@ def test_a_depth_read_on_the_background_is_dropped_unless_the_check_is_off():
         flags = system.GetOutputPort("rejected").Eval(context)
         accepted = system.GetOutputPort("landmarks_C_accepted").Eval(context).reshape(NUM_LANDMARKS, 3)
         assert flags[12 + le] == float(dropped) and np.isnan(accepted[le, 2]) == dropped
-    with pytest.raises(ValueError, match="background_m"):
-        OcclusionFilter(640, background_m=-0.5)
+    for bad in (-0.5, 0.0, "0.6"):  # (refused as the core function refuses them, before anything is declared)
+        with pytest.raises(ValueError, match="background_m"):
+            OcclusionFilter(640, background_m=bad)
 
 
 def test_unconnected_visibility_and_pixels_pass_landmarks_through():

@@ -106,6 +106,7 @@ def _drop_background(z: list, out: list, margin: float, depth_dropped: np.ndarra
         if n_ok[i] and n_behind[i] == n_ok[i]:
             depth_dropped[i] = True
 
+
 #: The paper's occlusion filter: its pairs, any detected distal joint may occlude, a dropped depth's x, y stay
 #: where S2 deprojected them, and no background check.
 PAPER_RULES = {"pairs": PAPER_PROXIMAL_DISTAL_PAIRS, "distal_must_be_accepted": False, "hold_rays": False,
@@ -132,8 +133,10 @@ def _as_shape(a, shape: tuple[int, ...], name: str) -> np.ndarray:
     return arr
 
 
-def check_parameters(image_width: float, visibility_threshold: float, proximity: float) -> None:
-    """Raise a ``ValueError`` naming the parameter and value if any is out of range."""
+def check_parameters(image_width: float, visibility_threshold: float, proximity: float,
+                     background_m: float | None = None) -> None:
+    """Raise a ``ValueError`` naming the parameter and value if any is out of range (``background_m``: None, or a
+    positive number of metres)."""
     if not isinstance(image_width, (int, float, np.integer, np.floating)) or not (
         math.isfinite(image_width) and image_width > 0
     ):
@@ -146,6 +149,10 @@ def check_parameters(image_width: float, visibility_threshold: float, proximity:
         math.isfinite(proximity) and proximity >= 0.0
     ):
         raise ValueError(f"proximity must be a non-negative fraction of the image width, got {proximity!r}")
+    if background_m is not None and not (
+        isinstance(background_m, (int, float, np.integer, np.floating)) and background_m > 0.0
+    ):
+        raise ValueError(f"background_m must be a positive number of metres or None, got {background_m!r}")
 
 
 _SWAP = LEFT_RIGHT_SWAP.tolist()
@@ -229,7 +236,7 @@ def occlusion_filter(
     Raises:
         ValueError: an array has the wrong shape or a parameter is out of range (the message names it).
     """
-    check_parameters(image_width, visibility_threshold, proximity)
+    check_parameters(image_width, visibility_threshold, proximity, background_m)
     points = _as_shape(points_C, (NUM_LANDMARKS, 3), "points_C")
     pix = _as_shape(pixels, (NUM_LANDMARKS, 2), "pixels")
     vis = _as_shape(visibility, (NUM_LANDMARKS,), "visibility")
@@ -248,8 +255,6 @@ def occlusion_filter(
     depth_dropped[prox[near]] = True
     depth_dropped &= ~rejected
     if background_m is not None:
-        if not (isinstance(background_m, (int, float, np.integer, np.floating)) and background_m > 0.0):
-            raise ValueError(f"background_m must be a positive number of metres or None, got {background_m!r}")
         _drop_background(points[:, 2].tolist(), (rejected | depth_dropped).tolist(), float(background_m),
                          depth_dropped)
 

@@ -76,14 +76,12 @@ class OcclusionFilter(LeafSystem):
         background_m: float | None = BACKGROUND_M,
     ):
         super().__init__()
-        check_parameters(image_width, visibility_threshold, proximity)
+        check_parameters(image_width, visibility_threshold, proximity, background_m)
         self.image_width = float(image_width)
         self.visibility_threshold = float(visibility_threshold)
         self.proximity = float(proximity)
         self.hold_rays = bool(hold_rays)
         self.background_m = None if background_m is None else float(background_m)
-        occlusion_filter(np.full((_J, 3), np.nan), np.full((_J, 2), np.nan), np.ones(_J), self.image_width,
-                         background_m=self.background_m)  # (a bad margin is refused here, naming it)
         self._u_landmarks = self.DeclareVectorInputPort("landmarks_C", 3 * _J)
         self._u_visibility = self.DeclareVectorInputPort("visibility", _J)
         self._u_pixels = self.DeclareVectorInputPort("pixels", 2 * _J)
