@@ -177,3 +177,29 @@ def test_hold_rays_off_keeps_the_deprojected_x_y_and_a_bad_period_is_refused():
     for bad in (0.0, -1.0, float("inf")):
         with pytest.raises(ValueError, match="period_s"):
             OcclusionFilter(640, period_s=bad)
+
+
+def test_one_run_of_the_core_filter_serves_both_outputs_and_the_update(monkeypatch):
+    import akc_drake.systems.occlusion_filter as module
+
+    calls = []
+    real = module.occlusion_filter
+    monkeypatch.setattr(module, "occlusion_filter", lambda *a, **k: calls.append(1) or real(*a, **k))
+    points, pixels, vis = frame()
+    system = OcclusionFilter(640, period_s=0.1)
+    context = system.CreateDefaultContext()
+    for name, value in (("landmarks_C", points), ("visibility", vis), ("pixels", pixels)):
+        system.GetInputPort(name).FixValue(context, value.reshape(-1))
+    accepted = system.GetOutputPort("landmarks_C_accepted").Eval(context)
+    flags = system.GetOutputPort("rejected").Eval(context)
+    state = system.EvalUniquePeriodicDiscreteUpdate(context)
+    assert len(calls) == 1
+    held = np.full((NUM_LANDMARKS, 3), np.nan)
+    expected, info = real(points, pixels, vis, 640, held=held)
+    np.testing.assert_array_equal(accepted, expected.reshape(-1))
+    np.testing.assert_array_equal(flags, np.concatenate((info.rejected, info.depth_dropped)).astype(float))
+    np.testing.assert_array_equal(state.get_vector(0).get_value(), held.reshape(-1))
+    # a new input is a new run
+    system.GetInputPort("landmarks_C").FixValue(context, (points + 0.01).reshape(-1))
+    system.GetOutputPort("landmarks_C_accepted").Eval(context)
+    assert len(calls) == 2

@@ -4,7 +4,8 @@ accepted position at the camera period)."""
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem, OutputPort
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem, OutputPort, ValueProducer
 
 from akc_drake.core.landmark_tracking import filter_period
 from akc_drake.core.occlusion import (
@@ -96,10 +97,16 @@ class OcclusionFilter(LeafSystem):
                 period_sec=period_s, offset_sec=timing.stage_offset("filter", stage_offset_s),
                 update=self._update,
             )
-        self.DeclareVectorOutputPort(
-            "landmarks_C_accepted", 3 * _J, self._calc_accepted, prerequisites_of_calc=deps
+        # One run of the filter per input and state: both outputs and the update read it.
+        self._result = self.DeclareCacheEntry(
+            "occlusion filter result",
+            ValueProducer(allocate=AbstractValue.Make((None, None, None)).Clone, calc=self._calc_result), deps,
         )
-        self.DeclareVectorOutputPort("rejected", 2 * _J, self._calc_rejected, prerequisites_of_calc=deps)
+        ticket = {self._result.ticket()}
+        self.DeclareVectorOutputPort(
+            "landmarks_C_accepted", 3 * _J, self._calc_accepted, prerequisites_of_calc=ticket
+        )
+        self.DeclareVectorOutputPort("rejected", 2 * _J, self._calc_rejected, prerequisites_of_calc=ticket)
 
     def _run(self, context, held=None):
         landmarks = self._u_landmarks.Eval(context).reshape(_J, 3)
@@ -129,17 +136,21 @@ class OcclusionFilter(LeafSystem):
             return None
         return np.array(context.get_discrete_state(self._x_held).get_value(), dtype=np.float64).reshape(_J, 3)
 
-    def _update(self, context, discrete_state) -> None:
+    def _calc_result(self, context, value) -> None:
+        """The cache entry: ``(accepted, info, held)``, ``held`` the state after this frame (None: stateless)."""
         held = self._held(context)
-        self._run(context, held)
+        accepted, info = self._run(context, held)
+        value.set_value((accepted, info, held))
+
+    def _update(self, context, discrete_state) -> None:
+        held = self._result.Eval(context)[2]
         discrete_state.get_mutable_vector(self._x_held).SetFromVector(held.reshape(-1))
 
     def _calc_accepted(self, context, output) -> None:
-        accepted, _ = self._run(context, self._held(context))
-        output.SetFromVector(accepted.reshape(-1))
+        output.SetFromVector(self._result.Eval(context)[0].reshape(-1))
 
     def _calc_rejected(self, context, output) -> None:
-        _, info = self._run(context)  # (the flags do not depend on the hold)
+        info = self._result.Eval(context)[1]
         output.SetFromVector(np.concatenate((info.rejected, info.depth_dropped)).astype(np.float64))
 
 
