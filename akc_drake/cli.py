@@ -186,6 +186,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--protocol", default="paper", choices=("paper", "ours"),
                    help="paper: the stages and table definitions as the paper describes them; ours: our "
                    "improvements (default: paper)")
+    p.add_argument("--filter-settings", metavar="SETTINGS",
+                   help="the KF's and the EKF's settings changed from the protocol's: teleop (the teleop "
+                   "diagram's gate and prediction), field=value[,...] (KFConfig fields, e.g. "
+                   "gate_sigma=5,gate_speed_m_s=6,max_predict_s=0.3), the two (teleop,gate_speed_m_s=0) or a "
+                   "JSON file")
     p.add_argument("--motion-dir", metavar="DIR", help="evaluate on every real mocap clip of DIR (e.g. data/mocap "
                    "from 'make mocap-data'): per-clip and pooled tables, a plot per clip and method")
     p.add_argument("--drive", default="angles", choices=("angles", "rig"),

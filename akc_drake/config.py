@@ -28,8 +28,18 @@ CORRECTORS = ("none", "AKC", "AKC+", "COIK")
 WEIGHT_NAMES = ("Wa", "Wb", "Wc")
 #: The teleop diagram's default innovation gate (standard deviations). On the clean rendered Motions I and II
 #: it rejects no measurement of an arm joint (tests/test_faults_garbage.py checks the accuracy is unchanged);
-#: a detector jump, a swapped side or a 0 / 65 m depth is tens of standard deviations away.
+#: a detector jump, a swapped side or a 0 / 65 m depth is tens of standard deviations away. On real motion it
+#: rejects fast arm movements, but for the speed floor below.
 TELEOP_GATE_SIGMA = 5.0
+#: The speed under which the gate never rejects (``KFConfig.gate_speed_m_s``): an innovation within 6 m/s times
+#: the time since the axis was last measured passes whatever the filter's covariance says. That covariance models
+#: the paper's slow motions; real arms accelerate far more, and the 5-sigma gate alone rejected them: on the 10
+#: real motion-capture clips with this diagram's filter settings, the paper's AKC(KF) went from 4.28 to 14.72 cm
+#: mean 3D arm RMSE (simulated detector; MediaPipe on the skinned body 8.62 -> 16.47). With this floor: 4.34 and
+#: 7.44 (the gate still drops MediaPipe's jumps). 4 m/s cost more on the simulated detector (KF 4.52 -> 5.18 cm
+#: against 4.56), 8 m/s let more of MediaPipe's jumps through (its rig KF 9.80 -> 10.55): docs/results.md,
+#: "The teleop filter's gate on real motion".
+TELEOP_GATE_SPEED_M_S = 6.0
 #: The teleop diagram's default longest extrapolation of an unmeasured landmark (seconds): it bridges a few
 #: missed frames, but an arm moving at 1 m/s when the person leaves drags the robot target by at most 30 cm
 #: before the robot holds (1 s, the mocap default, would be a metre).
@@ -143,6 +153,9 @@ class PipelineConfig:
             from the prediction is treated as missing for that frame; see ``akc_drake.core.kalman``).
             0 turns it off; a negative value (the default) means the diagram's own default: off in the mocap
             diagram (the paper's filter), :data:`TELEOP_GATE_SIGMA` in the teleop diagram.
+        gate_speed_m_s: with the gate on, an innovation within this speed times the time since the axis was last
+            measured is never rejected (``KFConfig.gate_speed_m_s``). 0 turns the floor off; a negative value
+            (the default) means :data:`TELEOP_GATE_SPEED_M_S`.
         max_predict_s: how long the filter extrapolates a landmark that is no longer measured before it
             holds it and reports it LOST (then it reads NaN and the robot holds). A negative value (the
             default) means the diagram's own default: 1 s in the mocap diagram (``KFConfig``'s),
@@ -171,6 +184,7 @@ class PipelineConfig:
     proximity: float = 0.05
     stage_offset_s: float = 1e-3
     gate_sigma: float = -1.0
+    gate_speed_m_s: float = -1.0
     max_predict_s: float = -1.0
     body: str = "primitive"
     detector: str = "sim"
@@ -183,6 +197,13 @@ class PipelineConfig:
         if g < 0.0:
             return TELEOP_GATE_SIGMA if teleop else None
         return g if g > 0.0 else None
+
+    def resolved_gate_speed_m_s(self) -> float | None:
+        """The gate's speed floor (None = none): ``gate_speed_m_s`` resolved; only a gated filter uses it."""
+        v = float(self.gate_speed_m_s)
+        if v < 0.0:
+            return TELEOP_GATE_SPEED_M_S
+        return v if v > 0.0 else None
 
     def resolved_max_predict_s(self, teleop: bool) -> float | None:
         """The filter's ``max_predict_s`` (None = the filter's default) for the mocap or teleop diagram."""
@@ -211,6 +232,8 @@ class PipelineConfig:
             raise UserError(f"config.proximity must be in [0, 1), got {self.proximity}")
         if not math.isfinite(self.gate_sigma):
             raise UserError(f"config.gate_sigma must be a number (0 off, < 0 default), got {self.gate_sigma}")
+        if not math.isfinite(self.gate_speed_m_s):
+            raise UserError(f"config.gate_speed_m_s must be a number (0 off, < 0 default), got {self.gate_speed_m_s}")
         if not (math.isfinite(self.max_predict_s) and self.max_predict_s != 0.0):
             raise UserError(
                 f"config.max_predict_s must be seconds > 0 (< 0 default), got {self.max_predict_s}"
@@ -263,6 +286,54 @@ def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
                                lambda name, text: _switch_or_number(option, name, text))
     try:
         akc_plus_config(settings)
+    except (ValueError, TypeError) as e:
+        raise UserError(f"{option}: {e}") from None
+    return settings
+
+
+#: ``--filter-settings teleop``: the filter settings the teleop diagram runs (``AddMocapPipeline`` with ``teleop``).
+TELEOP_FILTER_SETTINGS = {"gate_sigma": TELEOP_GATE_SIGMA, "gate_whole_landmark": True,
+                          "gate_speed_m_s": TELEOP_GATE_SPEED_M_S, "max_predict_s": TELEOP_MAX_PREDICT_S}
+_FILTER_FIELDS = ("sigma_x", "sigma_y", "sigma_z", "accel_psd", "init_vel_var", "max_predict_s", "gate_sigma",
+                  "gate_max_rejects", "gate_whole_landmark", "gate_speed_m_s")
+
+
+def parse_filter_settings(text: str, option: str = "--filter-settings") -> dict:
+    """The landmark filters' settings (field -> value of :class:`~akc_drake.core.kalman.KFConfig`, for the KF and
+    the EKF alike) from the command line: ``teleop`` (:data:`TELEOP_FILTER_SETTINGS`, the teleop diagram's gate
+    and prediction), ``field=value[,field=value...]`` inline, the two together (``teleop,gate_speed_m_s=0``: a
+    later field wins) or a JSON file holding an object. Numbers; ``gate_whole_landmark`` takes true / false;
+    ``max_predict_s`` takes inf (the paper's filter, which never holds); 0 for ``gate_sigma`` or
+    ``gate_speed_m_s`` turns it off.
+
+    Raises:
+        UserError: as :func:`~akc_drake.option_maps.read_option_map`, an unknown field (the known ones listed) or
+            a value the filters' configs reject, each naming ``option``.
+    """
+    from akc_drake.core.kalman import EKFConfig, KFConfig
+
+    items = [t.strip() for t in str(text).split(",")]
+    settings = {}
+    if items and items[0].lower() == "teleop":
+        settings.update(TELEOP_FILTER_SETTINGS)
+        items = items[1:]
+    rest = ",".join(items)
+    if rest.strip() or not settings:
+        settings.update(read_option_map(rest, option, "field=value", "gate_sigma=5,gate_speed_m_s=6",
+                                        "setting -> value", lambda name, text: _switch_or_number(option, name, text)))
+    unknown = sorted(set(settings) - set(_FILTER_FIELDS))
+    if unknown:
+        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(_FILTER_FIELDS)}; "
+                        "or teleop)")
+    for name in ("gate_sigma", "gate_speed_m_s"):
+        if settings.get(name) == 0:
+            settings[name] = None
+    n = settings.get("gate_max_rejects")
+    if isinstance(n, float) and n.is_integer():
+        settings["gate_max_rejects"] = int(n)
+    try:
+        KFConfig(**settings)
+        EKFConfig(**settings)
     except (ValueError, TypeError) as e:
         raise UserError(f"{option}: {e}") from None
     return settings

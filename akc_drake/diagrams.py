@@ -219,9 +219,10 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
 
     The occlusion filter always runs; the filter is ``cfg.filter`` (none | KF | EKF) and the corrector
     ``cfg.corrector`` (none | AKC | AKC+ | COIK). A stage set to none passes its input through. The filter's
-    innovation gate is ``cfg.resolved_gate_sigma(teleop)`` (by default on for teleoperation only) and its
-    longest extrapolation ``cfg.resolved_max_predict_s(teleop)``; with ``teleop`` the filter also undoes a
-    detector's left/right swap and AKC holds an arm whose chosen configuration is anatomically impossible.
+    innovation gate is ``cfg.resolved_gate_sigma(teleop)`` (by default on for teleoperation only; an innovation within
+    ``cfg.resolved_gate_speed_m_s()`` times the time since the last reading always passes) and its longest
+    extrapolation ``cfg.resolved_max_predict_s(teleop)``; with ``teleop`` the filter also undoes a detector's
+    left/right swap and AKC holds an arm whose chosen configuration is anatomically impossible.
     """
     from akc_drake.core.akc import WEIGHT_PRESETS
     from akc_drake.systems.occlusion_filter import OcclusionFilter
@@ -247,7 +248,8 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
 
         gate = cfg.resolved_gate_sigma(teleop)
         # A gated diagram rejects a landmark's whole measurement when one axis is an outlier.
-        opts = {"gate_sigma": gate, "gate_whole_landmark": gate is not None}
+        opts = {"gate_sigma": gate, "gate_whole_landmark": gate is not None,
+                "gate_speed_m_s": cfg.resolved_gate_speed_m_s() if gate is not None else None}
         max_predict_s = cfg.resolved_max_predict_s(teleop)
         if max_predict_s is not None:
             opts["max_predict_s"] = max_predict_s

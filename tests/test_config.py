@@ -1,6 +1,15 @@
 import pytest
 
-from akc_drake.config import ArmLimitsConfig, PipelineConfig, dump_config, load_config, parse_akc_plus, parse_arm_limits
+from akc_drake.config import (
+    TELEOP_FILTER_SETTINGS,
+    ArmLimitsConfig,
+    PipelineConfig,
+    dump_config,
+    load_config,
+    parse_akc_plus,
+    parse_arm_limits,
+    parse_filter_settings,
+)
 from akc_drake.errors import UserError
 
 
@@ -91,3 +100,52 @@ def test_arm_limits_from_the_command_line(tmp_path):
     f.write_text('{"enabled": "yes"}')
     with pytest.raises(UserError, match="enabled must be true or false"):
         parse_arm_limits(str(f))
+
+
+def test_gate_speed_floor_resolves_and_loads_from_yaml(tmp_path):
+    """``gate_speed_m_s``: negative is the teleop default (6 m/s), 0 turns the floor off, a YAML key sets it, and
+    the diagram's filter gets it only when its gate is on."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from akc_drake import diagrams
+    from akc_drake.config import TELEOP_GATE_SPEED_M_S
+    from akc_drake.core.skeleton import BodyDimensions
+
+    assert PipelineConfig().resolved_gate_speed_m_s() == TELEOP_GATE_SPEED_M_S == 6.0
+    assert PipelineConfig(gate_speed_m_s=0.0).resolved_gate_speed_m_s() is None
+    path = tmp_path / "run.yaml"
+    path.write_text("gate_speed_m_s: 3.5\n")
+    assert load_config(str(path)).resolved_gate_speed_m_s() == 3.5
+    with pytest.raises(UserError, match="gate_speed_m_s"):
+        PipelineConfig(gate_speed_m_s=float("nan")).validate()
+
+    def filter_config(cfg, teleop):
+        builder = DiagramBuilder()
+        src = diagrams.AddMeasurementSource(builder, cfg)
+        ports = diagrams.AddMocapPipeline(builder, cfg, BodyDimensions.paper_participant(), src, teleop=teleop)
+        return ports.systems["filter"].filter.config
+
+    cfg = PipelineConfig(source="sim", motion="I", cycles=1).validate()
+    gated = filter_config(cfg, True)
+    assert (gated.gate_sigma, gated.gate_speed_m_s) == (5.0, 6.0)
+    plain = filter_config(cfg, False)
+    assert plain.gate_sigma is None and plain.gate_speed_m_s is None
+
+
+def test_filter_settings_from_the_command_line(tmp_path):
+    """``--filter-settings``: the teleop preset (what the teleop diagram's filter runs with), fields inline or in
+    JSON, the two together (a later field wins), 0 for off, and errors that name the option and the field."""
+    assert parse_filter_settings("teleop") == TELEOP_FILTER_SETTINGS == {
+        "gate_sigma": 5.0, "gate_whole_landmark": True, "gate_speed_m_s": 6.0, "max_predict_s": 0.3}
+    assert parse_filter_settings("teleop,gate_speed_m_s=0,gate_max_rejects=3") == {
+        "gate_sigma": 5.0, "gate_whole_landmark": True, "gate_speed_m_s": None, "max_predict_s": 0.3,
+        "gate_max_rejects": 3}
+    assert parse_filter_settings("accel_psd=3,max_predict_s=inf") == {"accel_psd": 3.0, "max_predict_s": float("inf")}
+    path = tmp_path / "filters.json"
+    path.write_text('{"gate_sigma": 4, "gate_whole_landmark": false}')
+    assert parse_filter_settings(str(path)) == {"gate_sigma": 4, "gate_whole_landmark": False}
+    for text, match in (("gate=5", "unknown field.*gate.*gate_sigma"), ("gate_sigma=-1", "gate_sigma"),
+                        ("gate_sigma=five", "gate_sigma='five' is not a number"), ("", "empty"),
+                        ("gate_speed_m_s=inf", "gate_speed_m_s")):
+        with pytest.raises(UserError, match="--filter-settings.*" + match):
+            parse_filter_settings(text)

@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from akc_drake import diagrams
-from akc_drake.config import PipelineConfig
+from akc_drake.config import TELEOP_GATE_SPEED_M_S, PipelineConfig
 from akc_drake.core.akc import ArmKinematicCorrector, elbow_angle_deg
 from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detection2D, project
 from akc_drake.core.frames import DEFAULT_MAX_LANDMARK_SPEED, SPEED_GATED_LANDMARKS, rest_operator_pose
@@ -153,15 +153,32 @@ def _tracked_frame(ref) -> int:
     return int(ok[len(ok) // 2])
 
 
+def _far_jumps(L, V, P, rng, beyond_m):
+    """``corrupt_frame``'s jumps, each landmark's drawn again until some axis is ``beyond_m`` off its reading."""
+    for j in range(NUM_LANDMARKS):
+        which = np.arange(NUM_LANDMARKS) == j
+        for _ in range(1000):
+            Lj, Vj, Pj = L.copy(), V.copy(), P.copy()
+            corrupt_frame(Lj, Vj, Pj, "jump", which, rng, K)
+            if np.max(np.abs(Lj[j] - L[j])) > beyond_m:
+                L[j], V[j], P[j] = Lj[j], Vj[j], Pj[j]
+                break
+
+
 @pytest.mark.parametrize("kind", ["jump", "depth_zero", "depth_far"])
 def test_a_garbage_frame_is_gated_like_a_missing_frame(kind):
-    """A whole garbage frame (every landmark) gets exactly the output of a frame without measurements."""
+    """A whole garbage frame (every landmark) gets exactly the output of a frame without measurements: jumps
+    farther than a body moves in a frame (the gate's speed floor, TELEOP_GATE_SPEED_M_S, plus 20 cm), a depth of
+    0 or 65 m."""
     meas, ref = rendered("I", 1), clean_chain()
     k = _tracked_frame(ref)
     rng = np.random.default_rng(7)
-    garbage = _replace_frames(meas, [k], lambda L, V, P: corrupt_frame(
-        L, V, P, kind, np.ones(NUM_LANDMARKS, dtype=bool), rng, K))
+    beyond = TELEOP_GATE_SPEED_M_S * PERIOD + 0.2
+    garbage = _replace_frames(meas, [k], lambda L, V, P: _far_jumps(L, V, P, rng, beyond) if kind == "jump"
+                              else corrupt_frame(L, V, P, kind, np.ones(NUM_LANDMARKS, dtype=bool), rng, K))
     assert (np.linalg.norm(garbage.landmarks_C[k] - meas.landmarks_C[k], axis=1) > 0.1).all()
+    if kind == "jump":
+        assert (np.max(np.abs(garbage.landmarks_C[k] - meas.landmarks_C[k]), axis=1) > beyond).all()
     missing = apply_dropouts(meas, dropout_plan(meas.num_frames, [(k, k + 1, "person")]))
     run, gap = run_target_chain(garbage), run_target_chain(missing)
     np.testing.assert_array_equal(run.estimated, gap.estimated)
@@ -169,6 +186,24 @@ def test_a_garbage_frame_is_gated_like_a_missing_frame(kind):
     # ... and the occlusion filter rejected none of it (visibility is high; its background check may drop a depth
     # that landed far behind its neighbours): the gate did.
     assert np.isfinite(run.accepted[k][:, :2]).all()
+
+
+def test_a_jump_a_body_can_make_passes_the_gate():
+    """A landmark 40 cm off its reading (about 12 standard deviations of the filter's innovation, 4 m/s over
+    the frame) is fast motion to the teleop filter, not garbage: its speed floor (TELEOP_GATE_SPEED_M_S, 6 m/s)
+    takes it, where the 5-sigma gate alone (the floor off) drops it exactly like a missing landmark."""
+    meas, ref = rendered("I", 1), clean_chain()
+    k = _tracked_frame(ref)
+    lw = INDEX["left_wrist"]
+    moved = _replace_frames(meas, [k], lambda L, V, P: L.__setitem__((lw, 0), L[lw, 0] + 0.4))
+    missing = apply_dropouts(meas, dropout_plan(meas.num_frames, [(k, k + 1, ["left_wrist"])]))
+    floor_off = PipelineConfig(gate_speed_m_s=0.0)
+    gated, gap = run_target_chain(moved, floor_off), run_target_chain(missing, floor_off)
+    np.testing.assert_array_equal(gated.estimated[k], gap.estimated[k])
+    taken = run_target_chain(moved)
+    # The filter moved most of the way to the reading (its gain on x is about 0.9 after a measured frame).
+    assert taken.estimated[k, lw, 0] - gap.estimated[k, lw, 0] > 0.3
+    assert taken.estimated[k, lw, 0] - ref.estimated[k, lw, 0] > 0.3
 
 
 def test_visibility_nan_is_a_missing_landmark():

@@ -13,6 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from akc_drake.core.ekf import PerJointEKF
 from akc_drake.core.kalman import (
     LOST,
     PREDICTING,
@@ -383,6 +384,38 @@ def test_innovation_gate_rejects_outlier_but_cannot_lock_out():
     assert plain.step(jump, 0.1)[0, 0] > 0.1
 
 
+@pytest.mark.parametrize("make", [lambda cfg: ConstantVelocityKF(config=cfg),
+                                  lambda cfg: ExtendedKalmanFilterCV(DIMS, cfg),
+                                  lambda cfg: PerJointEKF(DIMS, cfg)], ids=["KF", "EKF", "per-joint EKF"])
+def test_gate_speed_floor_passes_what_a_body_can_move_and_grows_with_the_gap(make):
+    """``gate_speed_m_s``: an innovation within the speed times the time since the axis was last measured is
+    never rejected, however many standard deviations it is; beyond it the gate acts as before."""
+    rng = np.random.default_rng(0)
+    base = np.array([[0.3 * np.cos(j), 0.1 * j - 0.5, 2.0 + 0.05 * j] for j in range(NUM_LANDMARKS)])
+    w = INDEX["left_wrist"]
+
+    def run(jump_m, floor, missed=0):
+        kw = dict(gate_sigma=5.0, gate_whole_landmark=True, accel_psd=(0.01, 0.01, 0.01))
+        cfg = EKFConfig(gate_speed_m_s=floor, **kw)  # (a KFConfig too: the KF reads its fields)
+        f = make(cfg)
+        for _ in range(20):
+            f.step(base + rng.normal(scale=0.002, size=base.shape), 0.1)
+        gap = base.copy()
+        gap[w] = np.nan
+        for _ in range(missed):
+            f.step(gap, 0.1)
+        z = base.copy()
+        z[w, 0] += jump_m  # tens of standard deviations: the 5-sigma gate alone rejects it
+        return f.step(z, 0.1)[w, 0] - base[w, 0]
+
+    # (Taken: the filter moves towards the reading; the EKF's bone constraints hold back a wrist that left its
+    # forearm's length, the KF goes 90 % of the way.)
+    assert abs(run(0.4, None)) < 0.02  # no floor: rejected, the estimate stays on the track
+    assert run(0.4, 6.0) > 0.15  # within 6 m/s x 0.1 s: taken
+    assert abs(run(0.8, 6.0)) < 0.02  # beyond it: rejected
+    assert run(0.8, 6.0, missed=1) > 0.3  # two frames since the last reading: 1.2 m allowed
+
+
 def test_state_vector_round_trip_replays_identically():
     rng = np.random.default_rng(5)
     z = random_sequence(rng, 60)
@@ -417,6 +450,8 @@ def test_bad_input_raises_value_error_naming_the_field():
         KFConfig(accel_psd=(1.0, 2.0))
     with pytest.raises(ValueError, match="gate_max_rejects"):
         KFConfig(gate_max_rejects=0)
+    with pytest.raises(ValueError, match="gate_speed_m_s"):
+        KFConfig(gate_speed_m_s=-1.0)
     with pytest.raises(ValueError, match="max_predict_s"):
         KFConfig(max_predict_s=0.0)
     with pytest.raises(ValueError, match="sigma_c"):

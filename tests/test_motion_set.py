@@ -455,3 +455,13 @@ def test_motion_dir_same_numbers_in_process_and_on_two_local_workers(tmp_path):
                for a, b in pairs)
     with pytest.raises(ValueError, match="unknown AKC\\+ setting"):
         evaluate_motion_dir(tmp_path, akc_plus={"gate": 1.0}, **kw)
+    # The filters' settings (--filter-settings) likewise: recorded, the same on the workers, and they change the KF.
+    gated = {"gate_sigma": 2.0, "gate_whole_landmark": True, "max_predict_s": 0.3}
+    gated_here = evaluate_motion_dir(tmp_path, scheduler="inprocess", filter_settings=gated, **kw)
+    gated_there = evaluate_motion_dir(tmp_path, scheduler="local", n_workers=2, filter_settings=gated, **kw)
+    assert gated_here["filter_settings"] == gated_there["filter_settings"] == gated and here["filter_settings"] is None
+    assert _tables_bytes(gated_here) == _tables_bytes(gated_there) != _tables_bytes(here)
+    assert any(json.dumps(a["methods"]["KF"]["sse_m2"]) != json.dumps(b["methods"]["KF"]["sse_m2"])
+               for a, b in zip(here["clips"], gated_here["clips"], strict=True))
+    with pytest.raises(ValueError, match="gate_sigma"):
+        evaluate_motion_dir(tmp_path, filter_settings={"gate_sigma": -1.0}, **kw)

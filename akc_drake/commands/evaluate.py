@@ -41,6 +41,16 @@ def _akc_plus(args) -> dict | None:
     return settings
 
 
+def _filter_settings(args) -> dict | None:
+    """``--filter-settings`` parsed (None when not given)."""
+    text = getattr(args, "filter_settings", None)
+    if text is None:
+        return None
+    from akc_drake.config import parse_filter_settings
+
+    return parse_filter_settings(text)
+
+
 def _correctors(args) -> dict:
     """``--add-corrector`` parsed: ``{NAME: import path}`` (empty when not given)."""
     items = getattr(args, "add_corrector", None)
@@ -140,6 +150,7 @@ def build_config(args):
             detector="mediapipe" if getattr(args, "detector", "sim") == "both" else getattr(args, "detector", "sim"),
             protocol=getattr(args, "protocol", "paper"),
             options=MethodOptions(akc_plus_config=akc_plus, correctors=correctors or None),
+            filter_settings=_filter_settings(args),
         )
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -245,7 +256,8 @@ def run_motion_dir(args) -> int:
     result = evaluate_motion_dir(args.motion_dir, methods=methods, seed=args.seed, protocol=args.protocol,
                                  weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
                                  scheduler=scheduler, n_workers=workers, drive=drive, clips=clips,
-                                 akc_plus=_akc_plus(args), correctors=correctors, rate_hz=rate)
+                                 akc_plus=_akc_plus(args), correctors=correctors, rate_hz=rate,
+                                 filter_settings=_filter_settings(args))
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))

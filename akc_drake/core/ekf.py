@@ -327,7 +327,7 @@ class ExtendedKalmanFilterCV:
             if not slow:
                 reinit = np.zeros_like(m)
                 slow = True
-            _gate(self.config, use, za - p, np.diagonal(P)[:n3] + self._r, self._rej, reinit)
+            _gate(self.config, use, za - p, np.diagonal(P)[:n3] + self._r, self._rej, reinit, age + dt)
 
         # eq. (3), measurement update of the measured axes (H selects them; z-less -> x, y only):
         #   S = H P H^T + R,  K = P H^T S^-1,  x += K (z - H x),  P -= K H P
@@ -561,7 +561,7 @@ class PerJointEKF:
                 S_all = np.diagonal(P[j])[:3] + r
                 rej = np.zeros(3)
                 reinit = np.zeros(3, dtype=bool)
-                _gate(self.config, use, y_all, S_all, rej, reinit)
+                _gate(self.config, use, y_all, S_all, rej, reinit, self._age[j])
             idx = np.flatnonzero(use)
             if idx.size:
                 # eq. (3): S = H P H^T + R, K = P H^T S^-1, x += K (z - H x), P -= K H P

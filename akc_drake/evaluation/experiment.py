@@ -87,6 +87,8 @@ class ExperimentConfig:
             methods may name them) and, under ``protocol="ours"``, the filter and COIK settings.
         protocol: "paper" (the stages and table definitions as the paper describes them) or "ours"
             (:mod:`akc_drake.evaluation.protocol`).
+        filter_settings: the KF's and the EKF's settings changed from the protocol's, field -> value (plain
+            data; ``--filter-settings``, :func:`~akc_drake.config.parse_filter_settings`), or None.
         body: the rendered operator, "primitive" or "skinned" (``--body``).
         detector: the 2D detector on the renders, "sim" or "mediapipe" (``--detector``).
     """
@@ -110,6 +112,7 @@ class ExperimentConfig:
     body: str = "primitive"
     detector: str = "sim"
     protocol: str = "paper"
+    filter_settings: dict | None = None
 
     def __post_init__(self):
         from akc_drake.evaluation.protocol import PROTOCOLS
@@ -143,22 +146,27 @@ class ExperimentConfig:
             from akc_drake.core.akc_plus_config import akc_plus_config
 
             akc_plus_config(self.options.akc_plus_config)  # (a bad setting fails here, not in every worker)
+        if self.filter_settings:
+            from akc_drake.evaluation.protocol import with_filter_settings
+
+            with_filter_settings(self.options, self.filter_settings)  # (likewise)
 
     def run_options(self) -> MethodOptions:
-        """The stage settings the methods run with: the protocol's, with this config's occlusion thresholds."""
+        """The stage settings the methods run with: the protocol's, with this config's occlusion thresholds and
+        filter settings."""
         import dataclasses
 
-        from akc_drake.evaluation.protocol import method_options
+        from akc_drake.evaluation.protocol import method_options, with_filter_settings
 
         if self.protocol == "ours":
-            return self.options
-        return dataclasses.replace(
+            return with_filter_settings(self.options, self.filter_settings)
+        return with_filter_settings(dataclasses.replace(
             method_options(self.protocol),
             visibility_threshold=self.options.visibility_threshold,
             proximity=self.options.proximity,
             akc_plus_config=self.options.akc_plus_config,
             correctors=self.options.correctors,
-        )
+        ), self.filter_settings)
 
     @property
     def motion_names(self) -> tuple[str, ...]:

@@ -184,6 +184,7 @@ def evaluate_clip(item: dict) -> dict:
             "protocol": "paper" | "ours", "weights": "Wa" | "Wb" | "Wc"}``, optionally ``"body"``
             ("primitive" | "skinned"), ``"detector"`` ("sim" | "mediapipe"), ``"cache"`` (None: the default
             render cache, False: off, or a folder), ``"akc_plus"`` (AKC+ settings, field -> value, or None),
+            ``"filter_settings"`` (the filters' settings changed from the protocol's, field -> value, or None),
             ``"correctors"`` (correctors of your own, name -> import path, which the worker imports) and
             ``"frame_progress"`` (a progress bar over the clip's frames as they render, on stderr).
 
@@ -197,7 +198,7 @@ def evaluate_clip(item: dict) -> dict:
     from akc_drake.core.skeleton import BodyDimensions
     from akc_drake.evaluation.cache import spec_key
     from akc_drake.evaluation.methods import MethodRunner, parse_method
-    from akc_drake.evaluation.protocol import method_options
+    from akc_drake.evaluation.protocol import method_options, with_filter_settings
 
     clip = item["clip"]
     protocol = item.get("protocol", "paper")
@@ -214,7 +215,7 @@ def evaluate_clip(item: dict) -> dict:
         session, hit = render_clip(spec, cache=item.get("cache"))
     render_s = time.perf_counter() - t0
     dims = BodyDimensions(**item["dims"])
-    options = method_options(protocol)
+    options = with_filter_settings(method_options(protocol), item.get("filter_settings"))
     if item.get("akc_plus"):
         options = dataclasses.replace(options, akc_plus_config=dict(item["akc_plus"]))
     own = dict(item.get("correctors") or {})
@@ -477,6 +478,7 @@ def evaluate_motion_dir(
     akc_plus: dict | None = None,
     correctors: dict | None = None,
     rate_hz: float = 10.0,
+    filter_settings: dict | None = None,
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -506,9 +508,13 @@ def evaluate_motion_dir(
             rendered at it; the filters and AKC+ take their period from the sessions (a RealSense streams at 30).
             One that is not a positive number is refused by the camera's intrinsics (ValueError) before anything
             renders.
+        filter_settings: the KF's and the EKF's settings changed from the protocol's, field -> value
+            (:func:`~akc_drake.config.parse_filter_settings`; ``--filter-settings``), or None; the calibration's
+            filter too.
 
     Returns:
-        ``{"protocol", "seed", "rate_hz", "body", "detector", "akc_plus", "correctors", "methods", "dims_cm",
+        ``{"protocol", "seed", "rate_hz", "body", "detector", "akc_plus", "filter_settings", "correctors",
+        "methods", "dims_cm",
         "clips": [evaluate_clip results],
         "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "worst_regression_seen",
         "worst_regression_seen_3d" (the same over the frames each joint was seen), "worst_regression_lost",
@@ -518,9 +524,11 @@ def evaluate_motion_dir(
     from akc_drake.evaluation.cache import _resolve
     from akc_drake.evaluation.executor import TaskFailure, run_tasks
     from akc_drake.evaluation.experiment import akc_plus_record, calibrate_session
-    from akc_drake.evaluation.protocol import check_protocol, method_options
+    from akc_drake.evaluation.protocol import check_protocol, method_options, with_filter_settings
 
     check_protocol(protocol)
+    filter_settings = dict(filter_settings) if filter_settings else None
+    with_filter_settings(method_options(protocol), filter_settings)  # (a bad setting fails before any render)
     if akc_plus:
         from akc_drake.core.akc_plus_config import akc_plus_config
 
@@ -534,13 +542,13 @@ def evaluate_motion_dir(
                       rate_hz=rate_hz)
     with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
         tpose, tpose_hit = render_clip(spec, cache=cache, progress=lambda n, _name: bar.update(n))
-    dims = calibrate_session(tpose, "tpose", method_options(protocol))
+    dims = calibrate_session(tpose, "tpose", with_filter_settings(method_options(protocol), filter_settings))
     cache_arg = None if cache is None else (False if cache is False else str(cache))
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
          "akc_plus": settings, "correctors": dict(correctors or {}), "rate_hz": float(rate_hz),
-         "frame_progress": bool(progress) and scheduler == "inprocess"}
+         "filter_settings": filter_settings, "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
     raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
@@ -557,6 +565,7 @@ def evaluate_motion_dir(
         "detector": detector,
         "drive": drive,
         "akc_plus": settings,
+        "filter_settings": filter_settings,
         "correctors": dict(correctors or {}),
         "methods": list(methods),
         "dims_cm": {k: v * 100.0 for k, v in dims.as_dict().items()},

@@ -72,3 +72,18 @@ def method_options(protocol: str):
         ekf_kind="per_joint",
         occlusion_rules=dict(PAPER_RULES),
     )
+
+
+def with_filter_settings(options, settings: dict | None):
+    """``options`` (:class:`~akc_drake.evaluation.methods.MethodOptions`) with the KF's and the EKF's configs
+    changed by ``settings`` (field -> value, :func:`~akc_drake.config.parse_filter_settings`; None: as they are).
+    A protocol's own filter settings (the paper's: no hold) stay unless ``settings`` names them."""
+    if not settings:
+        return options
+    import dataclasses
+
+    from akc_drake.core.kalman import EKFConfig, KFConfig
+
+    kf = dataclasses.replace(options.kf_config or KFConfig(), **settings)
+    ekf = dataclasses.replace(options.ekf_config or EKFConfig(), **settings)
+    return dataclasses.replace(options, kf_config=kf, ekf_config=ekf)
