@@ -483,6 +483,7 @@ class PerJointEKF:
         self._P = np.zeros((_NA, 6, 6))
         self._init = np.zeros((_NA, 3), dtype=bool)
         self._age = np.zeros((_NA, 3))
+        self._rej = np.zeros((_NA, 3))  # (the gate's consecutive rejections per axis)
         self._side.reset()
 
     def _set_dt(self, dt: float) -> None:
@@ -549,19 +550,18 @@ class PerJointEKF:
             if not m.any():
                 continue
             new = m & (~self._init[j] | (self._age[j] > self._limit))
+            use = m & ~new
+            if self.config.gate_sigma is not None and use.any():
+                y_all = np.where(use, za[j] - X[j, :3], 0.0)
+                S_all = np.diagonal(P[j])[:3] + r
+                _gate(self.config, use, y_all, S_all, self._rej[j], new, self._age[j])  # (forced: re-initialised)
             for a in np.flatnonzero(new):  # (re)initialise: p = z, v = 0, decoupled covariance
                 P[j, a, :] = P[j, :, a] = 0.0
                 P[j, 3 + a, :] = P[j, :, 3 + a] = 0.0
                 X[j, a], X[j, 3 + a] = za[j, a], 0.0
                 P[j, a, a], P[j, 3 + a, 3 + a] = r[a], self.config.init_vel_var
                 self._init[j, a] = True
-            use = m & ~new
-            if self.config.gate_sigma is not None and use.any():
-                y_all = np.where(use, za[j] - X[j, :3], 0.0)
-                S_all = np.diagonal(P[j])[:3] + r
-                rej = np.zeros(3)
-                reinit = np.zeros(3, dtype=bool)
-                _gate(self.config, use, y_all, S_all, rej, reinit, self._age[j])
+                self._rej[j, a] = 0.0
             idx = np.flatnonzero(use)
             if idx.size:
                 # eq. (3): S = H P H^T + R, K = P H^T S^-1, x += K (z - H x), P -= K H P
@@ -570,7 +570,7 @@ class PerJointEKF:
                 K = np.linalg.solve(S, PHt.T).T
                 X[j] += K @ (za[j, idx] - X[j, idx])
                 P[j] -= K @ PHt.T
-            self._age[j, m] = 0.0
+            self._age[j, use | new] = 0.0  # (an axis the gate rejected keeps ageing)
         # eq. (4)-(6), the chain elbow <- wrist, shoulder <- elbow, each on one joint's 6 states
         for i, k, seg in self._CHAIN:
             if not (self._init[i].all() and self._init[k].all()):
