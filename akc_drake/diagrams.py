@@ -277,9 +277,11 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
         akc.set_name("ArmKinematicCorrection")
         builder.Connect(estimated, akc.GetInputPort("landmarks_C"))
         if cfg.corrector == "AKC+":
-            builder.Connect(accepted, akc.GetInputPort("landmarks_C_measured"))
-            # The filter's posterior variance: AKC+'s statistical tests (without it, its no-covariance rules).
+            # What was measured: as the filter took it (its gate's garbage dropped, a swap undone), else as accepted.
             filt = systems.get("filter")
+            taken = filt.GetOutputPort("landmarks_C_taken") if filt is not None else accepted
+            builder.Connect(taken, akc.GetInputPort("landmarks_C_measured"))
+            # The filter's posterior variance: AKC+'s statistical tests (without it, its no-covariance rules).
             if filt is not None and filt.HasOutputPort("landmarks_C_variance"):
                 builder.Connect(filt.GetOutputPort("landmarks_C_variance"), akc.GetInputPort("landmarks_C_variance"))
         systems["corrector"] = akc

@@ -122,5 +122,6 @@ def test_ekf_gate_cannot_lock_a_track_out(make):
     for k in range(2):
         est = f.step(jump, 0.1)
         assert abs(est[w, 0] - z[w, 0]) < 0.05, k
+        assert f.axis_age[w, 0] == pytest.approx(0.1 * (k + 1))  # rejected: ageing
     # (Taken: the coupled EKF's bone constraints then pull the wrist a quarter of the way back to its elbow.)
     assert f.step(jump, 0.1)[w, 0] - z[w, 0] > 0.7

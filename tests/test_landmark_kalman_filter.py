@@ -98,6 +98,31 @@ def test_variance_output_is_the_core_filters_posterior_variance(mode):
     assert np.nanmax(var) > 0 and np.nanmin(var) > 0
 
 
+@pytest.mark.parametrize("mode", ["KF", "EKF"])
+def test_taken_output_is_the_input_as_the_gate_took_it(mode):
+    """``landmarks_C_taken``: without a gate the input itself; with one, NaN on the landmark whose reading it
+    rejected (a 1 m jump), the rest as measured."""
+    rng = np.random.default_rng(3)  # (everything measured, smoothly: a rejection is the only NaN)
+    z = (rng.uniform(-0.4, 0.4, (NUM_LANDMARKS, 3)) + [0, 0, 2] + 0.01 * np.arange(12)[:, None, None]
+         + rng.normal(size=(12, NUM_LANDMARKS, 3)) * [0.005, 0.005, 0.02])
+    cfg = EKFConfig(gate_sigma=5.0, gate_whole_landmark=True)
+    plain, gated = (LandmarkKalmanFilter(mode, dims=DIMS, period_s=0.1, config=c) for c in (None, cfg))
+    cp, cg = plain.CreateDefaultContext(), gated.CreateDefaultContext()
+    port_p, port_g = plain.GetOutputPort("landmarks_C_taken"), gated.GetOutputPort("landmarks_C_taken")
+    assert port_g.size() == 36 and np.isnan(port_g.Eval(cg)).all()
+    for k in range(len(z) - 1):
+        step_system(plain, cp, z[k])
+        step_system(gated, cg, z[k])
+        np.testing.assert_array_equal(port_p.Eval(cp), z[k].reshape(-1))
+        np.testing.assert_array_equal(port_g.Eval(cg), z[k].reshape(-1))
+    jump = z[-1].copy()
+    jump[4, 0] += 1.0
+    step_system(gated, cg, jump)
+    taken = port_g.Eval(cg).reshape(NUM_LANDMARKS, 3)
+    assert np.isnan(taken[4]).all()
+    np.testing.assert_array_equal(np.delete(taken, 4, axis=0), np.delete(jump, 4, axis=0))
+
+
 def test_outputs_before_first_update_and_unconnected_input_predicts():
     system = LandmarkKalmanFilter("KF")
     context = system.CreateDefaultContext()

@@ -7,7 +7,14 @@ import pytest
 
 from akc_drake.core.ekf import ExtendedKalmanFilterCV
 from akc_drake.core.kalman import LEFT_RIGHT_SWAP, LOST, TRACKING, ConstantVelocityKF, EKFConfig, KFConfig
-from akc_drake.core.landmark_tracking import MAX_SWAP_FRAMES, MODES, filter_period, make_filter, track_step
+from akc_drake.core.landmark_tracking import (
+    MAX_SWAP_FRAMES,
+    MODES,
+    filter_period,
+    make_filter,
+    taken_measurement,
+    track_step,
+)
 from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS, BodyDimensions
 
 DIMS = BodyDimensions.paper_participant()
@@ -107,3 +114,21 @@ def test_a_swapped_frame_is_used_exchanged_for_at_most_max_swap_frames():
     # A normal frame resets the count.
     _, _, swaps = track_step(f, f.position + 0.1 * f.velocity, 0.1, 3.0, fix_swaps=True)
     assert swaps == 0.0
+
+
+def test_taken_is_the_measurement_as_the_filter_took_it():
+    """``taken``: exchanged where the swap rule exchanged the sides; NaN where the gate rejected a reading."""
+    f = ConstantVelocityKF(NUM_LANDMARKS, KFConfig(gate_sigma=5.0, gate_whole_landmark=True))
+    z = _pose()
+    taken = np.empty((NUM_LANDMARKS, 3))
+    for _ in range(10):
+        track_step(f, z, 0.1, fix_swaps=True, taken=taken)
+        np.testing.assert_array_equal(taken, z)
+    track_step(f, z[LEFT_RIGHT_SWAP], 0.1, fix_swaps=True, taken=taken)
+    np.testing.assert_array_equal(taken, z)  # the mislabelled frame, taken as the person's sides
+    jump = z.copy()
+    jump[3, 1] += 1.0
+    track_step(f, jump, 0.1, taken=taken)
+    assert np.isnan(taken[3]).all()
+    np.testing.assert_array_equal(np.delete(taken, 3, axis=0), np.delete(z, 3, axis=0))
+    np.testing.assert_array_equal(np.isnan(taken_measurement(f, jump)), np.isnan(taken))

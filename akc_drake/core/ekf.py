@@ -511,6 +511,11 @@ class PerJointEKF:
         return np.concatenate((arm, self._side.position_variance))
 
     @property
+    def axis_age(self) -> np.ndarray:
+        """Seconds since each axis was last measured ``(12, 3)`` (0 for axes never measured)."""
+        return np.concatenate((np.where(self._init, self._age, 0.0), self._side.axis_age))
+
+    @property
     def status(self) -> np.ndarray:
         """``(12,)`` per-landmark status (see :func:`~akc_drake.core.kalman.status_from`)."""
         arm = status_from(self._init, self._age, self.config.max_predict_s)

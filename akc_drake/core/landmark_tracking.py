@@ -94,6 +94,7 @@ def track_step(
     *,
     fix_swaps: bool = False,
     nan_when_lost: bool = True,
+    taken: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Step ``f`` by one camera period with the measurement ``z``, with the swap and lost rules above.
 
@@ -104,6 +105,8 @@ def track_step(
         swaps: consecutive frames read exchanged so far.
         fix_swaps: undo a detector's left/right swap.
         nan_when_lost: NaN for LOST landmarks in the estimate.
+        taken: a ``(12, 3)`` array that receives the measurement as the filter took it
+            (:func:`taken_measurement`), or None.
 
     Returns:
         ``(estimate (12, 3), status (12,), swaps)``: the new count of swapped frames (``swaps`` unchanged
@@ -120,4 +123,18 @@ def track_step(
     status = f.status
     if nan_when_lost:
         estimate[status == LOST] = np.nan
+    if taken is not None:
+        taken[...] = taken_measurement(f, z)
     return estimate, status, swaps
+
+
+def taken_measurement(f, z: np.ndarray) -> np.ndarray:
+    """``z`` ``(12, 3)``, the measurement ``f`` was just stepped with, as the filter took it: NaN on each axis
+    its innovation gate rejected (an axis measured this step whose age since its last measurement is not 0).
+
+    What a stage after the filter should count as measured (AKC+'s ``landmarks_C_measured``): a reading the gate
+    dropped as garbage is no evidence there either, and one that the swap rule exchanged is the exchanged one.
+    Without a gate it is ``z`` itself."""
+    out = np.array(z, dtype=float, copy=True)
+    out[f.axis_age > 0.0] = np.nan
+    return out

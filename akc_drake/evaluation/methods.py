@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from akc_drake.core.landmark_tracking import taken_measurement
 from akc_drake.core.skeleton import NUM_LANDMARKS, BodyDimensions
 from akc_drake.evaluation.session import Session
 
@@ -202,7 +203,8 @@ def make_filter(kind: str, dims: BodyDimensions | None, kf_config=None, ekf_conf
     raise ValueError(f"unknown filter {kind!r}; known: KF, EKF")
 
 
-def run_filter(filt, measurements: np.ndarray, t: np.ndarray, variance: np.ndarray | None = None):
+def run_filter(filt, measurements: np.ndarray, t: np.ndarray, variance: np.ndarray | None = None,
+               taken: np.ndarray | None = None):
     """Run a core filter over ``measurements`` ``(T, 12, 3)`` at times ``t``.
 
     Args:
@@ -211,6 +213,9 @@ def run_filter(filt, measurements: np.ndarray, t: np.ndarray, variance: np.ndarr
         t: ``(T,)`` seconds.
         variance: an optional ``(T, 12, 3)`` array that receives the filter's posterior variance of each
             coordinate after every step (read outside the timed step).
+        taken: an optional ``(T, 12, 3)`` array that receives each frame's measurement as the filter took it
+            (:func:`~akc_drake.core.landmark_tracking.taken_measurement`: NaN where its gate rejected a reading;
+            without a gate, ``measurements``).
 
     Returns:
         ``(estimates (T, 12, 3), seconds per frame (T,))``.
@@ -228,6 +233,8 @@ def run_filter(filt, measurements: np.ndarray, t: np.ndarray, variance: np.ndarr
         out[k] = est
         if variance is not None:
             variance[k] = filt.position_variance
+        if taken is not None:
+            taken[k] = taken_measurement(filt, measurements[k])
     return out, dt_run
 
 
@@ -336,6 +343,7 @@ class MethodRunner:
         self._occ: tuple[np.ndarray, np.ndarray] | None = None
         self._filtered: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._variance: dict[str, np.ndarray] = {}
+        self._taken: dict[str, np.ndarray] = {}
         self._done: dict[str, MethodResult] = {}
         self._own = dict(self.options.correctors or {})
 
@@ -354,10 +362,17 @@ class MethodRunner:
             accepted, _ = self.occlusion()
             o = self.options
             filt = make_filter(kind, self.dims, o.kf_config, o.ekf_config, o.ekf_kind)
-            var = np.empty_like(accepted)
-            self._filtered[kind] = run_filter(filt, accepted, self.session.t, var)
+            var, taken = np.empty_like(accepted), np.empty_like(accepted)
+            self._filtered[kind] = run_filter(filt, accepted, self.session.t, var, taken)
             self._variance[kind] = var
+            self._taken[kind] = taken
         return self._filtered[kind]
+
+    def taken(self, kind: str) -> np.ndarray:
+        """``(T, 12, 3)`` the occlusion filter's output as filter ``kind`` took it (its gate's rejections NaN):
+        what AKC+ and a corrector of your own are given as measured, as in the diagrams."""
+        self.filtered(kind)
+        return self._taken[kind]
 
     def filter_variance(self, kind: str) -> np.ndarray:
         """``(T, 12, 3)`` posterior variance of each coordinate of filter ``kind``'s output."""
@@ -383,10 +398,10 @@ class MethodRunner:
                 est, t_cor, status = run_akc(make_akc(self.dims, self.weights), est)
                 times["corrector"] = t_cor
             elif spec.corrector == "AKC+":
-                accepted, _ = self.occlusion()
                 var = self.filter_variance(spec.filter)
                 est, t_cor, status = run_akc(
-                    make_akc_plus(self.dims, self.options.akc_plus_config, spec.filter, s.dt), est, accepted, var
+                    make_akc_plus(self.dims, self.options.akc_plus_config, spec.filter, s.dt), est,
+                    self.taken(spec.filter), var
                 )
                 times["corrector"] = t_cor
             elif spec.corrector == "COIK":
@@ -395,7 +410,8 @@ class MethodRunner:
             elif spec.corrector != "none":  # a corrector of your own: given what AKC+ is given
                 factory = load_corrector(self._own[spec.corrector])
                 est, t_cor, status = run_akc(
-                    factory(self.dims, spec.filter, s.dt), est, self.occlusion()[0], self.filter_variance(spec.filter)
+                    factory(self.dims, spec.filter, s.dt), est, self.taken(spec.filter),
+                    self.filter_variance(spec.filter)
                 )
                 times["corrector"] = t_cor
         result = MethodResult(spec.name, est, times, status)

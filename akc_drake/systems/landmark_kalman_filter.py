@@ -29,6 +29,7 @@ class LandmarkKalmanFilter(LeafSystem):
         - landmarks_C_estimated
         - tracking_status
         - landmarks_C_variance
+        - landmarks_C_taken
 
     ``landmarks_C`` and ``landmarks_C_estimated`` are the ``(12, 3)`` camera-frame landmarks flattened
     row-major (36; NaN in the input where missing, NaN in the output only for axes never measured or, with
@@ -37,15 +38,18 @@ class LandmarkKalmanFilter(LeafSystem):
     (prediction only). Tracking loss and left/right swaps: :mod:`akc_drake.core.landmark_tracking`.
     ``landmarks_C_variance`` is the filter's posterior variance of each coordinate of the estimate (36, m^2,
     the core filter's ``position_variance``; NaN for axes never measured), which AKC+ reads to test what the
-    camera sees (:class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`).
+    camera sees (:class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus`). ``landmarks_C_taken`` (36) is the
+    input as the filter took it (:func:`~akc_drake.core.landmark_tracking.taken_measurement`): NaN where its
+    innovation gate rejected a reading, exchanged where the swap rule exchanged the sides; the diagrams give it to
+    AKC+ as what was measured (a garbage reading the gate dropped moved AKC+'s arm by a metre).
 
-    State (discrete, five groups): the whole core filter state
+    State (discrete, six groups): the whole core filter state
     (:meth:`~akc_drake.core.kalman.ConstantVelocityKF.get_state_vector`, so a context can be cloned
     and a simulation replayed), the last estimate (36), the last status (12), the count of
-    consecutive swapped frames (1) and the last posterior variance (36). A periodic discrete update at the
-    camera period, offset by ``timing.stage_offset("filter")``, loads the filter state into the core filter
-    (created once), steps it by one camera period with the input and writes the groups back; the outputs are
-    state, so the system has no direct feedthrough.
+    consecutive swapped frames (1), the last posterior variance (36) and the last measurement as taken (36). A
+    periodic discrete update at the camera period, offset by ``timing.stage_offset("filter")``, loads the filter
+    state into the core filter (created once), steps it by one camera period with the input and writes the groups
+    back; the outputs are state, so the system has no direct feedthrough.
 
     Args:
         mode: ``"KF"`` or ``"EKF"`` (needs ``dims``); see :func:`~akc_drake.core.landmark_tracking.make_filter`.
@@ -77,13 +81,16 @@ class LandmarkKalmanFilter(LeafSystem):
         self._x_status = self.DeclareDiscreteState(BasicVector(np.full(_J, float(UNINITIALISED))))
         self._x_swaps = self.DeclareDiscreteState(BasicVector([0.0]))
         self._x_variance = self.DeclareDiscreteState(BasicVector(np.full(3 * _J, np.nan)))
+        self._x_taken = self.DeclareDiscreteState(BasicVector(np.full(3 * _J, np.nan)))
         self.DeclareStateOutputPort("landmarks_C_estimated", self._x_estimate)
         self.DeclareStateOutputPort("tracking_status", self._x_status)
         self.DeclareStateOutputPort("landmarks_C_variance", self._x_variance)
+        self.DeclareStateOutputPort("landmarks_C_taken", self._x_taken)
         self.DeclarePeriodicDiscreteUpdateEvent(
             period_sec=self._period, offset_sec=timing.stage_offset("filter", stage_offset_s), update=self._update
         )
         self._missing = np.full((_J, 3), np.nan)
+        self._taken = np.empty((_J, 3))
 
     @property
     def filter(self) -> ConstantVelocityKF | ExtendedKalmanFilterCV:
@@ -104,7 +111,7 @@ class LandmarkKalmanFilter(LeafSystem):
         self._filter.set_state_vector(context.get_discrete_state(self._x_filter).get_value())
         swaps = context.get_discrete_state(self._x_swaps).get_value()[0]
         estimate, status, swaps = track_step(self._filter, z, self._period, swaps, fix_swaps=self._fix_swaps,
-                                             nan_when_lost=self._nan_when_lost)
+                                             nan_when_lost=self._nan_when_lost, taken=self._taken)
         if self._fix_swaps:
             discrete_state.get_mutable_vector(self._x_swaps).SetFromVector([swaps])
         discrete_state.get_mutable_vector(self._x_filter).SetFromVector(self._filter.get_state_vector())
@@ -113,6 +120,7 @@ class LandmarkKalmanFilter(LeafSystem):
         discrete_state.get_mutable_vector(self._x_variance).SetFromVector(
             np.asarray(self._filter.position_variance, dtype=np.float64).reshape(-1)
         )
+        discrete_state.get_mutable_vector(self._x_taken).SetFromVector(self._taken.reshape(-1))
 
 
 def AddLandmarkKalmanFilter(builder: DiagramBuilder, landmarks_C: OutputPort | None = None, *, mode: str = "KF",
