@@ -212,6 +212,18 @@ class PipelineConfig:
             return TELEOP_MAX_PREDICT_S if teleop else None
         return m
 
+    def filter_settings(self, teleop: bool) -> dict:
+        """The KF's or EKF's settings (``KFConfig`` fields) in the mocap or teleop diagram: the resolved gate (on
+        whole landmarks, with its speed floor, when it is on) and, unless the filter's default, ``max_predict_s``."""
+        gate = self.resolved_gate_sigma(teleop)
+        # (A gated diagram rejects a landmark's whole measurement when one axis is an outlier.)
+        out = {"gate_sigma": gate, "gate_whole_landmark": gate is not None,
+               "gate_speed_m_s": self.resolved_gate_speed_m_s() if gate is not None else None}
+        max_predict_s = self.resolved_max_predict_s(teleop)
+        if max_predict_s is not None:
+            out["max_predict_s"] = max_predict_s
+        return out
+
     def validate(self) -> "PipelineConfig":
         """Check the choices; raises ``UserError`` naming the field."""
         if self.filter not in FILTERS:
@@ -291,9 +303,9 @@ def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
     return settings
 
 
-#: ``--filter-settings teleop``: the filter settings the teleop diagram runs (``AddMocapPipeline`` with ``teleop``).
-TELEOP_FILTER_SETTINGS = {"gate_sigma": TELEOP_GATE_SIGMA, "gate_whole_landmark": True,
-                          "gate_speed_m_s": TELEOP_GATE_SPEED_M_S, "max_predict_s": TELEOP_MAX_PREDICT_S}
+#: ``--filter-settings teleop``: the filter settings the teleop diagram runs by default
+#: (:meth:`PipelineConfig.filter_settings`, which ``AddMocapPipeline`` builds its filter from).
+TELEOP_FILTER_SETTINGS = PipelineConfig().filter_settings(teleop=True)
 _FILTER_FIELDS = ("sigma_x", "sigma_y", "sigma_z", "accel_psd", "init_vel_var", "max_predict_s", "gate_sigma",
                   "gate_max_rejects", "gate_whole_landmark", "gate_speed_m_s")
 

@@ -246,13 +246,7 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
         from akc_drake.core.kalman import EKFConfig, KFConfig
         from akc_drake.systems.landmark_kalman_filter import LandmarkKalmanFilter
 
-        gate = cfg.resolved_gate_sigma(teleop)
-        # A gated diagram rejects a landmark's whole measurement when one axis is an outlier.
-        opts = {"gate_sigma": gate, "gate_whole_landmark": gate is not None,
-                "gate_speed_m_s": cfg.resolved_gate_speed_m_s() if gate is not None else None}
-        max_predict_s = cfg.resolved_max_predict_s(teleop)
-        if max_predict_s is not None:
-            opts["max_predict_s"] = max_predict_s
+        opts = cfg.filter_settings(teleop)
         kf_config = EKFConfig(**opts) if cfg.filter == "EKF" else KFConfig(**opts)
         kf = builder.AddSystem(
             LandmarkKalmanFilter(mode=cfg.filter, dims=dims, config=kf_config, period_s=period,

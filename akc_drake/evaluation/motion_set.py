@@ -528,7 +528,7 @@ def evaluate_motion_dir(
 
     check_protocol(protocol)
     filter_settings = dict(filter_settings) if filter_settings else None
-    with_filter_settings(method_options(protocol), filter_settings)  # (a bad setting fails before any render)
+    options = with_filter_settings(method_options(protocol), filter_settings)  # (a bad setting fails here)
     if akc_plus:
         from akc_drake.core.akc_plus_config import akc_plus_config
 
@@ -542,7 +542,7 @@ def evaluate_motion_dir(
                       rate_hz=rate_hz)
     with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
         tpose, tpose_hit = render_clip(spec, cache=cache, progress=lambda n, _name: bar.update(n))
-    dims = calibrate_session(tpose, "tpose", with_filter_settings(method_options(protocol), filter_settings))
+    dims = calibrate_session(tpose, "tpose", options)
     cache_arg = None if cache is None else (False if cache is False else str(cache))
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
