@@ -162,6 +162,12 @@ class PipelineConfig:
             :data:`TELEOP_MAX_PREDICT_S` in the teleop diagram, where an extrapolated wrist drives the robot.
         body: the simulated operator, ``primitive`` (fast) or ``skinned`` (MakeHuman body, what MediaPipe sees).
         detector: the 2D detector on simulated renders, ``sim`` or ``mediapipe``.
+        depth_rule: how the extractor reads a landmark's depth from its pixel's window: ``nearest`` (the nearest
+            surface covering a quarter of the window: a landmark on the body's edge reads the body, not the
+            background) or ``median`` (:func:`~akc_drake.core.camera.depth_lookup`).
+        depth_window_px: that window's size (odd, pixels); 0 (the default): scaled with the camera's focal length,
+            15 pixels at 615 (640x480), about 5 cm at 2 m
+            (:func:`~akc_drake.core.landmark_extraction.default_depth_window`).
         akc_plus: AKC+ settings, field -> number (:class:`~akc_drake.core.akc_plus_config.AKCPlusConfig`; e.g.
             ``{gate_sigma: 2.5}``); empty: the defaults. ``constrained_filter`` (1 or 0) is otherwise set from
             ``filter``. Used only with ``corrector: AKC+``.
@@ -188,6 +194,8 @@ class PipelineConfig:
     max_predict_s: float = -1.0
     body: str = "primitive"
     detector: str = "sim"
+    depth_rule: str = "nearest"
+    depth_window_px: int = 0
     akc_plus: dict[str, float] = field(default_factory=dict)
     arm_limits: ArmLimitsConfig = field(default_factory=ArmLimitsConfig)
 
@@ -238,6 +246,14 @@ class PipelineConfig:
             raise UserError(f"config.body must be primitive or skinned, got {self.body!r}")
         if self.detector not in ("sim", "mediapipe"):
             raise UserError(f"config.detector must be sim or mediapipe, got {self.detector!r}")
+        from akc_drake.core.camera import DEPTH_RULES
+
+        if self.depth_rule not in DEPTH_RULES:
+            raise UserError(f"config.depth_rule must be one of {', '.join(DEPTH_RULES)}, got {self.depth_rule!r}")
+        w = self.depth_window_px
+        if isinstance(w, bool) or not isinstance(w, int) or w < 0 or (w > 0 and w % 2 == 0):
+            raise UserError(f"config.depth_window_px must be 0 (scaled with the focal length) or a positive odd "
+                            f"integer, got {w!r}")
         if not 0.0 <= self.visibility_threshold <= 1.0:
             raise UserError(f"config.visibility_threshold must be in [0, 1], got {self.visibility_threshold}")
         if not 0.0 <= self.proximity < 1.0:

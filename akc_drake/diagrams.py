@@ -187,7 +187,8 @@ def AddMeasurementSource(builder: DiagramBuilder, cfg: PipelineConfig, *, replay
     offsets = 0.0 if getattr(frame_source, "depth_is_surface", True) is False else None
     ext = builder.AddSystem(
         LandmarkExtractor(intrinsics, detector=detector, period_s=period, stage_offset_s=cfg.stage_offset_s,
-                          seed=cfg.seed, surface_offset_m=offsets)
+                          seed=cfg.seed, surface_offset_m=offsets, window=cfg.depth_window_px or None,
+                          depth_rule=cfg.depth_rule)
     )
     if src.HasOutputPort("camera_info") and ext.HasInputPort("camera_info"):
         builder.Connect(src.GetOutputPort("camera_info"), ext.GetInputPort("camera_info"))

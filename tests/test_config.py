@@ -3,6 +3,7 @@ import pytest
 from akc_drake.config import (
     TELEOP_FILTER_SETTINGS,
     ArmLimitsConfig,
+    CameraConfig,
     PipelineConfig,
     dump_config,
     load_config,
@@ -149,3 +150,33 @@ def test_filter_settings_from_the_command_line(tmp_path):
                         ("gate_speed_m_s=inf", "gate_speed_m_s")):
         with pytest.raises(UserError, match="--filter-settings.*" + match):
             parse_filter_settings(text)
+
+
+def test_depth_lookup_settings_load_validate_and_reach_the_extractor(tmp_path):
+    """``depth_rule`` and ``depth_window_px``: YAML keys, checked, and what the diagram's extractor runs with."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from akc_drake import diagrams
+    from akc_drake.core.skeleton import BodyDimensions
+
+    assert (PipelineConfig().depth_rule, PipelineConfig().depth_window_px) == ("nearest", 0)
+    path = tmp_path / "run.yaml"
+    path.write_text("depth_rule: median\ndepth_window_px: 5\n")
+    cfg = load_config(str(path))
+    assert (cfg.depth_rule, cfg.depth_window_px) == ("median", 5)
+    with pytest.raises(UserError, match="config.depth_rule must be one of median, nearest"):
+        PipelineConfig(depth_rule="mean").validate()
+    for bad in (4, -3, 2.0):
+        with pytest.raises(UserError, match="config.depth_window_px must be 0 .* or a positive odd integer"):
+            PipelineConfig(depth_window_px=bad).validate()
+    builder = DiagramBuilder()
+    cfg = PipelineConfig(source="sim", motion="I", cycles=1, depth_rule="median", depth_window_px=7).validate()
+    src = diagrams.AddMeasurementSource(builder, cfg)
+    diagrams.AddMocapPipeline(builder, cfg, BodyDimensions.paper_participant(), src)
+    ext = src["systems"]["extractor"]
+    assert (ext.depth_rule, ext.window) == ("median", 7)
+    # 0: the window scales with the focal length (15 pixels at 640x480, 3 at 160x120).
+    for camera, window in ((CameraConfig(), 15), (CameraConfig(width=160, height=120), 3)):
+        cfg = PipelineConfig(source="sim", motion="I", cycles=1, camera=camera).validate()
+        src = diagrams.AddMeasurementSource(DiagramBuilder(), cfg)
+        assert (src["systems"]["extractor"].depth_rule, src["systems"]["extractor"].window) == ("nearest", window)

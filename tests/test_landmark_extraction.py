@@ -9,6 +9,7 @@ from akc_drake.core.landmark_extraction import (
     black_image,
     camera_frame,
     check_extractor_options,
+    default_depth_window,
     extract_landmarks,
     surface_offsets,
     surface_to_centre_depth,
@@ -66,13 +67,48 @@ def test_depth_is_the_window_median_and_nan_without_valid_depth():
     depth[18, 18] = 3.0  # ... but one is an outlier: the median ignores it
     depth[38:43, 58:63] = 0.0  # no valid depth under landmark 1
     det = FixedDetector(uv, np.ones(NUM_LANDMARKS))
-    points, _, _ = extract_landmarks(_frame(depth), det, surface_offset_m=0)
+    points, _, _ = extract_landmarks(_frame(depth), det, surface_offset_m=0, window=5, depth_rule="median")
     assert points[0, 2] == pytest.approx(1.0)
     assert np.all(np.isnan(points[1])) and np.all(np.isnan(points[2]))
     points, _, _ = extract_landmarks(
-        _frame(depth), FixedDetector(uv, np.ones(NUM_LANDMARKS)), window=1, surface_offset_m=0
+        _frame(depth), FixedDetector(uv, np.ones(NUM_LANDMARKS)), window=1, surface_offset_m=0, depth_rule="median"
     )
     assert points[0, 2] == pytest.approx(1.0)
+
+
+def test_the_default_lookup_reads_the_body_on_its_edge_not_the_wall_behind():
+    # A wrist on the body's edge: its 15x15 window is a third body (1.8 m), two thirds wall (3.3 m).
+    uv = np.full((NUM_LANDMARKS, 2), 40.0)
+    depth = _depth(3.3)
+    depth[:, :38] = 1.8  # columns 33..37 of the window (5 of 15) are the body
+    det = FixedDetector(uv, np.ones(NUM_LANDMARKS))
+    nearest, _, _ = extract_landmarks(_frame(depth), det, surface_offset_m=0, window=15)
+    assert nearest[0, 2] == pytest.approx(1.8)
+    median, _, _ = extract_landmarks(_frame(depth), det, surface_offset_m=0, window=15, depth_rule="median")
+    assert median[0, 2] == pytest.approx(3.3)
+    # A body covering less than a quarter of the window (3 of 15 columns) is an edge, not the landmark's surface.
+    depth[:, 36:38] = 3.3
+    nearest, _, _ = extract_landmarks(_frame(depth), det, surface_offset_m=0, window=15)
+    assert nearest[0, 2] == pytest.approx(3.3)
+
+
+def test_the_default_window_scales_with_the_focal_length():
+    # 15 pixels at the D435's 615-pixel focal length (640x480): the same patch of a body at the same distance.
+    assert default_depth_window(CameraIntrinsics()) == default_depth_window() == 15
+    assert default_depth_window(CameraIntrinsics(width=1280, height=720, fx=920.0, fy=920.0, cx=640, cy=360)) == 23
+    assert default_depth_window(CameraIntrinsics(width=160, height=120, fx=153.7, fy=153.7, cx=80, cy=60)) == 3
+    assert default_depth_window(K) == 1  # (this file's 80x60 camera: one pixel)
+    for fx in np.linspace(30.0, 3000.0, 50):
+        w = default_depth_window(CameraIntrinsics(fx=float(fx)))
+        assert w % 2 == 1 and abs(w - 15.0 * fx / 615.0) <= 1.0 + 1e-9
+
+
+def test_an_unknown_depth_rule_is_refused():
+    det = FixedDetector(_uv(), np.ones(NUM_LANDMARKS))
+    with pytest.raises(ValueError, match="rule must be one of median, nearest"):
+        extract_landmarks(_frame(_depth()), det, depth_rule="mean")
+    with pytest.raises(ValueError, match="depth_rule must be one of"):
+        check_extractor_options(det, K, 5, None, "mean")
 
 def test_nobody_found_gives_nan_and_zero_visibility():
     points, vis, pix = extract_landmarks(_frame(_depth()), FixedDetector(_uv(), np.ones(12), found=False))

@@ -139,3 +139,25 @@ def test_system_uses_its_configured_offsets():
         _step(system, context, timing.stage_offset("extractor"))
         expected, _, _ = extract_landmarks(_frame(_depth(1.7)), det, surface_offset_m=spec)
         np.testing.assert_array_equal(system.GetOutputPort("landmarks_C").Eval(context), expected.ravel())
+
+
+def test_system_uses_its_configured_depth_lookup():
+    # Landmark 0 on the body's edge: a third of its 15-pixel window is the body at 1.8 m, the rest the wall.
+    uv = np.full((12, 2), 40.0)
+    depth = _depth(3.3)
+    depth[:, :38] = 1.8
+    det = FixedDetector(uv, np.ones(12))
+    read = {}
+    for rule, window in (("nearest", 15), ("median", 15), ("median", 5)):
+        system = LandmarkExtractor(K, det, surface_offset_m=0, depth_rule=rule, window=window)
+        assert (system.depth_rule, system.window) == (rule, window)
+        context = system.CreateDefaultContext()
+        _fix_images(system, context, depth)
+        _step(system, context, timing.stage_offset("extractor"))
+        read[rule, window] = system.GetOutputPort("landmarks_C").Eval(context)[2]
+    assert read["nearest", 15] == pytest.approx(1.8) and read["median", 15] == pytest.approx(3.3)
+    assert read["median", 5] == pytest.approx(3.3)
+    assert (LandmarkExtractor(K, det).depth_rule, LandmarkExtractor(K, det).window) == ("nearest", 1)  # (fx 70)
+    assert LandmarkExtractor(CameraIntrinsics(), det).window == 15
+    with pytest.raises(ValueError, match="depth_rule"):
+        LandmarkExtractor(K, det, depth_rule="closest")

@@ -16,7 +16,7 @@ def test_paper_protocol_is_the_papers_pipeline():
     assert o.occlusion_rules == PAPER_RULES
     c = paper_coik_config()
     assert not c.warm_start and c.iteration_limit == 10
-    assert render_kwargs("paper") == {"surface_offset_m": 0.0}
+    assert render_kwargs("paper") == {"surface_offset_m": 0.0, "window": 5, "depth_rule": "median"}
 
 
 def test_ours_protocol_is_the_default_stages():

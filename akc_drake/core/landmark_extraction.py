@@ -1,9 +1,12 @@
 """Stage S2's numpy part: depth lookup, surface-to-centre correction and pinhole deprojection of detections.
 
 The detector is pluggable (any :class:`akc_drake.core.camera.Detector`: the simulated detector on renders,
-MediaPipe on real images). For each landmark the depth is the median of the valid depth pixels in a small
-window around its detected pixel (:func:`akc_drake.core.camera.depth_lookup`; NaN when there are none), and
-the 3D point is the pinhole deprojection of the pixel at that depth (:func:`akc_drake.core.camera.deproject`).
+MediaPipe on real images). For each landmark the depth is read from the valid depth pixels in a window around
+its detected pixel (:func:`akc_drake.core.camera.depth_lookup`; NaN when there are none): by default the
+nearest surface covering a quarter of a 15-pixel window at 640x480, scaled with the focal length (``nearest``;
+a landmark on the body's edge then reads the body, not the background behind it), or their median in a 5-pixel
+window (``median``, the ``paper`` protocol's); the 3D point is the pinhole deprojection of the pixel at that depth
+(:func:`akc_drake.core.camera.deproject`).
 Nothing here knows about occlusion: a landmark hidden behind a limb gets the limb's depth. Stage S3 decides.
 The LeafSystem around it is :class:`akc_drake.systems.landmark_extractor.LandmarkExtractor`.
 
@@ -27,8 +30,24 @@ import functools
 
 import numpy as np
 
-from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detector, deproject, depth_lookup
+from akc_drake.core.camera import DEPTH_RULES, CameraFrame, CameraIntrinsics, Detector, deproject, depth_lookup
 from akc_drake.core.skeleton import LANDMARKS, NUM_LANDMARKS
+
+#: The extractor's depth lookup by default: the nearest surface (:func:`~akc_drake.core.camera.depth_lookup`)
+#: in a window of :data:`DEFAULT_DEPTH_WINDOW` pixels at a :data:`REFERENCE_FOCAL_PX` focal length (4.9 cm at
+#: 2 m: about a wrist's width), scaled with the camera's focal length (:func:`default_depth_window`).
+DEFAULT_DEPTH_RULE = "nearest"
+DEFAULT_DEPTH_WINDOW = 15
+REFERENCE_FOCAL_PX = 615.0
+
+
+def default_depth_window(intrinsics: CameraIntrinsics | None = None) -> int:
+    """The default depth-lookup window for a camera: :data:`DEFAULT_DEPTH_WINDOW` pixels at a
+    :data:`REFERENCE_FOCAL_PX` focal length (the RealSense D435's colour camera at 640x480), scaled with the
+    focal length to the nearest odd number, so that it covers the same patch of a body at the same distance
+    (15 at 640x480; 23 at 1280x720 with a 920-pixel focal length; 3 at 160x120)."""
+    fx = (intrinsics or CameraIntrinsics()).fx
+    return 2 * max(int(round((DEFAULT_DEPTH_WINDOW * fx / REFERENCE_FOCAL_PX - 1.0) / 2.0)), 0) + 1
 
 #: Default surface-to-centre offset per joint type (metres): half the body's thickness at the joint, seen
 #: from the front, for a typical adult. These are our estimates from common anthropometric sizes, not
@@ -130,18 +149,20 @@ def extract_landmarks(
     frame: CameraFrame,
     detector: Detector,
     *,
-    window: int = 5,
+    window: int | None = None,
     min_depth: float = 0.2,
     max_depth: float = 10.0,
     surface_offset_m=None,
+    depth_rule: str = DEFAULT_DEPTH_RULE,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Detect, look up depth, correct it from the body surface to the joint centre and deproject.
 
     Args:
         frame: the RGB-D frame.
         detector: any Detector.
-        window: depth-lookup window (odd, pixels).
+        window: depth-lookup window (odd, pixels); None: :func:`default_depth_window` of the frame's camera.
         min_depth, max_depth: valid depth range (metres).
+        depth_rule: the depth lookup's rule, ``nearest`` or ``median`` (:func:`~akc_drake.core.camera.depth_lookup`).
         surface_offset_m: surface-to-centre offsets, as :func:`surface_offsets` takes them (None: the
             defaults; 0: no correction).
 
@@ -161,13 +182,15 @@ def extract_landmarks(
     offsets = surface_offsets(surface_offset_m)
     if frame.extras.get("depth_is_surface", True) is False:
         offsets = np.zeros_like(offsets)  # e.g. a constant --depth for a video: already a joint depth
-    z = depth_lookup(frame.depth_m, uv, window=window, min_depth=min_depth, max_depth=max_depth)
+    if window is None:
+        window = default_depth_window(frame.intrinsics)
+    z = depth_lookup(frame.depth_m, uv, window=window, min_depth=min_depth, max_depth=max_depth, rule=depth_rule)
     if np.any(offsets):
         z = surface_to_centre_depth(uv, z, offsets, frame.intrinsics)
     return deproject(uv, z, frame.intrinsics), vis, uv
 
 
-def check_extractor_options(detector, intrinsics, window, period_s) -> float:
+def check_extractor_options(detector, intrinsics, window, period_s, depth_rule: str = DEFAULT_DEPTH_RULE) -> float:
     """Validate a landmark extractor's options; returns the sampling period (default ``1 / rate_hz``).
 
     Args:
@@ -175,6 +198,7 @@ def check_extractor_options(detector, intrinsics, window, period_s) -> float:
         intrinsics: a :class:`~akc_drake.core.camera.CameraIntrinsics` (the default camera when None).
         window: depth-lookup window: a positive odd integer.
         period_s: the sampling period, or None for the camera period.
+        depth_rule: one of :data:`~akc_drake.core.camera.DEPTH_RULES`.
 
     Raises:
         ValueError: naming the bad option.
@@ -185,6 +209,8 @@ def check_extractor_options(detector, intrinsics, window, period_s) -> float:
         raise ValueError(f"intrinsics must be a CameraIntrinsics, got {type(intrinsics).__name__}")
     if not isinstance(window, (int, np.integer)) or window < 1 or window % 2 == 0:
         raise ValueError(f"window must be a positive odd integer, got {window!r}")
+    if depth_rule not in DEPTH_RULES:
+        raise ValueError(f"depth_rule must be one of {', '.join(DEPTH_RULES)}, got {depth_rule!r}")
     K = intrinsics or CameraIntrinsics()
     period = 1.0 / K.rate_hz if period_s is None else float(period_s)
     if not period > 0:

@@ -147,7 +147,7 @@ def _depth_timer(built, clock: Clock):
     ext = built.systems.get("extractor")
     if ext is None or not ext.HasInputPort("depth_image") or not ext.HasInputPort("camera_info"):
         return None
-    window = int(getattr(ext, "_window", 5))
+    window, rule = int(ext.window), ext.depth_rule
     lo, hi = getattr(ext, "_range", (0.2, 10.0))
     pixels = ext.GetOutputPort("pixels")
 
@@ -159,7 +159,7 @@ def _depth_timer(built, clock: Clock):
         if not np.isfinite(uv).any():
             return math.nan  # nobody detected: the extractor skipped the lookup
         t0 = clock()
-        deproject(uv, depth_lookup(depth, uv, window=window, min_depth=lo, max_depth=hi), K)
+        deproject(uv, depth_lookup(depth, uv, window=window, min_depth=lo, max_depth=hi, rule=rule), K)
         return clock() - t0
 
     return timed

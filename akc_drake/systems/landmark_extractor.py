@@ -13,9 +13,11 @@ from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
 from akc_drake.core.camera import CameraFrame, CameraIntrinsics, Detector
 from akc_drake.core.landmark_extraction import (
+    DEFAULT_DEPTH_RULE,
     DEFAULT_SURFACE_OFFSET_M,
     camera_frame,
     check_extractor_options,
+    default_depth_window,
     extract_landmarks,
     surface_offsets,
     surface_to_centre_depth,
@@ -60,24 +62,31 @@ class LandmarkExtractor(LeafSystem):
         period_s: sampling period (default: the camera period).
         stage_offset_s: the per-stage offset (updates at ``t_k + timing.stage_offset("extractor", ...)``).
         seed: seed of the default simulated detector.
-        window: depth-lookup window (odd, pixels). min_depth, max_depth: valid depth range (metres).
+        window: depth-lookup window (odd, pixels); None: scaled with the focal length, 15 at 640x480
+            (:func:`~akc_drake.core.landmark_extraction.default_depth_window`). min_depth, max_depth: valid
+            depth range (metres).
         surface_offset_m: per-landmark surface-to-centre depth offsets, as
             :func:`~akc_drake.core.landmark_extraction.surface_offsets` takes them (None: the defaults).
+        depth_rule: the depth lookup's rule: ``nearest`` (the nearest surface in the window, the default) or
+            ``median`` (:func:`~akc_drake.core.camera.depth_lookup`).
     """
 
     def __init__(self, intrinsics: CameraIntrinsics | None = None, detector: Detector | None = None, *,
                  period_s: float | None = None, stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
-                 seed: int = 0, window: int = 5, min_depth: float = 0.2, max_depth: float = 10.0,
-                 surface_offset_m=None):
+                 seed: int = 0, window: int | None = None, min_depth: float = 0.2, max_depth: float = 10.0,
+                 surface_offset_m=None, depth_rule: str = DEFAULT_DEPTH_RULE):
         super().__init__()
         if detector is None:
             from akc_drake.core.sim_detector import SimulatedDetector
 
             detector = SimulatedDetector(seed=seed)
-        self._period = check_extractor_options(detector, intrinsics, window, period_s)
+        if window is None and (intrinsics is None or isinstance(intrinsics, CameraIntrinsics)):
+            window = default_depth_window(intrinsics)
+        self._period = check_extractor_options(detector, intrinsics, window, period_s, depth_rule)
         K = intrinsics or CameraIntrinsics()
         self._detector = detector
         self._window = int(window)
+        self._depth_rule = depth_rule
         self._offsets = surface_offsets(surface_offset_m)
         self._range = (float(min_depth), float(max_depth))
         self._offset = timing.stage_offset("extractor", stage_offset_s)
@@ -101,6 +110,16 @@ class LandmarkExtractor(LeafSystem):
         return self._detector
 
     @property
+    def window(self) -> int:
+        """The depth lookup's window (odd, pixels)."""
+        return self._window
+
+    @property
+    def depth_rule(self) -> str:
+        """The depth lookup's rule (``nearest`` or ``median``)."""
+        return self._depth_rule
+
+    @property
     def surface_offset_m(self) -> np.ndarray:
         """The ``(12,)`` surface-to-centre offsets this extractor applies (a copy)."""
         return self._offsets.copy()
@@ -121,7 +140,8 @@ class LandmarkExtractor(LeafSystem):
     def _update(self, context, discrete_state):
         lo, hi = self._range
         points, vis, uv = extract_landmarks(self.frame_from_inputs(context), self._detector, window=self._window,
-                                            min_depth=lo, max_depth=hi, surface_offset_m=self._offsets)
+                                            min_depth=lo, max_depth=hi, surface_offset_m=self._offsets,
+                                            depth_rule=self._depth_rule)
         discrete_state.get_mutable_vector(self._s_points).SetFromVector(points.ravel())
         discrete_state.get_mutable_vector(self._s_vis).SetFromVector(vis)
         discrete_state.get_mutable_vector(self._s_pix).SetFromVector(uv.ravel())

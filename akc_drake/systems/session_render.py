@@ -141,8 +141,9 @@ def render_session(
     frame_callback: Callable[[CameraFrame], None] | None = None,
     render_color: bool | None = None,
     background_wall_m: float | None = 1.5,
-    window: int = 5,
+    window: int | None = None,
     surface_offset_m=None,
+    depth_rule: str | None = None,
     rig_clip: dict | None = None,
 ) -> Session:
     """Render ``motion`` frame by frame and extract raw landmarks, without a simulator.
@@ -169,7 +170,10 @@ def render_session(
         render_color: render the colour image; None: only when the detector or ``frame_callback`` needs it
             (a detector declares ``needs_color = False`` to skip it; the frame then carries a black image).
         background_wall_m: see :class:`DepthCameraSource`.
-        window: depth-lookup window (pixels).
+        window: depth-lookup window (pixels; None: the extractor's default for the camera,
+            :func:`~akc_drake.core.landmark_extraction.default_depth_window`).
+        depth_rule: the depth lookup's rule, ``nearest`` or ``median`` (None: the extractor's default,
+            :data:`~akc_drake.core.landmark_extraction.DEFAULT_DEPTH_RULE`).
         surface_offset_m: the extractor's surface-to-centre depth offsets
             (:func:`~akc_drake.core.landmark_extraction.surface_offsets`; None: the same defaults as
             :class:`~akc_drake.systems.landmark_extractor.LandmarkExtractor`, 0: off).
@@ -181,15 +185,27 @@ def render_session(
     Returns:
         A :class:`Session`.
     """
-    from akc_drake.core.landmark_extraction import extract_landmarks, surface_offsets
+    from akc_drake.core.landmark_extraction import (
+        DEFAULT_DEPTH_RULE,
+        check_extractor_options,
+        default_depth_window,
+        extract_landmarks,
+        surface_offsets,
+    )
     from akc_drake.systems.depth_camera_source import DepthCameraSource
 
     K = intrinsics or CameraIntrinsics()
     offsets = surface_offsets(surface_offset_m)
+    window = default_depth_window(K) if window is None else window
+    depth_rule = DEFAULT_DEPTH_RULE if depth_rule is None else depth_rule
     owned = isinstance(detector, str)  # a detector made here from its name is closed here
     detector = make_detector(detector, seed)
-    if not isinstance(detector, Detector):
-        raise ValueError(f"detector must implement the Detector protocol (name, detect), got {detector!r}")
+    try:
+        check_extractor_options(detector, K, window, None, depth_rule)
+    except ValueError:
+        if owned and hasattr(detector, "close"):
+            detector.close()
+        raise
     needs_color, need_label = images_needed(detector)
     if render_color is None:
         render_color = frame_callback is not None or needs_color
@@ -243,7 +259,8 @@ def render_session(
         frame = CameraFrame(
             color=color, depth_m=depth, t=float(t), intrinsics=K, truth_C=truth[k], label=label
         )
-        raw[k], vis[k], pix[k] = extract_landmarks(frame, detector, window=window, surface_offset_m=offsets)
+        raw[k], vis[k], pix[k] = extract_landmarks(frame, detector, window=window, surface_offset_m=offsets,
+                                                   depth_rule=depth_rule)
         t2 = time.perf_counter()
         render_s[k], extract_s[k] = t1 - t0, t2 - t1
         if frame_callback is not None:
