@@ -8,7 +8,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from akc_drake.core.occlusion import BACKGROUND_M, DEPTH_NEIGHBOURS, PAPER_RULES, occlusion_filter
+from akc_drake.core.occlusion import (
+    BACKGROUND_M,
+    DEPTH_NEIGHBOURS,
+    HAND_REACH_M,
+    HIP_FRONT_M,
+    PAPER_RULES,
+    occlusion_filter,
+)
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, PROXIMAL_DISTAL_PAIRS
 
 W = 640  # 5 % of the width = 32 px
@@ -262,6 +269,55 @@ def test_an_elbow_read_on_the_wall_behind_its_shoulder_and_wrist_goes_back_on_it
     for bad in (0.0, -1.0, "0.6"):
         with pytest.raises(ValueError, match="background_m"):
             occlusion_filter(wall, pixels, vis, W, background_m=bad)
+
+
+#: Two frames of the teleop demo's pick-and-place (MediaPipe on the skinned body, seed 1, AKC(KF), t = 5.2 and
+#: 5.3 s), as S2 deprojected them: the right hand goes down to the box in front of the pelvis, its fingers cover
+#: the right hip's pixel and the hip reads them (1.972 -> 1.546 m) while its pixel stays where it was.
+HAND_OVER_HIP_BEFORE = np.array([
+    [0.158, -0.059, 1.989], [-0.133, -0.049, 1.801], [0.206, 0.179, 1.742], [-0.121, 0.122, 1.607],
+    [0.193, 0.156, 1.675], [-0.112, 0.212, 1.528], [0.158, 0.127, 1.562], [-0.124, 0.26, 1.491],
+    [0.164, 0.095, 1.557], [-0.102, 0.256, 1.496], [0.098, 0.449, 1.98], [-0.08, 0.451, 1.972]])
+HAND_OVER_HIP = np.array([
+    [0.157, -0.059, 1.989], [-0.135, -0.049, 1.822], [0.205, 0.177, 1.736], [-0.121, 0.12, 1.613],
+    [0.192, 0.156, 1.677], [-0.112, 0.216, 1.531], [0.158, 0.126, 1.558], [-0.125, 0.264, 1.493],
+    [0.164, 0.095, 1.557], [-0.102, 0.26, 1.498], [0.098, 0.449, 1.98], [-0.063, 0.353, 1.546]])
+
+
+def test_a_hip_read_on_the_hand_in_front_of_it_goes_back_on_its_ray():
+    rh, lh = INDEX["right_hip"], INDEX["left_hip"]
+    pixels, vis = np.full((NUM_LANDMARKS, 2), np.nan), np.full(NUM_LANDMARKS, 0.99)
+    held = np.full((NUM_LANDMARKS, 3), np.nan)
+    _, info = occlusion_filter(HAND_OVER_HIP_BEFORE, pixels, vis, W, held=held)
+    assert not info.depth_dropped.any()
+    accepted, info = occlusion_filter(HAND_OVER_HIP, pixels, vis, W, held=held)
+    assert info.depth_dropped.tolist() == [i == rh for i in range(NUM_LANDMARKS)]
+    # back on its ray at the depth last accepted: where it was the frame before, within the detector's jitter
+    np.testing.assert_allclose(accepted[rh, :2], HAND_OVER_HIP[rh, :2] * 1.972 / 1.546, rtol=1e-12)
+    assert np.linalg.norm(accepted[rh, :2] - HAND_OVER_HIP_BEFORE[rh, :2]) < 0.005
+    # The paper's filter has no such check (and here, without pixels, drops nothing).
+    assert PAPER_RULES["hand_reach_m"] is None
+    assert not occlusion_filter(HAND_OVER_HIP, pixels, vis, W, **PAPER_RULES)[1].depth_dropped.any()
+    # Each condition alone is not enough.
+    rw, ri, rp = INDEX["right_wrist"], INDEX["right_index"], INDEX["right_pinky"]
+    level = HAND_OVER_HIP.copy()  # the hips level (the hand at the hip's depth beside it, arms hanging): kept
+    level[lh, 2] = level[rh, 2] + HIP_FRONT_M - 0.01
+    far = HAND_OVER_HIP.copy()  # the hand 25 cm in front of the hip's reading (a body side-on): kept
+    far[[rw, ri, rp], :] *= (1.546 - 0.25) / far[[rw, ri, rp], 2:3]
+    away = HAND_OVER_HIP.copy()  # the hand's landmarks farther than the fingers reach across the ray: kept
+    for j in (rw, ri, rp):
+        away[j, 0] -= 0.08
+    hidden = vis.copy()  # the hand rejected (low visibility): kept
+    hidden[[rw, ri, rp]] = 0.2
+    for p, v in ((level, vis), (far, vis), (away, vis), (HAND_OVER_HIP, hidden)):
+        assert not occlusion_filter(p, pixels, v, W)[1].depth_dropped[rh]
+    # The reach is the argument: a shorter one keeps the hip (its fingers' knuckles are 8.5-9.3 cm from its ray).
+    assert occlusion_filter(HAND_OVER_HIP, pixels, vis, W, hand_reach_m=0.095)[1].depth_dropped[rh]
+    assert not occlusion_filter(HAND_OVER_HIP, pixels, vis, W, hand_reach_m=0.08)[1].depth_dropped[rh]
+    assert HAND_REACH_M > 0.095
+    for bad in (0.0, -1.0, float("nan"), "0.12"):
+        with pytest.raises(ValueError, match="hand_reach_m"):
+            occlusion_filter(HAND_OVER_HIP, pixels, vis, W, hand_reach_m=bad)
 
 
 def test_a_dropped_depths_x_y_go_on_its_pixel_ray_at_its_last_accepted_depth():

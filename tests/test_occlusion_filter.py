@@ -82,6 +82,27 @@ def test_a_depth_read_on_the_background_is_dropped_unless_the_check_is_off():
             OcclusionFilter(640, background_m=bad)
 
 
+def test_a_hip_read_on_a_hand_in_front_of_it_is_dropped_unless_the_check_is_off():
+    # The hips level at 2 m; the right hand 45 cm in front, 8 cm across the right hip's ray, and the hip reading it.
+    points = np.array([[0.1 * j - 0.6, 0.05 * j - 0.4, 2.0] for j in range(NUM_LANDMARKS)])
+    rh, lh, rw = INDEX["right_hip"], INDEX["left_hip"], INDEX["right_wrist"]
+    points[lh], points[rh] = [0.1, 0.45, 2.0], [-0.08, 0.45, 2.0]
+    points[rw] = np.array([-0.08, 0.45, 2.0]) * 1.55 / 2.0 + [0.08, 0.0, 0.0]
+    points[rh] *= 1.55 / 2.0  # (the same pixel, read on the hand)
+    vis = np.full(NUM_LANDMARKS, 0.95)
+    for reach, dropped in ((0.12, True), (None, False), (0.05, False)):
+        system = OcclusionFilter(640, hand_reach_m=reach)
+        context = system.CreateDefaultContext()
+        system.GetInputPort("landmarks_C").FixValue(context, points.reshape(-1))
+        system.GetInputPort("visibility").FixValue(context, vis)
+        flags = system.GetOutputPort("rejected").Eval(context)
+        assert flags[12:].tolist() == [float(dropped and i == rh) for i in range(NUM_LANDMARKS)]
+    assert OcclusionFilter(640).hand_reach_m == 0.12
+    for bad in (-0.5, 0.0, "0.12"):
+        with pytest.raises(ValueError, match="hand_reach_m"):
+            OcclusionFilter(640, hand_reach_m=bad)
+
+
 def test_unconnected_visibility_and_pixels_pass_landmarks_through():
     points, _, _ = frame()
     points[3] = np.nan

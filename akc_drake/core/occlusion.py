@@ -30,8 +30,21 @@ Three checks discard unreliable measurements before the Kalman filter (the third
    ``background_m``, longer than any such segment, is dropped as the proximity check drops one (``x``, ``y``
    kept, and with ``held`` put back on the ray).
 
-The first two checks are numpy, vectorised over the fixed pair list; the background check and the hold run on plain
-floats (12 rows).
+4. **A hand over a hip** (our rule, not the paper's: ``hand_reach_m``). A hand held in front of the pelvis (reaching
+   for a table, carrying something) covers a hip's pixel with its fingers, and the hip reads the hand. MediaPipe's
+   hip stays where it is in the image with high visibility, and nothing else above drops it: no pair of the
+   proximity check has a hip, and the reading is in front, not behind. Measured on the teleop demo's pick-and-place
+   (MediaPipe on the skinned body, seed 1, AKC(KF)): the right hip read 154.6 cm against its 197.2 the frame
+   before, the fingers 7-9 cm from its pixel; the teleop filter's gate let it through (4.3 m/s, under its 6 m/s
+   floor), the torso frame carried by the hips turned, and when the fingers curled to grasp the hip read 197 cm
+   again: the robot's wrist target swung 15 cm across the box while the operator's hand held still. A hip's depth
+   is dropped when it reads farther in front of the other hip than a turned pelvis puts it
+   (:data:`HIP_FRONT_M`), at the depth of an accepted hand landmark (wrist or knuckle, either hand, within
+   :data:`HAND_DEPTH_M`) whose hand reaches its pixel (within ``hand_reach_m`` of it, measured across the line
+   of sight at the hand's depth).
+
+The first two checks are numpy, vectorised over the fixed pair list; the background check, the hand check and the
+hold run on plain floats (12 rows).
 """
 
 from __future__ import annotations
@@ -107,10 +120,48 @@ def _drop_background(z: list, out: list, margin: float, depth_dropped: np.ndarra
             depth_dropped[i] = True
 
 
+#: How far across the line of sight a hand covers from its landmarks (metres): MediaPipe's knuckles are the
+#: fingers' bases (the index and pinky MCP joints), and an adult's fingers reach 8-10 cm past them; with the depth
+#: window's half width (2.5 cm at 2 m), 12 cm.
+HAND_REACH_M = 0.12
+#: A hip read farther than this (metres) in front of the other hip is no turned pelvis: MediaPipe's hip landmarks
+#: are about 20 cm apart on an adult (nearer each other than the shoulders), so a body turned side-on puts one at
+#: most that far in front of the other.
+HIP_FRONT_M = 0.20
+#: A hip reading within this (metres) of a hand landmark's depth is at the hand: the hand's own depth extent
+#: (fingers towards the camera or away) and the readings' noise.
+HAND_DEPTH_M = 0.15
+_HIPS = ((INDEX["left_hip"], INDEX["right_hip"]), (INDEX["right_hip"], INDEX["left_hip"]))
+_HAND = tuple(INDEX[f"{side}_{part}"] for side in ("left", "right") for part in ("wrist", "index", "pinky"))
+
+
+def _drop_hand_over_hip(points: list, out: list, reach: float, depth_dropped: np.ndarray) -> None:
+    """The hand check, in place on ``depth_dropped``: a hip read more than :data:`HIP_FRONT_M` in front of the
+    other hip, within :data:`HAND_DEPTH_M` of an accepted hand landmark's depth whose lateral distance from the
+    hip's ray at that depth is under ``reach`` (``points`` as lists of floats, ``out`` rejected or dropped)."""
+    isfinite = math.isfinite
+    for h, o in _HIPS:
+        if out[h] or out[o]:
+            continue
+        xh, yh, zh = points[h]
+        zo = points[o][2]
+        if not (isfinite(xh + yh + zh + zo) and zh > 0.0) or zo - zh <= HIP_FRONT_M:
+            continue
+        uh, vh = xh / zh, yh / zh
+        for d in _HAND:
+            xd, yd, zd = points[d]
+            if out[d] or not (isfinite(xd + yd + zd) and zd > 0.0) or abs(zh - zd) >= HAND_DEPTH_M:
+                continue
+            du, dv = (uh - xd / zd) * zd, (vh - yd / zd) * zd
+            if du * du + dv * dv < reach * reach:
+                depth_dropped[h] = True
+                break
+
+
 #: The paper's occlusion filter: its pairs, any detected distal joint may occlude, a dropped depth's x, y stay
-#: where S2 deprojected them, and no background check.
+#: where S2 deprojected them, and no background or hand check.
 PAPER_RULES = {"pairs": PAPER_PROXIMAL_DISTAL_PAIRS, "distal_must_be_accepted": False, "hold_rays": False,
-               "background_m": None}
+               "background_m": None, "hand_reach_m": None}
 
 
 class OcclusionInfo(NamedTuple):
@@ -134,9 +185,9 @@ def _as_shape(a, shape: tuple[int, ...], name: str) -> np.ndarray:
 
 
 def check_parameters(image_width: float, visibility_threshold: float, proximity: float,
-                     background_m: float | None = None) -> None:
-    """Raise a ``ValueError`` naming the parameter and value if any is out of range (``background_m``: None, or a
-    positive number of metres)."""
+                     background_m: float | None = None, hand_reach_m: float | None = None) -> None:
+    """Raise a ``ValueError`` naming the parameter and value if any is out of range (``background_m``,
+    ``hand_reach_m``: None, or a positive number of metres)."""
     if not isinstance(image_width, (int, float, np.integer, np.floating)) or not (
         math.isfinite(image_width) and image_width > 0
     ):
@@ -153,6 +204,11 @@ def check_parameters(image_width: float, visibility_threshold: float, proximity:
         isinstance(background_m, (int, float, np.integer, np.floating)) and background_m > 0.0
     ):
         raise ValueError(f"background_m must be a positive number of metres or None, got {background_m!r}")
+    if hand_reach_m is not None and not (
+        isinstance(hand_reach_m, (int, float, np.integer, np.floating)) and math.isfinite(hand_reach_m)
+        and hand_reach_m > 0.0
+    ):
+        raise ValueError(f"hand_reach_m must be a positive number of metres or None, got {hand_reach_m!r}")
 
 
 _SWAP = LEFT_RIGHT_SWAP.tolist()
@@ -204,6 +260,7 @@ def occlusion_filter(
     hold_rays: bool = True,
     held: np.ndarray | None = None,
     background_m: float | None = BACKGROUND_M,
+    hand_reach_m: float | None = HAND_REACH_M,
 ) -> tuple[np.ndarray, OcclusionInfo]:
     """Discard occluded landmarks and corrupted proximal depths (paper §II-C).
 
@@ -228,6 +285,9 @@ def occlusion_filter(
         background_m: drop the depth of a landmark read more than this (metres) behind every neighbour in
             :data:`DEPTH_NEIGHBOURS` whose depth is accepted (at least one); None: no background check (the
             paper's filter).
+        hand_reach_m: drop the depth of a hip read at a hand's depth, far in front of the other hip, with a hand
+            landmark within this (metres, across the line of sight) of its pixel ray (the module docstring's
+            check 4); None: no hand check (the paper's filter).
 
     Returns:
         ``(accepted_C, info)``: ``accepted_C`` is a new ``(12, 3)`` array (rejected rows all NaN,
@@ -236,7 +296,7 @@ def occlusion_filter(
     Raises:
         ValueError: an array has the wrong shape or a parameter is out of range (the message names it).
     """
-    check_parameters(image_width, visibility_threshold, proximity, background_m)
+    check_parameters(image_width, visibility_threshold, proximity, background_m, hand_reach_m)
     points = _as_shape(points_C, (NUM_LANDMARKS, 3), "points_C")
     pix = _as_shape(pixels, (NUM_LANDMARKS, 2), "pixels")
     vis = _as_shape(visibility, (NUM_LANDMARKS,), "visibility")
@@ -257,6 +317,9 @@ def occlusion_filter(
     if background_m is not None:
         _drop_background(points[:, 2].tolist(), (rejected | depth_dropped).tolist(), float(background_m),
                          depth_dropped)
+    if hand_reach_m is not None:  # (after the background: a hip read on the wall is no reference for the other)
+        _drop_hand_over_hip(points.tolist(), (rejected | depth_dropped).tolist(), float(hand_reach_m),
+                            depth_dropped)
 
     accepted = points.copy()
     accepted[rejected] = np.nan

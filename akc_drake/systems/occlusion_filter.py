@@ -12,6 +12,7 @@ from akc_drake.core.occlusion import (
     BACKGROUND_M,
     DEFAULT_PROXIMITY,
     DEFAULT_VISIBILITY_THRESHOLD,
+    HAND_REACH_M,
     check_parameters,
     occlusion_filter,
 )
@@ -23,7 +24,8 @@ _J = NUM_LANDMARKS
 
 class OcclusionFilter(LeafSystem):
     """Rejects low-visibility landmarks and drops the depth of proximal joints hidden by distal ones, and of
-    landmarks read on the background behind the body (``background_m``).
+    landmarks read on the background behind the body (``background_m``) or a hip read on a hand in front of it
+    (``hand_reach_m``).
 
     A direct-feedthrough wrapper of :func:`akc_drake.core.occlusion.occlusion_filter`. Without ``period_s``
     it has no state and each output is computed from the current inputs (``x``, ``y`` of a dropped depth kept
@@ -60,6 +62,8 @@ class OcclusionFilter(LeafSystem):
         stage_offset_s: the per-stage offset of :func:`akc_drake.systems.timing.stage_offset`.
         background_m: drop a depth read farther than this behind every accepted neighbour on the body (ours;
             None: off, as in the paper's filter).
+        hand_reach_m: drop a hip's depth read on a hand in front of it, the hand within this of its ray (ours;
+            None: off, as in the paper's filter; :func:`~akc_drake.core.occlusion.occlusion_filter`).
 
     Raises:
         ValueError: a parameter is out of range (the message names it).
@@ -75,14 +79,16 @@ class OcclusionFilter(LeafSystem):
         hold_rays: bool = True,
         stage_offset_s: float = timing.DEFAULT_STAGE_OFFSET_S,
         background_m: float | None = BACKGROUND_M,
+        hand_reach_m: float | None = HAND_REACH_M,
     ):
         super().__init__()
-        check_parameters(image_width, visibility_threshold, proximity, background_m)
+        check_parameters(image_width, visibility_threshold, proximity, background_m, hand_reach_m)
         self.image_width = float(image_width)
         self.visibility_threshold = float(visibility_threshold)
         self.proximity = float(proximity)
         self.hold_rays = bool(hold_rays)
         self.background_m = None if background_m is None else float(background_m)
+        self.hand_reach_m = None if hand_reach_m is None else float(hand_reach_m)
         self._u_landmarks = self.DeclareVectorInputPort("landmarks_C", 3 * _J)
         self._u_visibility = self.DeclareVectorInputPort("visibility", _J)
         self._u_pixels = self.DeclareVectorInputPort("pixels", 2 * _J)
@@ -128,6 +134,7 @@ class OcclusionFilter(LeafSystem):
             hold_rays=self.hold_rays,
             held=held,
             background_m=self.background_m,
+            hand_reach_m=self.hand_reach_m,
         )
 
     def _held(self, context) -> np.ndarray | None:
@@ -166,6 +173,7 @@ def AddOcclusionFilter(
     period_s: float | None = None,
     hold_rays: bool = True,
     background_m: float | None = BACKGROUND_M,
+    hand_reach_m: float | None = HAND_REACH_M,
     name: str = "OcclusionFilter",
 ) -> OcclusionFilter:
     """Add an :class:`OcclusionFilter` to ``builder`` and connect the given source ports.
@@ -174,7 +182,7 @@ def AddOcclusionFilter(
         builder: the diagram builder.
         landmarks_C, visibility, pixels: output ports to connect to the inputs of the same name
             (None leaves that input unconnected).
-        image_width, visibility_threshold, proximity, period_s, hold_rays, background_m: as for
+        image_width, visibility_threshold, proximity, period_s, hold_rays, background_m, hand_reach_m: as for
             :class:`OcclusionFilter`.
         name: the system's name.
 
@@ -183,7 +191,8 @@ def AddOcclusionFilter(
     """
     system = builder.AddSystem(
         OcclusionFilter(image_width, visibility_threshold=visibility_threshold, proximity=proximity,
-                        period_s=period_s, hold_rays=hold_rays, background_m=background_m)
+                        period_s=period_s, hold_rays=hold_rays, background_m=background_m,
+                        hand_reach_m=hand_reach_m)
     )
     system.set_name(name)
     for port, input_name in ((landmarks_C, "landmarks_C"), (visibility, "visibility"), (pixels, "pixels")):
