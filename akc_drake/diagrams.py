@@ -223,7 +223,8 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
     innovation gate is ``cfg.resolved_gate_sigma(teleop)`` (by default on for teleoperation only; an innovation within
     ``cfg.resolved_gate_speed_m_s()`` times the time since the last reading always passes) and its longest
     extrapolation ``cfg.resolved_max_predict_s(teleop)``; with ``teleop`` the filter also undoes a detector's
-    left/right swap and AKC holds an arm whose chosen configuration is anatomically impossible.
+    left/right swap, AKC holds an arm whose chosen configuration is anatomically impossible, and AKC+ keeps a seen
+    wrist against its forearm's fit (``AKCPlusConfig.seen_wrist_anchor``, unless ``cfg.akc_plus`` sets it).
     """
     from akc_drake.core.akc import WEIGHT_PRESETS
     from akc_drake.systems.occlusion_filter import OcclusionFilter
@@ -263,7 +264,8 @@ def AddMocapPipeline(builder: DiagramBuilder, cfg: PipelineConfig, dims: BodyDim
         from akc_drake.core.akc_plus_config import akc_plus_config
         from akc_drake.systems.arm_kinematic_correction import ArmKinematicCorrection
 
-        plus = akc_plus_config(cfg.akc_plus or None, cfg.filter) if cfg.corrector == "AKC+" else None
+        # (AKC+ keeps a seen wrist against its forearm's fit in the teleop diagram: the wrist is the robot's command.)
+        plus = akc_plus_config(cfg.akc_plus or None, cfg.filter, teleop) if cfg.corrector == "AKC+" else None
         akc = builder.AddSystem(
             ArmKinematicCorrection(dims, WEIGHT_PRESETS[cfg.weights], rate_hz=cfg.camera.rate_hz,
                                    stage_offset_s=cfg.stage_offset_s, anatomical_check=teleop,

@@ -1283,14 +1283,14 @@ def test_after_an_ekf_a_long_lost_wrist_counts_the_filter_no_surer_than_the_hold
     assert err[False][7] == pytest.approx(0.160, abs=0.005) and err[True][7] == pytest.approx(0.101, abs=0.005)
 
 
-def _recorded_frame(name, constrained_filter=False):
+def _recorded_frame(name, constrained_filter=False, **settings):
     """A frame of real data (tests/data/akc_plus/NAME: a MediaPipe evaluation clip's frame, after the KF, or after
     the EKF with ``constrained_filter``) and AKC+ in the state it had after the frames before: ``(corrector, dims,
     data)``; ``data`` holds ``pose``, ``measured``, ``variance`` (the corrector's inputs) and ``truth``. Recorded
     with ``get_state_vector`` while the evaluation ran; a change of the state's layout needs them recorded again."""
     d = np.load(Path(__file__).parent / "data" / "akc_plus" / name)
     dims = BodyDimensions(**dict(zip(("LUA", "LLA", "RUA", "RLA", "SW"), d["dims"].tolist(), strict=True)))
-    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=constrained_filter),
+    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=constrained_filter, **settings),
                                     period_s=1.0 / float(d["rate_hz"]))
     akc.set_state_vector(d["state"])
     return akc, dims, d
@@ -1312,6 +1312,31 @@ def test_a_wrist_lost_altogether_goes_radially_onto_the_forearm_sphere():
     assert abs(out[LW, 2] - truth[LW, 2]) < 0.075
     assert np.linalg.norm(out[[LS, LE]] - truth[[LS, LE]], axis=1).max() < 0.02  # (seen: MediaPipe's landmarks)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_the_seen_wrist_anchor_keeps_a_measured_wrist_that_the_forearm_fit_would_move():
+    # A frame of the teleop demo's pick-and-place (MediaPipe on the skinned body, seed 0, AKC+(KF) with the teleop
+    # filter, t = 5.4 s): the right arm reaches down and towards the camera. MediaPipe's 2D elbow is 13 cm below
+    # the joint, on the forearm, and reads its depth; the shoulder reads the upper arm 17 cm in front. The two fit
+    # each other (the upper arm within 1 cm of its length) and the shoulder is kept as seen; the forearm measures
+    # 11 cm against 27. Fitting the forearm in the filter's metric moved the seen wrist 10 cm down, and the robot's
+    # tool went into the box. With ``seen_wrist_anchor`` (the teleop diagram's) the wrist stays where it was read
+    # and the elbow goes on the circle between the kept shoulder and it.
+    RS, RE, RW = 1, 3, 5
+    off, dims, d = _recorded_frame("mediapipe_pick_place_seed0_teleop_10hz_frame54.npz")
+    on, _, _ = _recorded_frame("mediapipe_pick_place_seed0_teleop_10hz_frame54.npz", seen_wrist_anchor=True)
+    truth, m = d["truth"], d["measured"]
+    assert np.all(np.isfinite(m[[RS, RE, RW]]))
+    assert abs(np.linalg.norm(d["pose"][RE] - d["pose"][RW]) - dims.RLA) > 0.15  # (the forearm's misfit)
+    a = off.correct(d["pose"], m, d["variance"]).pose
+    b = on.correct(d["pose"], m, d["variance"]).pose
+    assert np.linalg.norm(a[RW, :2] - m[RW, :2]) > 0.08 and np.linalg.norm(a[RW] - truth[RW]) > 0.10
+    assert np.linalg.norm(b[RW, :2] - m[RW, :2]) < 0.01 and np.linalg.norm(b[RW] - truth[RW]) < 0.035
+    for out in (a, b):  # (exact lengths either way; the shoulder kept)
+        assert np.linalg.norm(out[RE] - out[RS]) == pytest.approx(dims.RUA, abs=1e-9)
+        assert np.linalg.norm(out[RW] - out[RE]) == pytest.approx(dims.RLA, abs=1e-9)
+        np.testing.assert_allclose(out[RS], d["pose"][RS], atol=1e-12)
+    np.testing.assert_array_equal(a[[0, 2, 4]], b[[0, 2, 4]])  # (the other arm as it was)
 
 
 def test_a_seen_shoulder_is_not_outvoted_into_a_rebuild_in_front_of_its_own_reading():

@@ -16,6 +16,8 @@ def test_defaults_are_the_measurement_model_of_the_kf():
     assert isinstance(AKCPlusConfig(gate_frames=4).gate_frames, float)
     # None: set from the filter AKC+ follows (``akc_plus_config``); True / False force it.
     assert c.constrained_filter is None and AKCPlusConfig(constrained_filter=True).constrained_filter is True
+    # None: set by where AKC+ runs (on in the teleop diagram); True / False force it.
+    assert c.seen_wrist_anchor is None and AKCPlusConfig(seen_wrist_anchor=False).seen_wrist_anchor is False
 
 
 @pytest.mark.parametrize("field, value", [("recent_frames", -1.0), ("gate_sigma", math.nan),
@@ -24,7 +26,7 @@ def test_defaults_are_the_measurement_model_of_the_kf():
                                           ("shoulder_alpha", 0.0),
                                           ("shoulder_alpha", 1.5), ("sigma_shoulder_m", -0.01),
                                           ("arm_radius_m", -0.05), ("arm_cover_deg", 90.5), ("constrained_filter", 1),
-                                          ("constrained_filter", "yes")])
+                                          ("constrained_filter", "yes"), ("seen_wrist_anchor", 0.0)])
 def test_bad_settings_name_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         AKCPlusConfig(**{field: value})
@@ -45,6 +47,12 @@ def test_settings_resolve_for_the_filter_they_follow():
     assert akc_plus_config(AKCPlusConfig(constrained_filter=True), "KF").constrained_filter is True
     given = AKCPlusConfig(gate_sigma=2.0)
     assert akc_plus_config(given) is given
+    # The seen wrist's anchor: set by ``teleop`` when left at None, kept when given (1 / 0 too); None leaves it.
+    assert akc_plus_config(None, "KF", True).seen_wrist_anchor is True
+    assert akc_plus_config(None, "KF", False).seen_wrist_anchor is False
+    assert akc_plus_config(None, "KF").seen_wrist_anchor is None
+    assert akc_plus_config({"seen_wrist_anchor": 0}, "KF", True).seen_wrist_anchor is False
+    assert akc_plus_config(AKCPlusConfig(seen_wrist_anchor=True), "EKF", False).seen_wrist_anchor is True
 
 
 @pytest.mark.parametrize("settings, match", [({"gate_sgima": 2.5}, "unknown AKC\\+ setting.*'gate_sgima'.*gate_sigma"),

@@ -94,6 +94,12 @@ def test_akc_plus_reads_the_filters_variance_in_the_diagram():
                                                                             "constrained_filter": 1.0}))
     c = tuned.systems["corrector"].corrector.config
     assert (c.gate_sigma, c.constrained_filter) == (2.5, True)
+    # The seen wrist's anchor is off in the mocap diagram (the evaluation's AKC+), on in the teleop one (unless given).
+    assert built.systems["corrector"].corrector.config.seen_wrist_anchor is False
+    tele = diagrams.build_teleop_diagram(cfg)
+    assert tele.systems["corrector"].corrector.config.seen_wrist_anchor is True
+    off = diagrams.build_teleop_diagram(dataclasses.replace(cfg, akc_plus={"seen_wrist_anchor": False}))
+    assert off.systems["corrector"].corrector.config.seen_wrist_anchor is False
 
 
 def test_coik_corrector_meets_lengths_on_success():

@@ -180,6 +180,7 @@ from akc_drake.core.akc_plus_evidence import (
     wrist_misfit,
 )
 from akc_drake.core.akc_plus_lengths import (
+    anchored_wrist,
     behind_surface,
     circle_pair,
     measured_arm,
@@ -206,10 +207,8 @@ from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions,
 if TYPE_CHECKING:  # (read by Cython when compiling: typed indices, see setup.py; never imported at run time)
     import cython
 
-_hypot, _inf = math.hypot, math.inf
-_isfinite = math.isfinite
-_NAN = float("nan")
-_F64 = np.dtype(np.float64)
+_hypot, _inf, _isfinite = math.hypot, math.inf, math.isfinite
+_NAN, _F64 = float("nan"), np.dtype(np.float64)
 
 
 def _as_f64(x):
@@ -218,7 +217,6 @@ def _as_f64(x):
 
 
 _FLAT, _SHAPE = 3 * NUM_LANDMARKS, (NUM_LANDMARKS, 3)
-
 _HAND = tuple(tuple(3 * INDEX[f"{s}_{j}"] for j in ("elbow", "wrist", "index", "pinky")) for s in SIDES)
 
 
@@ -242,7 +240,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost", "_s_floor",
-                 "_pair_z", "_blind_honest", "_cover2", "_width_gate")
+                 "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -277,7 +275,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._width_gate = self._gate2 * (2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var)
         # Settings read on the hot path, as plain attributes (one lookup instead of two).
         self._nis_a, self._nis_floor, self._tol = pf.nis_alpha, config.nis_floor, config.length_tol_m
-        self._refit = config.constrained_filter is True  # (None: not resolved for a filter, off)
+        self._refit, self._wrist_anchor = config.constrained_filter is True, config.seen_wrist_anchor is True
         # A constrained filter's variance of a joint lost altogether is no error measure after ``recent_frames``.
         self._blind_honest = pf.recent_frames if self._refit else _inf
         self._cons, self._xy_tol, self._occ_r2 = config.consistency_m, config.xy_tol_m, config.occlusion_radius_m**2
@@ -571,9 +569,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                             w_lost, w_seen, w_read, e = True, False, m[o_w + 2], None
             if e is None or (not w_seen and _hypot(e[0] - ex, e[1] - ey) > self._xy_tol):
                 # ... unless that moves the elbow off its image position (the filtered wrist lags, is off, or
-                # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen,
-                # else the shoulder's Pythagorean candidate, x, y kept, that best fits the filter, the previous
-                # output and the wrist) and the wrist at l_f from it along its own direction.
+                # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen, else the
+                # shoulder's Pythagorean candidate, x, y kept, that best fits the filter, the previous output and the
+                # wrist) and the wrist at l_f from it along its own direction.
                 if me:
                     e = _radial(sx, sy, sz, ex, ey, ez, lu)
                 else:
@@ -583,11 +581,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     inv_w2 = 1.0 / max(vs[8], 1.0 / self._inv_wrist2) if w_lost else self._inv_wrist2
                     e = self._choose_elbow(cands, ex, ey, ez, pe, ke, s, w, lu, lf, inv_w2)
                 if vs is not None and not w_lost:
-                    # With the covariance, the wrist does not take the whole correction: the elbow (at its image
-                    # x, y and this depth) and the wrist move as little as their variances allow (the kept
-                    # shoulder fixed), mostly in depth.
-                    # (The landmark offsets' variance added, as in the projection above.)
+                    # With the covariance, the wrist does not take the whole correction: the elbow (its image x, y,
+                    # this depth) and the wrist move as little as their variances allow (the kept shoulder fixed),
+                    # mostly in depth; not a measured wrist beyond the gate in x, y with ``seen_wrist_anchor``.
                     arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), vs[3:], lu, lf, self._off_var)
+                    if self._wrist_anchor and (a9 := anchored_wrist(arm, s, (ex, ey, ez), w, m, o_w, vs, lu, lf,
+                                                                    self._off_var, self._gate2)):
+                        return a9
                     if arm is not None:  # (as after the projection above)
                         if me and arm[5] < m[o_e + 2] - self._cons and pe is not None:
                             return behind_surface(arm, (*s, ex, ey, e[2], wx, wy, wz), vs, lu, lf, m[o_e + 2],

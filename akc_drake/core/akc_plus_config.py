@@ -7,6 +7,9 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+#: The settings that are switches (True, False or None: resolved by :func:`akc_plus_config`); the rest are numbers.
+SWITCHES = ("constrained_filter", "seen_wrist_anchor")
+
 
 @dataclass(frozen=True)
 class AKCPlusConfig:
@@ -106,6 +109,17 @@ class AKCPlusConfig:
             With a plain KF the excess NIS came as much from the measurement. None (the default): set from the
             filter AKC+ follows (:func:`akc_plus_config` with ``filter_kind``; the evaluation and the diagrams do):
             on after an EKF, off after a KF; a corrector built with None treats it as off.
+        seen_wrist_anchor: a wrist measured in 3D is kept where the fit of its forearm would move its x, y beyond
+            the gate: its elbow goes on the circle between the kept shoulder and the wrist, nearest the elbow's
+            estimate. Without it, a kept shoulder and a seen elbow whose lengths misfit the wrist share the misfit
+            with the wrist (``project_forearm``). Measured in the teleop demo's pick-and-place (MediaPipe on the
+            skinned body, reaching down and towards the camera): MediaPipe's 2D elbow 13 cm below the joint, on
+            the forearm, and the shoulder read on the upper arm, agree with each other; the fit moved the seen wrist
+            10-15 cm in the 15 frames before every failed grasp, and the tool pushed the box away (AKC+(KF) 3 of 10
+            seeds). On the real-motion sets the same rule costs a little: the MediaPipe clips' worst after the KF
+            +1.31 -> +1.94 cm (mocapbank's left wrist x, whose measurement was off), every other set within 0.02
+            cm. In teleoperation the wrist is the robot's command, and a measured one is the operator's hand;
+            None (the default): on in the teleop diagram, off elsewhere (:func:`akc_plus_config` with ``teleop``).
     """
 
     consistency_m: float = 0.05
@@ -135,13 +149,14 @@ class AKCPlusConfig:
     hips_lost_frames: float = 10.0
     hand_length_m: float = 0.085
     constrained_filter: bool | None = None
+    seen_wrist_anchor: bool | None = None
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name == "constrained_filter":  # (the one switch; every other field is a number)
+            if f.name in SWITCHES:  # (the switches; every other field is a number)
                 if v is not None and not isinstance(v, bool):
-                    raise ValueError(f"AKCPlusConfig.constrained_filter must be True, False or None, got {v!r}")
+                    raise ValueError(f"AKCPlusConfig.{f.name} must be True, False or None, got {v!r}")
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"AKCPlusConfig.{f.name} must be a finite number >= 0, got {v!r}")
@@ -235,15 +250,19 @@ def _weight(a: float, r: float) -> float:
     return a if r == 1.0 else 1.0 - (1.0 - a) ** r
 
 
-def akc_plus_config(settings=None, filter_kind: str | None = None) -> AKCPlusConfig:
-    """The :class:`AKCPlusConfig` of ``settings``, its ``constrained_filter`` resolved for the filter it follows.
+def akc_plus_config(settings=None, filter_kind: str | None = None, teleop: bool | None = None) -> AKCPlusConfig:
+    """The :class:`AKCPlusConfig` of ``settings``, its ``constrained_filter`` resolved for the filter it follows and
+    its ``seen_wrist_anchor`` for where it runs.
 
     Args:
         settings: None (the defaults), an :class:`AKCPlusConfig`, or a mapping of some of its fields (plain data:
             what a YAML config's ``akc_plus``, ``--akc-plus`` and the evaluation's workers carry).
-            ``constrained_filter`` there may also be 1 or 0 (a YAML map of numbers).
+            A switch (``constrained_filter``, ``seen_wrist_anchor``) there may also be 1 or 0 (a YAML map of
+            numbers).
         filter_kind: "KF" or "EKF" (the filter AKC+ follows), or None: a ``constrained_filter`` left at None is
             then set, True after the EKF; one the settings give is kept.
+        teleop: True in the teleop diagram, False elsewhere, None: left as it is. A ``seen_wrist_anchor`` left at
+            None is set to it; one the settings give is kept.
 
     Raises:
         ValueError: an unknown field (the known ones listed) or a value :class:`AKCPlusConfig` rejects.
@@ -258,13 +277,16 @@ def akc_plus_config(settings=None, filter_kind: str | None = None) -> AKCPlusCon
         if unknown:
             raise ValueError(f"unknown AKC+ setting(s) {', '.join(map(repr, unknown))}; known: {', '.join(names)}")
         kw = dict(settings)
-        switch = kw.get("constrained_filter")
-        if not isinstance(switch, bool) and isinstance(switch, (int, float)) and switch in (0, 1):
-            kw["constrained_filter"] = bool(switch)
+        for name in SWITCHES:
+            switch = kw.get(name)
+            if not isinstance(switch, bool) and isinstance(switch, (int, float)) and switch in (0, 1):
+                kw[name] = bool(switch)
         config = AKCPlusConfig(**kw)
     else:
         raise ValueError(f"AKC+ settings must be an AKCPlusConfig or a mapping of its fields, got "
                          f"{type(settings).__name__}")
     if filter_kind is not None and config.constrained_filter is None:
         config = dataclasses.replace(config, constrained_filter=filter_kind == "EKF")
+    if teleop is not None and config.seen_wrist_anchor is None:
+        config = dataclasses.replace(config, seen_wrist_anchor=bool(teleop))
     return config

@@ -165,6 +165,19 @@ def measured_arm(m, offsets):
     return t if _isfinite(sum(t)) else None
 
 
+def anchored_wrist(arm, s, e, w, m, o_w: int, v, lu: float, lf: float, offset_var: float, gate2: float):
+    """``AKCPlusConfig.seen_wrist_anchor``: when ``arm`` (the forearm's fit, :func:`project_forearm`) moves the wrist
+    measured in ``m`` (flat, at offset ``o_w``; all three coordinates) beyond the gate in x or y (``gate2`` times
+    its variance in ``v``, the arm's nine, plus ``offset_var``), the arm with the wrist ``w`` kept and the elbow on
+    the circle between the shoulder ``s`` and it, nearest ``e``; else None (None too without a circle)."""
+    if arm is None or m is None or not _isfinite(m[o_w] + m[o_w + 1] + m[o_w + 2]):
+        return None
+    if (arm[6] - m[o_w]) ** 2 <= gate2 * (v[6] + offset_var) and (arm[7] - m[o_w + 1]) ** 2 <= gate2 * (
+            v[7] + offset_var):
+        return None
+    return _circle(w[0], w[1], w[2], s[0], s[1], s[2], lf, lu, e[0], e[1], e[2])
+
+
 def project_forearm(s, f, v, lu: float, lf: float, offset_var: float = 0.0):
     """The elbow and wrist nearest ``f`` in the metric of variances ``v`` with ``|s - e| = lu``, ``|e - w| = lf``.
 
