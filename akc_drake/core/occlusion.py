@@ -1,6 +1,7 @@
 """The occlusion filter of stage S3 (paper §II-C, "Stage 3: Temporal Landmark Filtering").
 
-Three checks discard unreliable measurements before the Kalman filter (the third is ours, not the paper's):
+Four checks discard unreliable measurements before the Kalman filter (the third and the fourth are ours, not the
+paper's):
 
 1. **Visibility.** A landmark whose detector visibility is below ``visibility_threshold`` (0.7 in
    the paper), or is NaN, is rejected entirely: its whole row becomes NaN.
@@ -35,7 +36,7 @@ Three checks discard unreliable measurements before the Kalman filter (the third
    hip stays where it is in the image with high visibility, and nothing else above drops it: no pair of the
    proximity check has a hip, and the reading is in front, not behind. Measured on the teleop demo's pick-and-place
    (MediaPipe on the skinned body, seed 1, AKC(KF)): the right hip read 154.6 cm against its 197.2 the frame
-   before, the fingers 7-9 cm from its pixel; the teleop filter's gate let it through (4.3 m/s, under its 6 m/s
+   before, the knuckles 8.5-9.3 cm from its ray; the teleop filter's gate let it through (4.3 m/s, under its 6 m/s
    floor), the torso frame carried by the hips turned, and when the fingers curled to grasp the hip read 197 cm
    again: the robot's wrist target swung 15 cm across the box while the operator's hand held still. A hip's depth
    is dropped when it reads farther in front of the other hip than a turned pelvis puts it
