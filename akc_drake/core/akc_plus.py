@@ -585,9 +585,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                     # this depth) and the wrist move as little as their variances allow (the kept shoulder fixed),
                     # mostly in depth; not a measured wrist beyond the gate in x, y with ``seen_wrist_anchor``.
                     arm = project_forearm(s, (ex, ey, e[2], wx, wy, wz), vs[3:], lu, lf, self._off_var)
-                    if self._wrist_anchor and (a9 := anchored_wrist(arm, s, (ex, ey, ez), w, m, o_w, vs, lu, lf,
-                                                                    self._off_var, self._gate2)):
-                        return a9
+                    if self._wrist_anchor and (kept := anchored_wrist(arm, s, (ex, ey, ez), w, m, o_w, vs, lu, lf,
+                                                                      self._off_var, self._gate2)):
+                        return kept
                     if arm is not None:  # (as after the projection above)
                         if me and arm[5] < m[o_e + 2] - self._cons and pe is not None:
                             return behind_surface(arm, (*s, ex, ey, e[2], wx, wy, wz), vs, lu, lf, m[o_e + 2],
