@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 # The build's record of AKC+'s compiled modules (see below); before `install:`, whose prerequisites expand at once.
 COMPILED := akc_drake/core/_compiled_sources.json
 
-.PHONY: install demo test bench graphs lint system-deps clean mocap-data mocap-heldout
+.PHONY: install demo test bench graphs lint system-deps clean mocap-data mocap-heldout mocap-heldout2
 
 install: $(STAMP) $(COMPILED)
 
@@ -114,3 +114,9 @@ mocap-data: install
 # `make test`.
 mocap-heldout: install
 	$(PY) tools/fetch_mocap.py data/mocap_heldout --manifest data/mocap_heldout_sources.json
+
+# A second held-out set (akc-drake evaluate --motion-dir data/mocap_heldout2): two marker recordings (C3D) from
+# Debian's dart-doc (9.6 MB), another lab and marker set, evaluated as they came; sources and licence in
+# data/mocap_heldout2_sources.json. Not fetched by `make test`.
+mocap-heldout2: install
+	$(PY) tools/fetch_mocap.py data/mocap_heldout2 --manifest data/mocap_heldout2_sources.json

@@ -78,6 +78,45 @@ def test_markers_to_joints():
         c3d_joint_positions([labels[i] for i in keep], pts[:, keep], source="x.c3d")
 
 
+def _marker_pairs(m, P, half_mm=40.0):
+    """DART's C3D marker set (Georgia Tech's) on the BVH's joints: a marker either side of each arm joint, 2 *
+    ``half_mm`` apart (front/back shoulder, lateral/inner elbow, outer/inner wrist), the four waist markers."""
+    j = {n: P[:, m.joint_names.index(n)] for n in m.joint_names}
+    dx, dy = np.array([half_mm, 0.0, 0.0]), np.array([0.0, half_mm, 0.0])
+    pts = {}
+    for s, side in (("L", "Left"), ("R", "Right")):
+        pts[f"{s}FSH"], pts[f"{s}BSH"] = j[f"{side}Arm"] + dx, j[f"{side}Arm"] - dx
+        pts[f"{s}ELB"], pts[f"{s}IEL"] = j[f"{side}ForeArm"] + dy, j[f"{side}ForeArm"] - dy
+        pts[f"{s}OWR"], pts[f"{s}IWR"] = j[f"{side}Hand"] - dy, j[f"{side}Hand"] + dy
+        pts[f"{s}UPA"] = 0.5 * (j[f"{side}Arm"] + j[f"{side}ForeArm"]) + dx
+    for lab in ("LFWT", "RFWT", "LBWT", "RBWT"):
+        pts[lab] = j["Hips"] + (30.0 if lab[1] == "F" else -30.0) * np.array([1.0, 0, 0])
+    names = list(pts)
+    return np.stack([pts[n] for n in names], axis=1), [f"Nick01:{n}" for n in names]
+
+
+def test_marker_pairs_either_side_of_a_joint_give_its_centre():
+    m, P = _bvh_points()
+    pts, labels = _marker_pairs(m, P)
+    pos, names = c3d_joint_positions(labels, pts)
+    assert names == ["left_shoulder", "left_elbow", "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
+                     "hips"]
+    for k, joint in enumerate(["LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm", "RightHand",
+                               "Hips"]):
+        np.testing.assert_allclose(pos[:, k], P[:, m.joint_names.index(joint)], atol=1e-9)  # 40 mm either side
+    # The pair comes before the lateral epicondyle alone (which Plug-in Gait files have without the inner one).
+    keep = [i for i, lab in enumerate(labels) if not lab.endswith("LIEL")]
+    pos1, _ = c3d_joint_positions([labels[i] for i in keep], pts[:, keep])
+    np.testing.assert_allclose(pos1[:, 1], pts[:, labels.index("Nick01:LELB")])
+    # A name map's "A+B" averages a group of markers; a group with an absent marker is one line.
+    pos2, names2 = c3d_joint_positions(labels, pts, {"left_elbow": "LUPA+LELB"})
+    want = 0.5 * (pts[:, labels.index("Nick01:LUPA")] + pts[:, labels.index("Nick01:LELB")])
+    np.testing.assert_allclose(pos2[:, names2.index("left_elbow")], want)
+    np.testing.assert_allclose(pos2[:, names2.index("right_elbow")], pos[:, 4])
+    with pytest.raises(UserError, match="'LUPA\\+NOPE'.*group A\\+B"):
+        c3d_joint_positions(labels, pts, {"left_elbow": "LUPA+NOPE"})
+
+
 @pytest.mark.parametrize("labels_from", ["plug-in gait", "akc-drake export"])
 def test_a_c3d_file_drives_the_operator_as_its_bvh_does(tmp_path, labels_from):
     m, P = _bvh_points()

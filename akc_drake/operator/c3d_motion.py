@@ -8,13 +8,17 @@ the file has (labels compared without a ``Subject:`` prefix and without case; a 
 * the Plug-in Gait / CMU markers on the bony landmarks: the shoulder ``LSHO`` (acromion), the elbow ``LELB``
   (lateral epicondyle), the wrist between ``LWRA`` and ``LWRB`` (the radial and ulnar styloids); the pelvis
   between ``LASI``, ``RASI``, ``LPSI``, ``RPSI`` (CMU's waist markers ``LFWT``, ``RFWT``, ``LBWT``, ``RBWT``;
-  without a pelvis, the lower thorax ``T10``, ``STRN``: what the up axis is found from).
+  without a pelvis, the lower thorax ``T10``, ``STRN``: what the up axis is found from);
+* markers in pairs either side of a joint, whose midpoint is nearer its centre than one skin marker (the marker
+  set of DART's C3D recordings, Georgia Tech's): the shoulder between ``LFSH`` and ``LBSH`` (front and back), the
+  elbow between ``LELB`` and ``LIEL`` (the lateral and the inner, medial, epicondyle: before ``LELB`` alone), the
+  wrist between ``LOWR`` and ``LIWR`` (outer and inner).
 
 Markers sit on the skin, 3-5 cm from the joint centres, so the segment directions carry a few degrees of that
 offset (what the retargeting takes from a file is directions: :mod:`akc_drake.operator.retarget`). A marker's
 gaps (invalid frames, NaN in ezc3d) are filled by linear interpolation in time (held before the first and after
 the last valid frame); a marker with no valid frame counts as absent. A ``names`` map (role -> label) overrides
-the choice for a marker set these names miss.
+the choice for a marker set these names miss; ``LFSH+LBSH`` there averages a group of markers.
 """
 
 from __future__ import annotations
@@ -27,9 +31,9 @@ from akc_drake.errors import UserError
 
 #: Per role, the label groups tried in order (a group's markers are averaged); "{s}" is "L" or "R".
 MARKER_RULES: dict[str, tuple[tuple[str, ...], ...]] = {
-    "shoulder": (("{side}_shoulder",), ("{s}SJC",), ("{s}SHO",)),
-    "elbow": (("{side}_elbow",), ("{s}EJC",), ("{s}ELB",)),
-    "wrist": (("{side}_wrist",), ("{s}WJC",), ("{s}WRA", "{s}WRB"), ("{s}WRA",), ("{s}WRB",)),
+    "shoulder": (("{side}_shoulder",), ("{s}SJC",), ("{s}SHO",), ("{s}FSH", "{s}BSH")),
+    "elbow": (("{side}_elbow",), ("{s}EJC",), ("{s}ELB", "{s}IEL"), ("{s}ELB",)),
+    "wrist": (("{side}_wrist",), ("{s}WJC",), ("{s}WRA", "{s}WRB"), ("{s}WRA",), ("{s}WRB",), ("{s}OWR", "{s}IWR")),
     "hip": (("{side}_hip",), ("{s}HJC",)),
     "index": (("{side}_index",),),
     "pinky": (("{side}_pinky",),),
@@ -91,7 +95,8 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
     Args:
         labels: the M point labels.
         points: ``(T, M, 3)`` positions, NaN where invalid.
-        names: optional role -> label map (roles as :data:`akc_drake.operator.retarget.ROLES`).
+        names: optional role -> label map (roles as :data:`akc_drake.operator.retarget.ROLES`); a label
+            ``A+B`` is the mean of markers ``A`` and ``B``.
         source: the file name for error messages.
 
     Returns:
@@ -133,10 +138,11 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
         for part, rules in MARKER_RULES.items():
             role = f"{side}_{part}"
             if role in names:
-                x = marker(names[role])
+                x = group(tuple(names[role].split("+")))
                 if x is None:
                     raise UserError(f"{source}: the name map sets {role} = {names[role]!r}, which is not a marker "
-                                    f"with a valid frame (labels: {', '.join(map(str, labels))})")
+                                    "(or a group A+B of markers) with a valid frame "
+                                    f"(labels: {', '.join(map(str, labels))})")
             else:
                 x = next((g for r in rules if (g := group(tuple(lab.format(side=side, s=side[0].upper())
                                                                   for lab in r))) is not None), None)
@@ -149,7 +155,7 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
             out_names.append(role)
             out.append(x)
     if "hips" in names:
-        x = marker(names["hips"])
+        x = group(tuple(names["hips"].split("+")))
         if x is None:
             raise UserError(f"{source}: the name map sets hips = {names['hips']!r}, which is not a marker with a "
                             "valid frame")
