@@ -113,7 +113,7 @@ def test_marker_pairs_either_side_of_a_joint_give_its_centre():
     want = 0.5 * (pts[:, labels.index("Nick01:LUPA")] + pts[:, labels.index("Nick01:LELB")])
     np.testing.assert_allclose(pos2[:, names2.index("left_elbow")], want)
     np.testing.assert_allclose(pos2[:, names2.index("right_elbow")], pos[:, 4])
-    with pytest.raises(UserError, match="'LUPA\\+NOPE'.*group A\\+B"):
+    with pytest.raises(UserError, match="'LUPA\\+NOPE', but 'NOPE' is no marker.*a group is A\\+B"):
         c3d_joint_positions(labels, pts, {"left_elbow": "LUPA+NOPE"})
 
 

@@ -140,9 +140,10 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
             if role in names:
                 x = group(tuple(names[role].split("+")))
                 if x is None:
-                    raise UserError(f"{source}: the name map sets {role} = {names[role]!r}, which is not a marker "
-                                    "(or a group A+B of markers) with a valid frame "
-                                    f"(labels: {', '.join(map(str, labels))})")
+                    bad = [lab for lab in names[role].split("+") if marker(lab) is None]
+                    raise UserError(f"{source}: the name map sets {role} = {names[role]!r}, but "
+                                    f"{', '.join(map(repr, bad))} is no marker with a valid frame (a group is A+B; "
+                                    f"labels: {', '.join(map(str, labels))})")
             else:
                 x = next((g for r in rules if (g := group(tuple(lab.format(side=side, s=side[0].upper())
                                                                   for lab in r))) is not None), None)
