@@ -115,6 +115,11 @@ def test_marker_pairs_either_side_of_a_joint_give_its_centre():
     np.testing.assert_allclose(pos2[:, names2.index("right_elbow")], pos[:, 4])
     with pytest.raises(UserError, match="'LUPA\\+NOPE', but 'NOPE' is no marker.*a group is A\\+B"):
         c3d_joint_positions(labels, pts, {"left_elbow": "LUPA+NOPE"})
+    pos3, names3 = c3d_joint_positions(labels, pts, {"hips": "LFWT+RFWT"})  # the pelvis by a group too
+    want = 0.5 * (pts[:, labels.index("Nick01:LFWT")] + pts[:, labels.index("Nick01:RFWT")])
+    np.testing.assert_allclose(pos3[:, names3.index("hips")], want)
+    with pytest.raises(UserError, match="hips = 'LFWT\\+NOPE', but 'NOPE' is no marker"):
+        c3d_joint_positions(labels, pts, {"hips": "LFWT+NOPE"})
 
 
 @pytest.mark.parametrize("labels_from", ["plug-in gait", "akc-drake export"])

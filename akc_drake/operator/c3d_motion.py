@@ -125,6 +125,17 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
         xs = [marker(lab) for lab in labels_]
         return None if any(x is None for x in xs) else np.mean(xs, axis=0)
 
+    def named(role: str) -> np.ndarray:
+        """The name map's marker (or ``A+B`` group) for ``role``; a label absent or never valid is one line."""
+        group_labels = tuple(names[role].split("+"))
+        x = group(group_labels)
+        if x is None:
+            bad = [lab for lab in group_labels if marker(lab) is None]
+            raise UserError(f"{source}: the name map sets {role} = {names[role]!r}, but "
+                            f"{', '.join(map(repr, bad))} is no marker with a valid frame (a group is A+B; "
+                            f"labels: {', '.join(map(str, labels))})")
+        return x
+
     from akc_drake.operator.retarget import ROLES
 
     out_names: list[str] = []
@@ -138,12 +149,7 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
         for part, rules in MARKER_RULES.items():
             role = f"{side}_{part}"
             if role in names:
-                x = group(tuple(names[role].split("+")))
-                if x is None:
-                    bad = [lab for lab in names[role].split("+") if marker(lab) is None]
-                    raise UserError(f"{source}: the name map sets {role} = {names[role]!r}, but "
-                                    f"{', '.join(map(repr, bad))} is no marker with a valid frame (a group is A+B; "
-                                    f"labels: {', '.join(map(str, labels))})")
+                x = named(role)
             else:
                 x = next((g for r in rules if (g := group(tuple(lab.format(side=side, s=side[0].upper())
                                                                   for lab in r))) is not None), None)
@@ -156,10 +162,7 @@ def c3d_joint_positions(labels, points, names: dict | None = None, *, source: st
             out_names.append(role)
             out.append(x)
     if "hips" in names:
-        x = group(tuple(names["hips"].split("+")))
-        if x is None:
-            raise UserError(f"{source}: the name map sets hips = {names['hips']!r}, which is not a marker with a "
-                            "valid frame")
+        x = named("hips")
     else:
         x = next((g for r in PELVIS_RULES if (g := group(r)) is not None), None)
     if x is not None:
