@@ -177,6 +177,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate-hz", type=float, default=10.0, metavar="HZ",
                    help="the camera's frame rate (default: 10, the paper's; a RealSense streams at 30); motion "
                    "files and the --motion-dir clips are retargeted at it")
+    p.add_argument("--camera", default="default", metavar="PLACEMENT",
+                   help="where the simulated camera stands, metres from the operator's pelvis: default (2 m in "
+                   "front, 0.45 m up, level) or distance_m=D,height_m=H,lateral_m=L (to the operator's left),"
+                   "aim_height_m=A (it faces the operator's vertical axis, aimed A above the pelvis; default level), "
+                   "fields left out the default's, or a JSON file; the calibration T-pose is rendered from it too")
     _add_akc_plus(p)
     p.add_argument("--add-corrector", action="append", metavar="NAME=FILE.py:FACTORY",
                    help="a corrector of your own, run as NAME(KF) and NAME(EKF) beside the others (added to the "

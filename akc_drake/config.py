@@ -367,6 +367,72 @@ def parse_filter_settings(text: str, option: str = "--filter-settings") -> dict:
     return settings
 
 
+#: ``--camera`` fields, metres, in the operator's pelvis frame O (x forward, y left, z up): the camera's distance in
+#: front, height above the pelvis and offset to the operator's left, and the height above the pelvis of the point
+#: on the operator's vertical axis (through the pelvis) its optical axis passes through: the camera faces the
+#: operator, level when ``aim_height_m`` is absent (None: at the camera's own height).
+CAMERA_FIELDS = ("distance_m", "height_m", "lateral_m", "aim_height_m")
+#: The evaluation's camera (and :class:`CameraConfig`'s): 2 m in front at chest height, level, facing the operator.
+DEFAULT_CAMERA = {"distance_m": CameraConfig.distance_m, "height_m": CameraConfig.height_m, "lateral_m": 0.0,
+                  "aim_height_m": None}
+
+
+def parse_camera(text: str, option: str = "--camera") -> dict | str:
+    """The simulated camera's placement from the command line: ``default``, ``field=value[,field=value...]`` inline
+    (:data:`CAMERA_FIELDS`; a field left out is the default camera's, :data:`DEFAULT_CAMERA`) or a JSON file holding
+    an object with those fields.
+
+    Returns:
+        ``"default"`` for the default camera (however it was spelt), else every field of :data:`CAMERA_FIELDS`
+        (``aim_height_m`` None: level), the form a render spec keys renders by.
+
+    Raises:
+        UserError: as :func:`~akc_drake.option_maps.read_option_map`, an unknown field (the known ones listed), a
+            value that is not a finite number, or a camera 0.3 m or less in front of the pelvis, each naming
+            ``option``.
+    """
+    if str(text).strip().lower() == "default":
+        return "default"
+
+    def number(name, value):
+        try:
+            return float(value)
+        except ValueError:
+            raise UserError(f"{option}: {name}={value!r} is not a number (metres)") from None
+
+    found = read_option_map(text, option, "field=value", "distance_m=3,height_m=1,aim_height_m=0.45",
+                            "field -> metres", number)
+    unknown = sorted(set(found) - set(CAMERA_FIELDS))
+    if unknown:
+        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(CAMERA_FIELDS)}; "
+                        "or default)")
+    camera = dict(DEFAULT_CAMERA)
+    for name, value in found.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise UserError(f"{option}: {name} must be a finite number of metres, got {value!r}")
+        camera[name] = float(value)
+    if not camera["distance_m"] > 0.3:
+        raise UserError(f"{option}: distance_m must be more than 0.3 m (in front of the operator), "
+                        f"got {camera['distance_m']:g}")
+    if camera["aim_height_m"] is not None and camera["aim_height_m"] == camera["height_m"]:
+        camera["aim_height_m"] = None  # (aimed level: the same camera)
+    return "default" if camera == DEFAULT_CAMERA else camera
+
+
+def describe_camera(camera) -> str:
+    """A camera placement (:func:`parse_camera`'s result) in words, for the tables' titles: ``default camera`` or
+    e.g. ``camera 3 m in front, 1 m above the pelvis, 0.8 m to the left, aimed 0.45 m above the pelvis``."""
+    if camera in (None, "default"):
+        return "default camera"
+    words = [f"camera {camera['distance_m']:g} m in front", f"{camera['height_m']:g} m above the pelvis"]
+    lateral = float(camera.get("lateral_m", 0.0))
+    if lateral:
+        words.append(f"{abs(lateral):g} m to the {'left' if lateral > 0 else 'right'}")
+    aim = camera.get("aim_height_m")
+    words.append("level" if aim is None else f"aimed {aim:g} m above the pelvis")
+    return ", ".join(words)
+
+
 def parse_arm_limits(text: str, option: str = "--arm-limits") -> ArmLimitsConfig:
     """The arms' acceleration and jerk limits (:class:`ArmLimitsConfig`) from the command line: ``off`` (no
     limiter), ``acceleration=A,jerk=J`` inline (rad/s^2, rad/s^3; one number for every joint, a field left out

@@ -222,3 +222,44 @@ def test_the_pose_model_named_by_the_environment_is_in_the_key(tmp_path, monkeyp
     monkeypatch.setenv("AKC_DRAKE_POSE_MODEL", str(a))
     assert C.dependency_fingerprint(spec) == fa
     assert C.dependency_fingerprint({"detector": "mediapipe", "options": {"pose_model": str(b)}}) == fb
+
+
+def test_a_camera_placement_is_in_the_key_and_reaches_the_renderer(tmp_path):
+    """``--camera``: a placed camera keys its own renders, the renderer gets its pose, Motions I and II reach toward
+    it, and a rendered T-pose from 3 m, or from above aimed at the chest, has its joints where that camera sees
+    them (the truth is in the camera frame)."""
+    from akc_drake.config import parse_camera
+    from akc_drake.core.skeleton import INDEX
+    from akc_drake.evaluation.motion_set import tpose_spec
+
+    far = parse_camera("distance_m=3")
+    high = parse_camera("distance_m=2.5,height_m=1.1,aim_height_m=0.45")
+    r = CountingRenderer()
+    for camera in ("default", far, high, far):
+        C.cached_render(spec(camera=camera), cache=tmp_path, render=r)
+    assert len(r.calls) == 3  # the second far camera is read back
+    assert C.camera_placement("default") is None and "camera_pose" not in C._render_kwargs(spec())
+    placement = C._render_kwargs(spec(camera=high))["camera_pose"]
+    X = placement.X_OC()
+    assert np.allclose(X.translation(), [2.5, 0.0, 1.1])
+    axis = X.rotation().matrix()[:, 2]  # the optical axis passes through the chest, 0.45 m above the pelvis
+    t = -X.translation()[0] / axis[0]
+    assert np.allclose(X.translation() + t * axis, [0.0, 0.0, 0.45])
+    with pytest.raises(ValueError, match="unknown camera 'top'"):
+        C.camera_placement("top")
+    near_target = C._motion_of(spec())
+    far_target = C._motion_of(spec(camera=far))
+    assert not np.allclose(near_target.q_left, far_target.q_left)  # the reach aims at the camera 1 m farther
+    hips = [INDEX["left_hip"], INDEX["right_hip"]]
+    shoulders = [INDEX["left_shoulder"], INDEX["right_shoulder"]]
+    level = C.render_uncached(tpose_spec(seconds=0.2, body="primitive"))
+    seen_far = C.render_uncached(tpose_spec(seconds=0.2, body="primitive", camera=far))
+    seen_high = C.render_uncached(tpose_spec(seconds=0.2, body="primitive", camera=high))
+    pelvis = [s.truth[0, hips].mean(axis=0) for s in (level, seen_far, seen_high)]
+    assert pelvis[0] == pytest.approx([0.0, 0.45, 2.0], abs=1e-9)
+    assert pelvis[1] == pytest.approx([0.0, 0.45, 3.0], abs=1e-9)
+    chest = seen_high.truth[0, shoulders].mean(axis=0)
+    # Seen from 1.1 m above the pelvis, tilted down: the pelvis is farther than the shoulders and lower in the
+    # image; the chest 0.45 m up is on the optical axis, the shoulders (0.05 m above it) just above the centre.
+    assert pelvis[2][2] > chest[2] and pelvis[2][1] > 0.4 and -0.06 < chest[1] < -0.04
+    assert np.isfinite(seen_high.raw[0, shoulders + hips, 2]).all()  # the simulated detector still finds them

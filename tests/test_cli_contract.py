@@ -130,6 +130,17 @@ def test_run_takes_akc_plus_settings(capsys):
     assert "gate_sigma must be a finite number >= 0" in capsys.readouterr().err
 
 
+def test_evaluate_takes_a_camera_placement(capsys):
+    from akc_drake.commands.evaluate import build_config
+
+    args = cli.build_parser().parse_args(["evaluate", "--camera", "distance_m=3,lateral_m=-0.5"])
+    assert build_config(args).camera == {"distance_m": 3.0, "height_m": 0.45, "lateral_m": -0.5, "aim_height_m": None}
+    assert build_config(cli.build_parser().parse_args(["evaluate"])).camera == "default"
+    assert cli.main(["evaluate", "--camera", "distance=3"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--camera: unknown field(s) distance (known: distance_m, height_m" in err
+
+
 def test_run_cycles_named(capsys):
     assert cli.main(["run", "--cycles", "0"]) == 2
     assert capsys.readouterr().err.strip() == "akc-drake run: error: --cycles must be at least 1, got 0"

@@ -1,14 +1,17 @@
 import pytest
 
 from akc_drake.config import (
+    DEFAULT_CAMERA,
     TELEOP_FILTER_SETTINGS,
     ArmLimitsConfig,
     CameraConfig,
     PipelineConfig,
+    describe_camera,
     dump_config,
     load_config,
     parse_akc_plus,
     parse_arm_limits,
+    parse_camera,
     parse_filter_settings,
 )
 from akc_drake.errors import UserError
@@ -150,6 +153,34 @@ def test_filter_settings_from_the_command_line(tmp_path):
                         ("gate_speed_m_s=inf", "gate_speed_m_s")):
         with pytest.raises(UserError, match="--filter-settings.*" + match):
             parse_filter_settings(text)
+
+
+def test_camera_placement_from_the_command_line(tmp_path):
+    """``--camera``: the default camera however spelt (one render-cache key), fields inline or in JSON with the
+    rest the default's, words for the tables, and errors that name the option and the field."""
+    assert DEFAULT_CAMERA == {"distance_m": CameraConfig().distance_m, "height_m": CameraConfig().height_m,
+                              "lateral_m": 0.0, "aim_height_m": None}
+    for text in ("default", " Default ", "distance_m=2", "lateral_m=0,height_m=0.45", "aim_height_m=0.45"):
+        assert parse_camera(text) == "default", text
+    assert parse_camera("distance_m=3") == {"distance_m": 3.0, "height_m": 0.45, "lateral_m": 0.0,
+                                            "aim_height_m": None}
+    high = parse_camera("distance_m=2.5,height_m=1.1,aim_height_m=0.45")
+    assert high == {"distance_m": 2.5, "height_m": 1.1, "lateral_m": 0.0, "aim_height_m": 0.45}
+    path = tmp_path / "camera.json"
+    path.write_text('{"lateral_m": -1, "distance_m": 2.2}')
+    side = parse_camera(str(path))
+    assert side == {"distance_m": 2.2, "height_m": 0.45, "lateral_m": -1.0, "aim_height_m": None}
+    assert describe_camera("default") == "default camera"
+    assert describe_camera(high) == "camera 2.5 m in front, 1.1 m above the pelvis, aimed 0.45 m above the pelvis"
+    assert describe_camera(side) == "camera 2.2 m in front, 0.45 m above the pelvis, 1 m to the right, level"
+    for text, match in (("dist=3", "unknown field.*dist.*distance_m"), ("distance_m=0.2", "more than 0.3 m"),
+                        ("height_m=high", "height_m='high' is not a number"), ("lateral_m=nan", "lateral_m"),
+                        ("", "empty")):
+        with pytest.raises(UserError, match="--camera.*" + match):
+            parse_camera(text)
+    path.write_text('{"distance_m": "far"}')
+    with pytest.raises(UserError, match="--camera: distance_m must be a finite number"):
+        parse_camera(str(path))
 
 
 def test_depth_lookup_settings_load_validate_and_reach_the_extractor(tmp_path):

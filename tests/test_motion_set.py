@@ -369,6 +369,31 @@ def test_the_clips_are_retargeted_at_the_camera_rate(tmp_path):
         evaluate_motion_dir(tmp_path, methods=["KF"], cache=False, progress=False, rate_hz=0.0)
 
 
+def test_a_placed_camera_renders_the_clips_and_the_t_pose_from_where_it_stands(tmp_path):
+    """``--camera`` with ``--motion-dir``: the T-pose and every clip are rendered from the placed camera (their own
+    render-cache keys), the result and the tables' titles name it, and the calibration from 3 m gives the same arm
+    lengths within the farther camera's depth noise."""
+    from akc_drake.config import parse_camera
+    from akc_drake.evaluation.cache import spec_key
+    from akc_drake.evaluation.motion_set import clip_spec, evaluate_motion_dir
+
+    shutil.copy(DATA / "upper_body.bvh", tmp_path / "a.bvh")
+    far = parse_camera("distance_m=3,height_m=0.6")
+    clip = find_clips(tmp_path)[0]
+    assert spec_key(clip_spec(clip, camera=far)) != spec_key(clip_spec(clip))
+    kw = dict(methods=["KF", "AKC+(KF)"], seed=0, protocol="ours", cache=False, progress=False, tpose_seconds=1.0)
+    level = evaluate_motion_dir(tmp_path, **kw)
+    placed = evaluate_motion_dir(tmp_path, camera=far, **kw)
+    assert level["camera"] == "default" and placed["camera"] == far and placed["failures"] == []
+    for seg in ("LUA", "LLA", "RUA", "RLA"):
+        assert placed["dims_cm"][seg] == pytest.approx(level["dims_cm"][seg], abs=1.5), seg
+    titles = [t.title for t in motion_dir_tables(placed)]
+    assert titles and all(t.endswith("(ours protocol, camera 3 m in front, 0.6 m above the pelvis, level)")
+                          for t in titles), titles
+    with pytest.raises(ValueError, match="unknown camera 'far'"):
+        evaluate_motion_dir(tmp_path, camera="far", **kw)
+
+
 def test_a_bad_clip_fails_alone(tmp_path, capsys):
     from akc_drake.evaluation.motion_set import evaluate_motion_dir
 
@@ -393,6 +418,8 @@ def test_motion_dir_command_options(tmp_path, capsys):
     assert "--detector both: not with --motion-dir" in capsys.readouterr().err
     assert cli_main(base + ["--workers", "0"]) == 2
     assert "--workers must be at least 1" in capsys.readouterr().err
+    assert cli_main(base + ["--camera", "distance_m=0.1"]) == 2
+    assert "--camera: distance_m must be more than 0.3 m" in capsys.readouterr().err
     assert cli_main(base + ["--akc-plus", "nope=1"]) == 2
     assert "--akc-plus: unknown AKC+ setting(s) 'nope'" in capsys.readouterr().err
     example = Path(__file__).resolve().parents[1] / "examples" / "segment_lengths.py"

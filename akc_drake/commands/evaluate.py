@@ -108,6 +108,13 @@ def _motion_file_options(args) -> tuple[str | None, str | None]:
     return str(p), (str(sk) if sk else None)
 
 
+def _camera(args):
+    """``--camera``, read (:func:`~akc_drake.config.parse_camera`)."""
+    from akc_drake.config import parse_camera
+
+    return parse_camera(getattr(args, "camera", None) or "default")
+
+
 def _rate_hz(args) -> float:
     """``--rate-hz``, checked (a UserError names a rate outside 1-240 Hz)."""
     rate = getattr(args, "rate_hz", 10.0)
@@ -151,6 +158,7 @@ def build_config(args):
             protocol=getattr(args, "protocol", "paper"),
             options=MethodOptions(akc_plus_config=akc_plus, correctors=correctors or None),
             filter_settings=_filter_settings(args),
+            camera=_camera(args),
         )
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -257,7 +265,7 @@ def run_motion_dir(args) -> int:
                                  weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
                                  scheduler=scheduler, n_workers=workers, drive=drive, clips=clips,
                                  akc_plus=_akc_plus(args), correctors=correctors, rate_hz=rate,
-                                 filter_settings=_filter_settings(args))
+                                 filter_settings=_filter_settings(args), camera=_camera(args))
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))

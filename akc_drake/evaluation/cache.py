@@ -131,7 +131,9 @@ def render_spec(
         seed: the renderer's noise and the motion's variation.
         cycle_s: the motion's cycle period (None: cycles from the motion, or none).
         frames: keep only the first ``frames`` frames (calibration holds).
-        body, detector, camera: the operator's body, the detector and the camera placement by name.
+        body, detector: the operator's body and the detector by name.
+        camera: the camera's placement, ``"default"`` or the fields of
+            :func:`~akc_drake.config.parse_camera` (:func:`camera_placement`).
         options: more keyword arguments of ``render_session`` (plain values, e.g. ``surface_offset_m``).
 
     Raises:
@@ -163,7 +165,7 @@ def render_spec(
         "frames": None if frames is None else int(frames),
         "body": str(body),
         "detector": str(detector),
-        "camera": str(camera),
+        "camera": dict(camera) if isinstance(camera, dict) else str(camera),
         "options": json.loads(json.dumps(options or {}, sort_keys=True)),
     }
 
@@ -345,12 +347,36 @@ def window_motion(motion, window_s, name: str):
     return OperatorMotion(t[sel] - t[sel][0], motion.q_left[sel], motion.q_right[sel], name=name)
 
 
+def camera_placement(camera):
+    """The :class:`~akc_drake.systems.camera_scene.CameraPlacement` of a render spec's ``camera``: None for
+    ``"default"`` (the renderer's own), else the placement of :func:`~akc_drake.config.parse_camera`'s fields, facing
+    the operator's vertical axis at ``aim_height_m`` (None: level).
+
+    Raises:
+        ValueError: another name, or a placement the renderer refuses.
+    """
+    if camera in (None, "default"):
+        return None
+    if not isinstance(camera, dict):
+        raise ValueError(f"render spec: unknown camera {camera!r} (default, or its placement's fields)")
+    from akc_drake.systems.camera_scene import CameraPlacement
+
+    aim = camera.get("aim_height_m")
+    height = float(camera["height_m"])
+    return CameraPlacement(distance_m=float(camera["distance_m"]), height_m=height,
+                           lateral_m=float(camera.get("lateral_m", 0.0)),
+                           look_at_O=(0.0, 0.0, height if aim is None else float(aim)))
+
+
 def _motion_of(spec: dict):
     m = spec["motion"]
     if m["kind"] == "builtin":
         from akc_drake.operator.motions import make_motion
 
-        return make_motion(m["name"], cycles=int(m["cycles"]), seed=spec["seed"])
+        placement = camera_placement(spec.get("camera", "default"))
+        # (Motions I and II reach toward the camera, wherever it is, as the teleop diagram's rendered operator does)
+        extra = {} if placement is None else {"target_O": tuple(float(v) for v in placement.position_O())}
+        return make_motion(m["name"], cycles=int(m["cycles"]), seed=spec["seed"], **extra)
     if m["kind"] == "hold":
         from akc_drake.operator import motions
 
@@ -367,12 +393,16 @@ def _motion_of(spec: dict):
 
 
 def _render_kwargs(spec: dict) -> dict:
-    """Keyword arguments of ``render_session`` for the spec's body, detector and camera (default: none)."""
+    """Keyword arguments of ``render_session`` for the spec's body, detector and camera placement (default:
+    none)."""
     kwargs = {}
-    for field in ("body", "detector", "camera"):
-        default = {"body": "primitive", "detector": "sim", "camera": "default"}[field]
+    for field in ("body", "detector"):
+        default = {"body": "primitive", "detector": "sim"}[field]
         if spec.get(field, default) != default:
             kwargs[field] = spec[field]
+    placement = camera_placement(spec.get("camera", "default"))
+    if placement is not None:
+        kwargs["camera_pose"] = placement
     kwargs.update(spec.get("options") or {})
     if kwargs:
         import inspect

@@ -91,6 +91,8 @@ class ExperimentConfig:
             data; ``--filter-settings``, :func:`~akc_drake.config.parse_filter_settings`), or None.
         body: the rendered operator, "primitive" or "skinned" (``--body``).
         detector: the 2D detector on the renders, "sim" or "mediapipe" (``--detector``).
+        camera: the camera's placement, "default" or the fields of :func:`~akc_drake.config.parse_camera`
+            (``--camera``); Motions I and II reach toward it wherever it is.
     """
 
     motions: tuple[str, ...] = ("I", "II")
@@ -113,6 +115,7 @@ class ExperimentConfig:
     detector: str = "sim"
     protocol: str = "paper"
     filter_settings: dict | None = None
+    camera: str | dict = "default"
 
     def __post_init__(self):
         from akc_drake.evaluation.protocol import PROTOCOLS
@@ -142,6 +145,9 @@ class ExperimentConfig:
             raise ValueError(f"--body must be primitive or skinned, got {self.body!r}")
         if self.detector not in ("sim", "mediapipe"):
             raise ValueError(f"--detector must be sim or mediapipe, got {self.detector!r}")
+        from akc_drake.evaluation.cache import camera_placement
+
+        camera_placement(self.camera)  # (an unknown camera fails here)
         if self.options.akc_plus_config is not None:
             from akc_drake.core.akc_plus_config import akc_plus_config
 
@@ -418,6 +424,7 @@ class Evaluation:
             "visibility_threshold": cfg.options.visibility_threshold,
             "proximity": cfg.options.proximity,
             "akc_plus": akc_plus_record(cfg.options.akc_plus_config),
+            "camera": dict(cfg.camera) if isinstance(cfg.camera, dict) else cfg.camera,
             "elapsed_s": self.elapsed_s,
             "render_s": self.render_s,
         }

@@ -105,11 +105,13 @@ def clip_spec(
     height: int = 480,
     drive: str = "angles",
     rate_hz: float = 10.0,
+    camera: str | dict = "default",
 ) -> dict:
     """The render spec (:func:`~akc_drake.evaluation.cache.render_spec`) of one clip: its file's and skeleton's
-    content, its joint-name map and window, the seed, the camera (and its frame rate ``rate_hz``, which the clip
-    is retargeted at), the body, the detector and the protocol's depth extraction: everything that changes its
-    rendered session, so that the render cache keys it.
+    content, its joint-name map and window, the seed, the camera (its frame rate ``rate_hz``, which the clip is
+    retargeted at, and its placement ``camera``, :func:`~akc_drake.config.parse_camera`), the body, the detector
+    and the protocol's depth extraction: everything that changes its rendered session, so that the render cache
+    keys it.
 
     Raises:
         UserError: the clip's file is missing.
@@ -136,14 +138,16 @@ def clip_spec(
         seed=seed,
         body=body,
         detector=detector,
+        camera=camera,
         options=options,
     )
 
 
 def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive", detector: str = "sim",
-               seconds: float = 10.0, width: int = 640, height: int = 480, rate_hz: float = 10.0) -> dict:
-    """The render spec of the calibration T-pose held ``seconds`` (same camera and frame rate, body and detector
-    as the clips)."""
+               seconds: float = 10.0, width: int = 640, height: int = 480, rate_hz: float = 10.0,
+               camera: str | dict = "default") -> dict:
+    """The render spec of the calibration T-pose held ``seconds`` (same camera, placement and frame rate, body and
+    detector as the clips)."""
     from akc_drake.evaluation.cache import render_spec
     from akc_drake.evaluation.experiment import scaled_intrinsics
     from akc_drake.evaluation.protocol import render_kwargs
@@ -155,6 +159,7 @@ def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive
         seed=seed,
         body=body,
         detector=detector,
+        camera=camera,
         options=render_kwargs(protocol),
     )
 
@@ -185,7 +190,8 @@ def evaluate_clip(item: dict) -> dict:
             ("primitive" | "skinned"), ``"detector"`` ("sim" | "mediapipe"), ``"cache"`` (None: the default
             render cache, False: off, or a folder), ``"akc_plus"`` (AKC+ settings, field -> value, or None),
             ``"filter_settings"`` (the filters' settings changed from the protocol's, field -> value, or None),
-            ``"correctors"`` (correctors of your own, name -> import path, which the worker imports) and
+            ``"correctors"`` (correctors of your own, name -> import path, which the worker imports),
+            ``"camera"`` (the camera's placement: "default" or :func:`~akc_drake.config.parse_camera`'s fields) and
             ``"frame_progress"`` (a progress bar over the clip's frames as they render, on stderr).
 
     Returns:
@@ -204,7 +210,7 @@ def evaluate_clip(item: dict) -> dict:
     protocol = item.get("protocol", "paper")
     spec = clip_spec(clip, protocol=protocol, seed=int(item.get("seed", 0)), body=item.get("body", "primitive"),
                      detector=item.get("detector", "sim"), drive=item.get("drive", "angles"),
-                     rate_hz=float(item.get("rate_hz", 10.0)))
+                     rate_hz=float(item.get("rate_hz", 10.0)), camera=item.get("camera", "default"))
     t0 = time.perf_counter()
     if item.get("frame_progress"):  # in-process only: a worker's stderr is not the user's terminal
         from tqdm import tqdm
@@ -479,6 +485,7 @@ def evaluate_motion_dir(
     correctors: dict | None = None,
     rate_hz: float = 10.0,
     filter_settings: dict | None = None,
+    camera: str | dict = "default",
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -511,9 +518,11 @@ def evaluate_motion_dir(
         filter_settings: the KF's and the EKF's settings changed from the protocol's, field -> value
             (:func:`~akc_drake.config.parse_filter_settings`; ``--filter-settings``), or None; the calibration's
             filter too.
+        camera: the camera's placement relative to the operator, "default" (2 m in front at chest height,
+            level) or the fields of :func:`~akc_drake.config.parse_camera` (``--camera``); the T-pose too.
 
     Returns:
-        ``{"protocol", "seed", "rate_hz", "body", "detector", "akc_plus", "filter_settings", "correctors",
+        ``{"protocol", "seed", "rate_hz", "camera", "body", "detector", "akc_plus", "filter_settings", "correctors",
         "methods", "dims_cm",
         "clips": [evaluate_clip results],
         "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "worst_regression_seen",
@@ -527,6 +536,10 @@ def evaluate_motion_dir(
     from akc_drake.evaluation.protocol import check_protocol, method_options, with_filter_settings
 
     check_protocol(protocol)
+    from akc_drake.evaluation.cache import camera_placement
+
+    camera = dict(camera) if isinstance(camera, dict) else camera
+    camera_placement(camera)  # (an unknown camera fails here, before anything renders)
     filter_settings = dict(filter_settings) if filter_settings else None
     options = with_filter_settings(method_options(protocol), filter_settings)  # (a bad setting fails here)
     if akc_plus:
@@ -539,7 +552,7 @@ def evaluate_motion_dir(
     from tqdm import tqdm
 
     spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds,
-                      rate_hz=rate_hz)
+                      rate_hz=rate_hz, camera=camera)
     with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
         tpose, tpose_hit = render_clip(spec, cache=cache, progress=lambda n, _name: bar.update(n))
     dims = calibrate_session(tpose, "tpose", options)
@@ -548,7 +561,7 @@ def evaluate_motion_dir(
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
          "akc_plus": settings, "correctors": dict(correctors or {}), "rate_hz": float(rate_hz),
-         "filter_settings": filter_settings, "frame_progress": bool(progress) and scheduler == "inprocess"}
+         "filter_settings": filter_settings, "camera": camera, "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
     raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
@@ -561,6 +574,7 @@ def evaluate_motion_dir(
         "protocol": protocol,
         "seed": seed,
         "rate_hz": float(rate_hz),
+        "camera": camera,
         "body": body,
         "detector": detector,
         "drive": drive,
@@ -599,12 +613,15 @@ def evaluate_motion_dir(
 
 
 def _setup(result: dict) -> str:
-    """", skinned body, mediapipe detector" when not the default primitive body and simulated detector, and ", 30
-    Hz" when not the default 10 Hz camera."""
+    """", skinned body, mediapipe detector" when not the default primitive body and simulated detector, ", 30
+    Hz" when not the default 10 Hz camera and the camera's placement when not the default one."""
+    from akc_drake.config import describe_camera
+
     body, det = result.get("body", "primitive"), result.get("detector", "sim")
     rate = float(result.get("rate_hz", 10.0))
+    camera = result.get("camera", "default")
     return ("" if (body, det) == ("primitive", "sim") else f", {body} body, {det} detector") + (
-        "" if rate == 10.0 else f", {rate:g} Hz")
+        "" if rate == 10.0 else f", {rate:g} Hz") + ("" if camera == "default" else f", {describe_camera(camera)}")
 
 
 def motion_dir_tables(result: dict) -> list:
