@@ -313,3 +313,25 @@ def test_the_jump_rule_is_off_without_the_shoulder_hold_and_records_a_depth_anot
     assert f == _flat(p[[LS, LE, INDEX["left_wrist"]]]) and akc._pair_z[0][2:] == [2.0, 0.0]
     m[3 * LS + 2] = float("nan")
     assert not akc._shoulder_jumped(f, [1e-4] * 9, m, 0, False) and akc._pair_z[0][2:] == [2.0, 1.0]
+
+
+@pytest.mark.parametrize("constrained", [False, True])
+def test_after_an_ekf_a_long_blind_shoulder_counts_the_filter_no_surer_than_the_hold(constrained):
+    # The left shoulder's depth dropped for 10 frames; the filter's has drifted 20 cm behind, claiming 1 cm. The hold
+    # (2.0 m, its walk at 11 frames: 11e-4) and the filter fused by their variances: a KF's is believed (2.183 m);
+    # after an EKF, blind beyond recent_frames (3), its variance counts no less than the hold's (2.1 m).
+    akc, p = _corrector(constrained_filter=constrained), _pose()
+    anchor = ((0.0, 0.5, 2.0), [0.18, -0.5, 0.0, 10.0])
+    f = _flat(p[[LS, LE, INDEX["left_wrist"]]])
+    f[2] = 2.2
+    vs = [1e-4] * 9
+    m = _flat(p)
+    m[3 * LS + 2] = float("nan")  # the depth dropped, x and y measured
+    m[3 * INDEX["left_wrist"]:3 * INDEX["left_wrist"] + 3] = [float("nan")] * 3
+    assert akc._hold_on_torso(f, vs, m, 0, anchor)
+    vh = 1e-4 * 11
+    v = vh if constrained else 1e-4
+    assert anchor[1][3] == 11.0 and f[:2] == pytest.approx([0.18, 0.0], abs=1e-12)  # (x, y measured: depth only)
+    assert f[2] == pytest.approx((vh * 2.2 + v * 2.0) / (v + vh), abs=1e-12)
+    assert f[2] == pytest.approx(2.1 if constrained else 2.1833, abs=1e-4)
+    assert vs[2] == pytest.approx(v * vh / (v + vh), abs=1e-15)

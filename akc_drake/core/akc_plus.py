@@ -69,12 +69,12 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   x, y too) is the filter's fused with the shoulder held on the torso, our outputs' offset from the hips' centre
   while it was seen (a running mean, weight ``shoulder_alpha``, both hips' depths measured) carried by this
   frame's hips, a random walk of ``sigma_shoulder_m^2`` per blind frame (:func:`~akc_drake.core.akc_plus_evidence.
-  fuse_held`): a constant-velocity filter that holds the landmark claims a variance that grows without
-  bound, and the arm rebuilt from the elbow then carried the elbow's depth error into a shoulder the filter held
-  well (the bench's Motion I, bvhtools_a1's left shoulder behind the right hand); one that extrapolates a lost
-  shoulder ran 30 cm off in x. The hips count only when both their measured depths pass the innovation test
-  and they are no farther apart than the shoulders; where they have been no reference for a second (out of the
-  image, as at a desk), the other shoulder carries the held shoulder (:mod:`akc_drake.core.akc_plus_torso`).
+  fuse_held`; an EKF's variance, blind past ``recent_frames``, no less than the hold's): a constant-velocity filter
+  that holds the landmark claims a variance that grows without bound, and the arm rebuilt from the elbow then carried
+  the elbow's depth error into a shoulder the filter held well (the bench's Motion I, bvhtools_a1's left shoulder
+  behind the right hand); one that extrapolates a lost shoulder ran 30 cm off in x. The hips count only when both
+  their measured depths pass the innovation test and they are no farther apart than the shoulders; where they have
+  been no reference for a second (out of the image), the other shoulder carries it (``akc_plus_torso``).
 * A measured shoulder depth that both the shoulder held on the torso (beyond the gate of the hold's and the
   measurement's variances) and the seen elbow contradict (the upper arm from it misses its length by more than
   ``consistency_m``, from the held depth at the same pixel by that much less), or one in front of the held depth

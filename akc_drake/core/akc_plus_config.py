@@ -94,7 +94,8 @@ class AKCPlusConfig:
             trustworthy error measure only shortly after a measurement (the running NIS was measured then;
             further on, unmodelled motion, or an EKF's bone constraints, which are the rebuild's own lengths,
             dominate it). After a constrained filter, a joint lost altogether for longer counts the filter's
-            extrapolation as no surer than the segment held at its neighbour
+            extrapolation as no surer than the segment held at its neighbour, and a shoulder whose depth is dropped
+            for longer its filter's depth as no surer than the shoulder held on the torso
             (:func:`~akc_drake.core.akc_plus_evidence.fuse_held`'s ``honest_frames``).
         hips_lost_frames: the hips no torso reference (not measured, or a depth failing the innovation test) for
             this many frames (1 s at 10 Hz: out of the image, not a hand passing over a hip), the other shoulder,

@@ -160,7 +160,8 @@ def fuse_held(f, vs, held, anchor, v_step: float, base, axes=(0, 1, 2), honest_f
       or itself held first), and the wrist then at the fused elbow;
     * a shoulder whose depth the occlusion filter dropped (``base`` 0, ``axes`` ``(2,)``), or that the detector
       lost altogether (all three axes): the shoulder's running-mean offset from the hips' centre, at this frame's
-      hips' centre (the shoulder sits on the torso; ``v_step`` = ``sigma_shoulder_m^2``). A constant-velocity
+      hips' centre (the shoulder sits on the torso; ``v_step`` = ``sigma_shoulder_m^2``; after a constrained
+      filter with ``honest_frames`` too). A constant-velocity
       filter that holds the landmark reports a variance that grows without bound, so eq. 8 from the elbow would
       replace a shoulder it holds well with one that carries the elbow's depth error, several cm; one that
       extrapolates a lost landmark carries the velocity of its last, often disturbed, measurements: 30 cm in x

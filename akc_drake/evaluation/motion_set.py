@@ -108,10 +108,9 @@ def clip_spec(
     camera: str | dict = "default",
 ) -> dict:
     """The render spec (:func:`~akc_drake.evaluation.cache.render_spec`) of one clip: its file's and skeleton's
-    content, its joint-name map and window, the seed, the camera (its frame rate ``rate_hz``, which the clip is
-    retargeted at, and its placement ``camera``, :func:`~akc_drake.config.parse_camera`), the body, the detector
-    and the protocol's depth extraction: everything that changes its rendered session, so that the render cache
-    keys it.
+    content, its joint-name map and window, the seed, the camera (its rate ``rate_hz``, which the clip is retargeted
+    at, and its placement), the body, the detector and the protocol's depth extraction: everything that changes
+    its rendered session, so that the render cache keys it.
 
     Raises:
         UserError: the clip's file is missing.
@@ -518,8 +517,7 @@ def evaluate_motion_dir(
         filter_settings: the KF's and the EKF's settings changed from the protocol's, field -> value
             (:func:`~akc_drake.config.parse_filter_settings`; ``--filter-settings``), or None; the calibration's
             filter too.
-        camera: the camera's placement relative to the operator, "default" (2 m in front at chest height,
-            level) or the fields of :func:`~akc_drake.config.parse_camera` (``--camera``); the T-pose too.
+        camera: the camera's placement, "default" or :func:`~akc_drake.config.parse_camera`'s (the T-pose's too).
 
     Returns:
         ``{"protocol", "seed", "rate_hz", "camera", "body", "detector", "akc_plus", "filter_settings", "correctors",
@@ -530,15 +528,12 @@ def evaluate_motion_dir(
         "worst_regression_lost_3d" (over the frames each joint was lost), "lost_joint_gain", "lost_frames",
         "render_cache": {"dir", "hits", "misses"}, "elapsed_s"}``.
     """
-    from akc_drake.evaluation.cache import _resolve
+    from akc_drake.evaluation.cache import _resolve, camera_placement
     from akc_drake.evaluation.executor import TaskFailure, run_tasks
     from akc_drake.evaluation.experiment import akc_plus_record, calibrate_session
     from akc_drake.evaluation.protocol import check_protocol, method_options, with_filter_settings
 
     check_protocol(protocol)
-    from akc_drake.evaluation.cache import camera_placement
-
-    camera = dict(camera) if isinstance(camera, dict) else camera
     camera_placement(camera)  # (an unknown camera fails here, before anything renders)
     filter_settings = dict(filter_settings) if filter_settings else None
     options = with_filter_settings(method_options(protocol), filter_settings)  # (a bad setting fails here)
@@ -560,8 +555,8 @@ def evaluate_motion_dir(
     items = [
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
-         "akc_plus": settings, "correctors": dict(correctors or {}), "rate_hz": float(rate_hz),
-         "filter_settings": filter_settings, "camera": camera, "frame_progress": bool(progress) and scheduler == "inprocess"}
+         "akc_plus": settings, "correctors": dict(correctors or {}), "rate_hz": float(rate_hz), "camera": camera,
+         "filter_settings": filter_settings, "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
     raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
@@ -574,8 +569,7 @@ def evaluate_motion_dir(
         "protocol": protocol,
         "seed": seed,
         "rate_hz": float(rate_hz),
-        "camera": camera,
-        "body": body,
+        "camera": camera, "body": body,
         "detector": detector,
         "drive": drive,
         "akc_plus": settings,
@@ -617,9 +611,8 @@ def _setup(result: dict) -> str:
     Hz" when not the default 10 Hz camera and the camera's placement when not the default one."""
     from akc_drake.config import describe_camera
 
-    body, det = result.get("body", "primitive"), result.get("detector", "sim")
+    body, det, camera = result.get("body", "primitive"), result.get("detector", "sim"), result.get("camera", "default")
     rate = float(result.get("rate_hz", 10.0))
-    camera = result.get("camera", "default")
     return ("" if (body, det) == ("primitive", "sim") else f", {body} body, {det} detector") + (
         "" if rate == 10.0 else f", {rate:g} Hz") + ("" if camera == "default" else f", {describe_camera(camera)}")
 
