@@ -59,6 +59,11 @@ class CameraConfig:
     distance_m: float = 2.0
     #: Camera height above the operator's pelvis, metres (chest height).
     height_m: float = 0.45
+    #: Camera offset toward the operator's left, metres (negative: the right); it still faces the operator.
+    lateral_m: float = 0.0
+    #: The height above the pelvis of the point on the operator's vertical axis the optical axis passes through
+    #: (None: the camera's own height, level). ``evaluate --camera`` takes the same four fields.
+    aim_height_m: float | None = None
     #: Stereo model: baseline (m) and sub-pixel disparity noise (px); sigma_z = z^2 sigma_d / (f b).
     baseline_m: float = 0.05
     disparity_noise_px: float = 0.08
@@ -268,6 +273,11 @@ class PipelineConfig:
             )
         if self.camera.rate_hz <= 0 or self.camera.width <= 0 or self.camera.height <= 0:
             raise UserError("config.camera: width, height and rate_hz must be positive")
+        cam = self.camera
+        place = [cam.distance_m, cam.height_m, cam.lateral_m] + ([] if cam.aim_height_m is None else [cam.aim_height_m])
+        if not all(math.isfinite(float(v)) for v in place) or not cam.distance_m > 0.3:
+            raise UserError("config.camera: distance_m (more than 0.3 m), height_m, lateral_m and aim_height_m must be "
+                            f"finite metres, got {cam.distance_m}, {cam.height_m}, {cam.lateral_m}, {cam.aim_height_m}")
         self.arm_limits.validate()
         if self.akc_plus:
             from akc_drake.core.akc_plus_config import akc_plus_config
@@ -373,8 +383,8 @@ def parse_filter_settings(text: str, option: str = "--filter-settings") -> dict:
 #: operator, level when ``aim_height_m`` is absent (None: at the camera's own height).
 CAMERA_FIELDS = ("distance_m", "height_m", "lateral_m", "aim_height_m")
 #: The evaluation's camera (and :class:`CameraConfig`'s): 2 m in front at chest height, level, facing the operator.
-DEFAULT_CAMERA = {"distance_m": CameraConfig.distance_m, "height_m": CameraConfig.height_m, "lateral_m": 0.0,
-                  "aim_height_m": None}
+DEFAULT_CAMERA = {"distance_m": CameraConfig.distance_m, "height_m": CameraConfig.height_m,
+                  "lateral_m": CameraConfig.lateral_m, "aim_height_m": CameraConfig.aim_height_m}
 
 
 def parse_camera(text: str, option: str = "--camera") -> dict | str:

@@ -95,7 +95,7 @@ def sim_camera(cfg: PipelineConfig):
     cam = cfg.camera
     return (
         cam.intrinsics(),
-        CameraPlacement(distance_m=cam.distance_m, height_m=cam.height_m),
+        CameraPlacement.facing_operator(cam.distance_m, cam.height_m, cam.lateral_m, cam.aim_height_m),
         StereoDepthNoise(baseline_m=cam.baseline_m, sigma_disparity_px=cam.disparity_noise_px),
     )
 

@@ -33,6 +33,22 @@ def test_camera_placement():
         scene.CameraPlacement(look_at_O=(2.0, 0.0, -1.0)).X_OC()
 
 
+def test_a_camera_facing_the_operator():
+    # The default placement, however given, is the default camera exactly (its renders and cache keys unchanged).
+    assert scene.CameraPlacement.facing_operator() == scene.CameraPlacement()
+    assert scene.CameraPlacement.facing_operator(2.0, 0.45, 0.0, 0.45) == scene.CameraPlacement()
+    # To the operator's left (+y of O), level: the optical axis passes through the pelvis' vertical axis.
+    side = scene.CameraPlacement.facing_operator(2.2, 0.45, 1.0).X_OC()
+    axis = side.rotation().matrix()[:, 2]
+    np.testing.assert_allclose(axis, np.array([-2.2, -1.0, 0.0]) / np.hypot(2.2, 1.0), atol=1e-12)
+    np.testing.assert_allclose(side.rotation().matrix()[:, 1] @ [0, 0, 1], -1.0, atol=1e-12)  # image down = down
+    # From above, aimed at the chest.
+    high = scene.CameraPlacement.facing_operator(2.5, 1.1, 0.0, 0.45)
+    assert high.look_at_O == (0.0, 0.0, 0.45)
+    down = np.array([-2.5, 0.0, -0.65]) / np.hypot(2.5, 0.65)
+    np.testing.assert_allclose(high.X_OC().rotation().matrix()[:, 2], down, atol=1e-12)
+
+
 def test_camera_pose_forms():
     X = scene.CameraPlacement(lateral_m=0.2).X_OC()
     assert scene.as_X_OC(None).IsExactlyEqualTo(scene.CameraPlacement().X_OC())

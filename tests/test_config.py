@@ -181,6 +181,16 @@ def test_camera_placement_from_the_command_line(tmp_path):
     path.write_text('{"distance_m": "far"}')
     with pytest.raises(UserError, match="--camera: distance_m must be a finite number"):
         parse_camera(str(path))
+    # The diagrams' camera takes the same fields (YAML keys), checked.
+    yaml_path = tmp_path / "placed.yaml"
+    yaml_path.write_text("camera:\n  distance_m: 2.5\n  lateral_m: -0.5\n  aim_height_m: 0.45\n")
+    cam = load_config(yaml_path).camera
+    assert (cam.distance_m, cam.height_m, cam.lateral_m, cam.aim_height_m) == (2.5, 0.45, -0.5, 0.45)
+    yaml_path.write_text("camera:\n  distance_m: 3.0\n")
+    assert load_config(yaml_path).camera.aim_height_m is None  # (level, at the camera's height)
+    yaml_path.write_text("camera:\n  distance_m: 0.2\n")
+    with pytest.raises(UserError, match="config.camera: distance_m .more than 0.3 m."):
+        load_config(yaml_path)
 
 
 def test_depth_lookup_settings_load_validate_and_reach_the_extractor(tmp_path):

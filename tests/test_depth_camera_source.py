@@ -252,6 +252,12 @@ def test_pipeline_config_builds_the_described_camera():
     np.testing.assert_allclose(truth.reshape(12, 3)[INDEX["left_hip"]], [0.09, 0.35, 1.8], atol=1e-12)
     with pytest.raises(ValueError, match="fov_x_deg"):
         intrinsics_from_config(CameraConfig(fov_x_deg=0.0))
+    # Placed to the operator's left and above, aimed at the chest (the config's camera, as `evaluate --camera`).
+    placed = CameraConfig(width=160, height=120, distance_m=2.5, height_m=1.1, lateral_m=0.5, aim_height_m=0.45)
+    source, _, _ = add_sim_camera_source(DiagramBuilder(), PipelineConfig(motion="tpose", cycles=1, camera=placed))
+    from akc_drake.systems.camera_scene import CameraPlacement
+
+    assert source.X_OC.IsExactlyEqualTo(CameraPlacement.facing_operator(2.5, 1.1, 0.5, 0.45).X_OC())
 
 
 def test_surface_to_centre_correction_removes_the_t_pose_depth_bias():

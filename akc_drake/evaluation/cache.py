@@ -361,11 +361,8 @@ def camera_placement(camera):
         raise ValueError(f"render spec: unknown camera {camera!r} (default, or its placement's fields)")
     from akc_drake.systems.camera_scene import CameraPlacement
 
-    aim = camera.get("aim_height_m")
-    height = float(camera["height_m"])
-    return CameraPlacement(distance_m=float(camera["distance_m"]), height_m=height,
-                           lateral_m=float(camera.get("lateral_m", 0.0)),
-                           look_at_O=(0.0, 0.0, height if aim is None else float(aim)))
+    return CameraPlacement.facing_operator(camera["distance_m"], camera["height_m"], camera.get("lateral_m", 0.0),
+                                           camera.get("aim_height_m"))
 
 
 def _motion_of(spec: dict):

@@ -67,6 +67,16 @@ class CameraPlacement:
         if self.distance_m <= 0.3:
             raise ValueError(f"CameraPlacement.distance_m must be more than 0.3 m, got {self.distance_m!r}")
 
+    @classmethod
+    def facing_operator(cls, distance_m: float = DEFAULT_CAMERA_DISTANCE_M, height_m: float = DEFAULT_CAMERA_HEIGHT_M,
+                        lateral_m: float = 0.0, aim_height_m: float | None = None) -> CameraPlacement:
+        """A camera that faces the operator's vertical axis (through the pelvis), its optical axis through the point
+        ``aim_height_m`` above the pelvis (None: at the camera's own height, level): ``evaluate --camera`` and the
+        config's ``camera`` (``lateral_m``, ``aim_height_m``)."""
+        aim = float(height_m) if aim_height_m is None else float(aim_height_m)
+        look = None if (lateral_m == 0.0 and aim == height_m) else (0.0, 0.0, aim)
+        return cls(distance_m=float(distance_m), height_m=float(height_m), lateral_m=float(lateral_m), look_at_O=look)
+
     def position_O(self) -> np.ndarray:
         return np.array([self.distance_m, self.lateral_m, self.height_m])
 

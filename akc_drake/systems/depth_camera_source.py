@@ -165,7 +165,7 @@ def add_sim_camera_source(builder: DiagramBuilder, cfg, motion: OperatorMotion |
 
     cam = cfg.camera
     K = intrinsics_from_config(cam)
-    placement = CameraPlacement(distance_m=float(cam.distance_m), height_m=float(cam.height_m))
+    placement = CameraPlacement.facing_operator(cam.distance_m, cam.height_m, cam.lateral_m, cam.aim_height_m)
     if motion is None:
         name = str(cfg.motion)
         if name.strip().lower() in ("i", "ii", "1", "2", "motion_i", "motion_ii"):
