@@ -151,6 +151,7 @@ def test_write_evaluation_folder(tmp_path, small_evaluation):
         "# akc-drake evaluation" in md
         and "### Table1:" in md
         and "![fig4_depth](figures/fig4_depth.png)" in md
+        and "- **camera**: default camera" in md
     )
     for t in ev.tables:
         rows = list(csv.DictReader((out / "tables" / f"{t.key}.csv").open()))
@@ -163,3 +164,12 @@ def test_write_evaluation_folder(tmp_path, small_evaluation):
     assert "table1" in keys and "table6" in keys
     t1 = next(t for t in ev.tables if t.key == "table1")
     assert all(math.isfinite(v) for v in t1.ours.ravel())
+
+
+def test_the_report_names_a_placed_camera_in_words(tmp_path):
+    from akc_drake.evaluation.report import report_markdown
+
+    camera = {"distance_m": 2.5, "height_m": 1.1, "lateral_m": 0.0, "aim_height_m": 0.45}
+    md = report_markdown("t", {"camera": camera, "seed": 0}, [], [], tmp_path)
+    assert "- **camera**: camera 2.5 m in front, 1.1 m above the pelvis, aimed 0.45 m above the pelvis" in md
+    assert "- **seed**: 0" in md

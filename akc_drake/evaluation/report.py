@@ -348,9 +348,11 @@ def report_markdown(
     extra: list[str] | None = None,
 ) -> str:
     """The text of ``report.md``: the configuration, every table, links to the figures."""
+    from akc_drake.config import describe_camera
+
     lines = [f"# {title}", "", "## Configuration", ""]
     for k, v in config.items():
-        lines.append(f"- **{k}**: {v}")
+        lines.append(f"- **{k}**: {describe_camera(v) if k == 'camera' else v}")
     lines.append("")
     for para in extra or []:
         lines += [para, ""]
