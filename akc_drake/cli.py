@@ -182,6 +182,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "front, 0.45 m up, level) or distance_m=D,height_m=H,lateral_m=L (to the operator's left),"
                    "aim_height_m=A (it faces the operator's vertical axis, aimed A above the pelvis; default level), "
                    "fields left out the default's, or a JSON file; the calibration T-pose is rendered from it too")
+    p.add_argument("--body-scale", type=float, default=1.0, metavar="K",
+                   help="the rendered operator's size: every length times K, 0.6-1.4 (default 1: the paper's "
+                   "participant); the calibration T-pose too")
     _add_akc_plus(p)
     p.add_argument("--add-corrector", action="append", metavar="NAME=FILE.py:FACTORY",
                    help="a corrector of your own, run as NAME(KF) and NAME(EKF) beside the others (added to the "

@@ -263,3 +263,22 @@ def test_a_camera_placement_is_in_the_key_and_reaches_the_renderer(tmp_path):
     # image; the chest 0.45 m up is on the optical axis, the shoulders (0.05 m above it) just above the centre.
     assert pelvis[2][2] > chest[2] and pelvis[2][1] > 0.4 and -0.06 < chest[1] < -0.04
     assert np.isfinite(seen_high.raw[0, shoulders + hips, 2]).all()  # the simulated detector still finds them
+
+
+def test_a_scaled_operator_is_in_the_key_and_reaches_the_renderer():
+    """``--body-scale``: a scaled operator keys its own renders (the default's key unchanged: no field), the
+    renderer gets the scaled ``OperatorParams``, and a rendered T-pose has the scaled arms."""
+    from akc_drake.core.skeleton import segment_lengths
+    from akc_drake.evaluation.motion_set import tpose_spec
+
+    assert "body_scale" not in spec() and "body_scale" not in spec(body_scale=1.0)
+    assert spec(body_scale=0.8)["body_scale"] == 0.8
+    assert len({C.spec_key(spec()), C.spec_key(spec(body_scale=0.8)), C.spec_key(spec(body_scale=1.2))}) == 3
+    assert C._render_kwargs(spec(body_scale=0.8))["params"].dims.LUA == pytest.approx(0.8 * 0.288)
+    for bad in (0.5, 1.5, True, "1"):
+        with pytest.raises(ValueError, match="body scale must be a number from 0.6 to 1.4"):
+            C.check_body_scale(bad)
+    small = C.render_uncached(tpose_spec(seconds=0.2, body_scale=0.8))
+    lengths = segment_lengths(small.truth[0])
+    assert lengths["LUA"] == pytest.approx(0.8 * 0.288, abs=1e-9)
+    assert lengths["RLA"] == pytest.approx(0.8 * 0.27, abs=1e-9)

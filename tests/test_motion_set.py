@@ -8,14 +8,11 @@ import pytest
 
 from akc_drake.core.skeleton import ARM_JOINTS, INDEX, BodyDimensions
 from akc_drake.errors import UserError
-from akc_drake.evaluation.motion_set import (
-    evaluate_clip,
-    find_clips,
+from akc_drake.evaluation.motion_set import evaluate_clip, find_clips, motion_dir_tables, plot_errors_per_clip
+from akc_drake.evaluation.set_metrics import (
     lost_frames,
     lost_joint_gain,
-    motion_dir_tables,
     paired_errors,
-    plot_errors_per_clip,
     pooled,
     worst_regression,
     worst_regression_3d,
@@ -392,6 +389,14 @@ def test_a_placed_camera_renders_the_clips_and_the_t_pose_from_where_it_stands(t
                           for t in titles), titles
     with pytest.raises(ValueError, match="unknown camera 'far'"):
         evaluate_motion_dir(tmp_path, camera="far", **kw)
+    # A smaller operator (--body-scale): its T-pose calibrates its own, shorter arms.
+    small = evaluate_motion_dir(tmp_path, body_scale=0.8, **kw)
+    assert small["body_scale"] == 0.8 and level["body_scale"] == 1.0 and small["failures"] == []
+    for seg in ("LUA", "LLA", "RUA", "RLA"):
+        assert small["dims_cm"][seg] == pytest.approx(0.8 * level["dims_cm"][seg], abs=1.0), seg
+    assert all(t.title.endswith("(ours protocol, the operator scaled 0.8)") for t in motion_dir_tables(small))
+    with pytest.raises(ValueError, match="body scale"):
+        evaluate_motion_dir(tmp_path, body_scale=2.0, **kw)
 
 
 def test_a_bad_clip_fails_alone(tmp_path, capsys):
@@ -420,6 +425,8 @@ def test_motion_dir_command_options(tmp_path, capsys):
     assert "--workers must be at least 1" in capsys.readouterr().err
     assert cli_main(base + ["--camera", "distance_m=0.1"]) == 2
     assert "--camera: distance_m must be more than 0.3 m" in capsys.readouterr().err
+    assert cli_main(base + ["--body-scale", "2"]) == 2
+    assert "--body-scale: body scale must be a number from 0.6 to 1.4, got 2.0" in capsys.readouterr().err
     assert cli_main(base + ["--akc-plus", "nope=1"]) == 2
     assert "--akc-plus: unknown AKC+ setting(s) 'nope'" in capsys.readouterr().err
     example = Path(__file__).resolve().parents[1] / "examples" / "segment_lengths.py"

@@ -211,6 +211,23 @@ def test_params_validation_and_custom_dimensions():
     assert "operator" in plant.GetModelInstanceName(instance)
 
 
+def test_a_scaled_operator_has_every_length_scaled_and_its_posture_kept():
+    base = OperatorParams()
+    small = base.scaled(0.8)
+    for seg in ("LUA", "LLA", "RUA", "RLA", "SW"):
+        assert getattr(small.dims, seg) == pytest.approx(0.8 * getattr(base.dims, seg), abs=1e-15)
+    assert (small.torso_height, small.hand_length, small.head_radius) == pytest.approx((0.4, 0.148, 0.084))
+    assert small.wrist_extension_deg == base.wrist_extension_deg and small.skin_rgba == base.skin_rgba
+    np.testing.assert_allclose(small.index_H("left"), 0.8 * base.index_H("left"), atol=1e-15)
+    lengths = segment_lengths(landmarks_from_q(np.zeros(NUM_ARM_DOF), np.zeros(NUM_ARM_DOF), small)[0])
+    assert lengths["LUA"] == pytest.approx(0.8 * 0.288, abs=1e-12) and lengths["SW"] == pytest.approx(0.8 * 0.332)
+    for bad in (0.0, -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="positive number"):
+            base.scaled(bad)
+    with pytest.raises(ValueError, match="torso_height must be a length"):
+        base.scaled(4.0)  # (a torso 2 m long)
+
+
 def test_landmark_order_matches_skeleton():
     lm = landmarks_from_q(np.zeros(NUM_ARM_DOF), np.zeros(NUM_ARM_DOF))[0]
     assert lm.shape == (len(LANDMARKS), 3)

@@ -115,6 +115,16 @@ def _camera(args):
     return parse_camera(getattr(args, "camera", None) or "default")
 
 
+def _body_scale(args) -> float:
+    """``--body-scale``, checked (a UserError names the range)."""
+    from akc_drake.evaluation.cache import check_body_scale
+
+    try:
+        return check_body_scale(getattr(args, "body_scale", 1.0))
+    except ValueError as e:
+        raise UserError(f"--body-scale: {e}") from None
+
+
 def _rate_hz(args) -> float:
     """``--rate-hz``, checked (a UserError names a rate outside 1-240 Hz)."""
     rate = getattr(args, "rate_hz", 10.0)
@@ -159,6 +169,7 @@ def build_config(args):
             options=MethodOptions(akc_plus_config=akc_plus, correctors=correctors or None),
             filter_settings=_filter_settings(args),
             camera=_camera(args),
+            body_scale=_body_scale(args),
         )
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -265,7 +276,8 @@ def run_motion_dir(args) -> int:
                                  weights=args.weights, body=getattr(args, "body", "primitive"), detector=detector,
                                  scheduler=scheduler, n_workers=workers, drive=drive, clips=clips,
                                  akc_plus=_akc_plus(args), correctors=correctors, rate_hz=rate,
-                                 filter_settings=_filter_settings(args), camera=_camera(args))
+                                 filter_settings=_filter_settings(args), camera=_camera(args),
+                                 body_scale=_body_scale(args))
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))

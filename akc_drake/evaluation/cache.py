@@ -118,6 +118,7 @@ def render_spec(
     detector: str = "sim",
     camera: str = "default",
     options: dict | None = None,
+    body_scale: float = 1.0,
 ) -> dict:
     """The plain-JSON description of one rendered session.
 
@@ -135,6 +136,8 @@ def render_spec(
         camera: the camera's placement, ``"default"`` or the fields of
             :func:`~akc_drake.config.parse_camera` (:func:`camera_placement`).
         options: more keyword arguments of ``render_session`` (plain values, e.g. ``surface_offset_m``).
+        body_scale: the operator's size, every length times this (``OperatorParams.scaled``); recorded in the spec
+            only when not 1.
 
     Raises:
         ValueError: an unknown motion kind; UserError (from reading) a missing motion file.
@@ -155,7 +158,7 @@ def render_spec(
                 raise UserError(f"{p}: no such motion file")
             m[key] = str(Path(p).resolve())
             m[f"{key}_sha256"] = file_sha256(p)
-    return {
+    spec = {
         "format": SPEC_FORMAT,
         "name": str(name),
         "motion": m,
@@ -168,6 +171,9 @@ def render_spec(
         "camera": dict(camera) if isinstance(camera, dict) else str(camera),
         "options": json.loads(json.dumps(options or {}, sort_keys=True)),
     }
+    if float(body_scale) != 1.0:
+        spec["body_scale"] = float(body_scale)
+    return spec
 
 
 _DATA_SUFFIXES = (".sdf", ".urdf", ".obj", ".mtl", ".json", ".yaml", ".png")
@@ -365,6 +371,18 @@ def camera_placement(camera):
                                            camera.get("aim_height_m"))
 
 
+#: The operator sizes ``--body-scale`` takes (a smaller or a taller adult of the paper participant's build).
+BODY_SCALE_RANGE = (0.6, 1.4)
+
+
+def check_body_scale(k) -> float:
+    """``k`` as a body scale (:data:`BODY_SCALE_RANGE`); ValueError naming the range otherwise."""
+    lo, hi = BODY_SCALE_RANGE
+    if isinstance(k, bool) or not isinstance(k, (int, float)) or not lo <= k <= hi:
+        raise ValueError(f"body scale must be a number from {lo:g} to {hi:g}, got {k!r}")
+    return float(k)
+
+
 def _motion_of(spec: dict):
     m = spec["motion"]
     if m["kind"] == "builtin":
@@ -390,8 +408,8 @@ def _motion_of(spec: dict):
 
 
 def _render_kwargs(spec: dict) -> dict:
-    """Keyword arguments of ``render_session`` for the spec's body, detector and camera placement (default:
-    none)."""
+    """Keyword arguments of ``render_session`` for the spec's body (and its scale), detector and camera placement
+    (default: none)."""
     kwargs = {}
     for field in ("body", "detector"):
         default = {"body": "primitive", "detector": "sim"}[field]
@@ -400,6 +418,10 @@ def _render_kwargs(spec: dict) -> dict:
     placement = camera_placement(spec.get("camera", "default"))
     if placement is not None:
         kwargs["camera_pose"] = placement
+    if spec.get("body_scale", 1.0) != 1.0:
+        from akc_drake.operator.model import OperatorParams
+
+        kwargs["params"] = OperatorParams().scaled(check_body_scale(spec["body_scale"]))
     kwargs.update(spec.get("options") or {})
     if kwargs:
         import inspect

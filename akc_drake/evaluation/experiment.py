@@ -93,6 +93,8 @@ class ExperimentConfig:
         detector: the 2D detector on the renders, "sim" or "mediapipe" (``--detector``).
         camera: the camera's placement, "default" or the fields of :func:`~akc_drake.config.parse_camera`
             (``--camera``); Motions I and II reach toward it wherever it is.
+        body_scale: the rendered operator's size, every length times this (``--body-scale``,
+            :meth:`~akc_drake.operator.model.OperatorParams.scaled`; the calibration sees it as it is).
     """
 
     motions: tuple[str, ...] = ("I", "II")
@@ -116,6 +118,7 @@ class ExperimentConfig:
     protocol: str = "paper"
     filter_settings: dict | None = None
     camera: str | dict = "default"
+    body_scale: float = 1.0
 
     def __post_init__(self):
         from akc_drake.evaluation.protocol import PROTOCOLS
@@ -145,9 +148,10 @@ class ExperimentConfig:
             raise ValueError(f"--body must be primitive or skinned, got {self.body!r}")
         if self.detector not in ("sim", "mediapipe"):
             raise ValueError(f"--detector must be sim or mediapipe, got {self.detector!r}")
-        from akc_drake.evaluation.cache import camera_placement
+        from akc_drake.evaluation.cache import camera_placement, check_body_scale
 
         camera_placement(self.camera)  # (an unknown camera fails here)
+        check_body_scale(self.body_scale)
         if self.options.akc_plus_config is not None:
             from akc_drake.core.akc_plus_config import akc_plus_config
 
@@ -425,6 +429,7 @@ class Evaluation:
             "proximity": cfg.options.proximity,
             "akc_plus": akc_plus_record(cfg.options.akc_plus_config),
             "camera": dict(cfg.camera) if isinstance(cfg.camera, dict) else cfg.camera,
+            "body_scale": cfg.body_scale,
             "elapsed_s": self.elapsed_s,
             "render_s": self.render_s,
         }

@@ -25,12 +25,20 @@ import numpy as np
 
 from akc_drake.core.skeleton import ARM_JOINTS, INDEX
 from akc_drake.errors import UserError
+from akc_drake.evaluation.set_metrics import (  # noqa: F401 (the set's figures, public here too)
+    AXES,
+    LOST_SHARE,
+    _joint_pairs,
+    lost_frames,
+    lost_joint_gain,
+    paired_errors,
+    pooled,
+    worst_regression,
+    worst_regression_3d,
+)
 
 #: Methods of the real-motion set by default (COIK is slow and is not what the set is for).
 DEFAULT_METHODS: tuple[str, ...] = ("KF", "EKF", "AKC(KF)", "AKC+(KF)", "AKC(EKF)", "AKC+(EKF)")
-AXES = ("x", "y", "z")
-#: A joint whose depth the camera loses in at least this share of a clip's frames counts as "lost" there.
-LOST_SHARE = 0.10
 MANIFEST = "mocap_sources.json"
 
 
@@ -106,11 +114,12 @@ def clip_spec(
     drive: str = "angles",
     rate_hz: float = 10.0,
     camera: str | dict = "default",
+    body_scale: float = 1.0,
 ) -> dict:
     """The render spec (:func:`~akc_drake.evaluation.cache.render_spec`) of one clip: its file's and skeleton's
     content, its joint-name map and window, the seed, the camera (its rate ``rate_hz``, which the clip is retargeted
     at, and its placement), the body, the detector and the protocol's depth extraction: everything that changes
-    its rendered session, so that the render cache keys it.
+    its rendered session (and the body's scale), so that the render cache keys it.
 
     Raises:
         UserError: the clip's file is missing.
@@ -139,12 +148,13 @@ def clip_spec(
         detector=detector,
         camera=camera,
         options=options,
+        body_scale=body_scale,
     )
 
 
 def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive", detector: str = "sim",
                seconds: float = 10.0, width: int = 640, height: int = 480, rate_hz: float = 10.0,
-               camera: str | dict = "default") -> dict:
+               camera: str | dict = "default", body_scale: float = 1.0) -> dict:
     """The render spec of the calibration T-pose held ``seconds`` (same camera, placement and frame rate, body and
     detector as the clips)."""
     from akc_drake.evaluation.cache import render_spec
@@ -160,6 +170,7 @@ def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive
         detector=detector,
         camera=camera,
         options=render_kwargs(protocol),
+        body_scale=body_scale,
     )
 
 
@@ -190,7 +201,8 @@ def evaluate_clip(item: dict) -> dict:
             render cache, False: off, or a folder), ``"akc_plus"`` (AKC+ settings, field -> value, or None),
             ``"filter_settings"`` (the filters' settings changed from the protocol's, field -> value, or None),
             ``"correctors"`` (correctors of your own, name -> import path, which the worker imports),
-            ``"camera"`` (the camera's placement: "default" or :func:`~akc_drake.config.parse_camera`'s fields) and
+            ``"camera"`` (the camera's placement: "default" or :func:`~akc_drake.config.parse_camera`'s fields),
+            ``"body_scale"`` (the operator's size, ``OperatorParams.scaled``) and
             ``"frame_progress"`` (a progress bar over the clip's frames as they render, on stderr).
 
     Returns:
@@ -209,7 +221,8 @@ def evaluate_clip(item: dict) -> dict:
     protocol = item.get("protocol", "paper")
     spec = clip_spec(clip, protocol=protocol, seed=int(item.get("seed", 0)), body=item.get("body", "primitive"),
                      detector=item.get("detector", "sim"), drive=item.get("drive", "angles"),
-                     rate_hz=float(item.get("rate_hz", 10.0)), camera=item.get("camera", "default"))
+                     rate_hz=float(item.get("rate_hz", 10.0)), camera=item.get("camera", "default"),
+                     body_scale=float(item.get("body_scale", 1.0)))
     t0 = time.perf_counter()
     if item.get("frame_progress"):  # in-process only: a worker's stderr is not the user's terminal
         from tqdm import tqdm
@@ -272,55 +285,6 @@ def evaluate_clip(item: dict) -> dict:
     return out
 
 
-def paired_errors(est: np.ndarray, base: np.ndarray, truth: np.ndarray, base_name: str,
-                  seen: np.ndarray | None = None) -> dict:
-    """A corrector's errors against its filter's on the frames where both give an estimate.
-
-    Each method's ``rmse_cm`` is over its own frames. A corrector that gives an estimate where its filter has none
-    (a shoulder whose depth was never measured, rebuilt from the elbow) would be charged for those frames in a
-    comparison of the two: the paired RMSEs compare like with like, and the frames where only the corrector
-    estimates are counted apart, with its RMSE there.
-
-    With ``seen``, the same pairs are also kept over the frames where the joint was seen: its depth measured and
-    passed by the occlusion filter. That is the easy case, the one a corrector must not make worse. And over the
-    other frames both estimate, where the joint was lost (its depth dropped or not measured): the guesses, which a
-    corrector must make better.
-
-    Args:
-        est: ``(T, 12, 3)`` the corrector's estimates; base: its filter's; truth: the ground truth (NaN where none).
-        base_name: the filter's method name.
-        seen: ``(T, 12)`` bool, the joints whose depth passed the occlusion filter, or None.
-
-    Returns:
-        ``{"filter": base_name, "n": {joint: [x, y, z]}, "rmse_cm": {...}, "filter_rmse_cm": {...},
-        "only_n": {...}, "only_rmse_cm": {...}}`` (NaN where there is no frame), and with ``seen`` also
-        ``"seen_n"``, ``"seen_rmse_cm"``, ``"seen_filter_rmse_cm"`` and the same three with ``lost_``.
-    """
-    out: dict = {"filter": base_name, "n": {}, "rmse_cm": {}, "filter_rmse_cm": {}, "only_n": {}, "only_rmse_cm": {}}
-    if seen is not None:
-        out.update(seen_n={}, seen_rmse_cm={}, seen_filter_rmse_cm={}, lost_n={}, lost_rmse_cm={},
-                   lost_filter_rmse_cm={})
-
-    def rmse(e, ok):
-        n = ok.sum(axis=0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return (np.sqrt(np.sum(np.where(ok, e, 0.0) ** 2, axis=0) / n) * 100.0).tolist(), n.tolist()
-
-    for joint in ARM_JOINTS:
-        j = INDEX[joint]
-        e, b = est[:, j] - truth[:, j], base[:, j] - truth[:, j]
-        both = np.isfinite(e) & np.isfinite(b)
-        only = np.isfinite(e) & ~np.isfinite(b)
-        out["rmse_cm"][joint], out["n"][joint] = rmse(e, both)
-        out["filter_rmse_cm"][joint], _ = rmse(b, both)
-        out["only_rmse_cm"][joint], out["only_n"][joint] = rmse(e, only)
-        if seen is not None:
-            for key, ok in (("seen", both & seen[:, j, None]), ("lost", both & ~seen[:, j, None])):
-                out[f"{key}_rmse_cm"][joint], out[f"{key}_n"][joint] = rmse(e, ok)
-                out[f"{key}_filter_rmse_cm"][joint], _ = rmse(b, ok)
-    return out
-
-
 def _toward_camera_share(truth: np.ndarray) -> float:
     """Share of frames in which a wrist is at least 20 cm nearer the camera than its shoulder."""
     d = []
@@ -328,140 +292,6 @@ def _toward_camera_share(truth: np.ndarray) -> float:
         d.append(truth[:, INDEX[f"{side}_shoulder"], 2] - truth[:, INDEX[f"{side}_wrist"], 2])
     reach = np.nanmax(np.stack(d, axis=1), axis=1)
     return float(np.mean(reach > 0.20))
-
-
-def pooled(results: list[dict], methods) -> dict:
-    """Pooled RMSE (cm) per method, joint and axis over every clip's frames (exact: sums of squares)."""
-    out = {}
-    for m in methods:
-        out[m] = {}
-        for joint in ARM_JOINTS:
-            sse = np.zeros(3)
-            n = np.zeros(3)
-            for r in results:
-                if m in r["methods"]:
-                    sse += np.asarray(r["methods"][m]["sse_m2"][joint])
-                    n += np.asarray(r["methods"][m]["n"][joint])
-            with np.errstate(invalid="ignore", divide="ignore"):
-                out[m][joint] = (np.sqrt(sse / n) * 100.0).tolist()
-    return out
-
-
-def _compared(r: dict, corrected: str, filt: str):
-    """``(corrected's, filt's)`` RMSE per joint of one clip and the paired record (:func:`paired_errors`) they come
-    from, or each method's own RMSE and None where none was recorded."""
-    p = r["methods"][corrected].get("paired")
-    if p is not None and p["filter"] == filt:
-        return p["rmse_cm"], p["filter_rmse_cm"], p
-    return r["methods"][corrected]["rmse_cm"], r["methods"][filt]["rmse_cm"], None
-
-
-def _joint_pairs(results: list[dict], corrected: str, filt: str, frames: str = "both"):
-    """``(clip name, arm joint, corrected's RMSE, filt's RMSE, paired, frames)`` for every clip that ran both
-    methods (:func:`_compared`); with ``frames="seen"`` (``"lost"``) over the frames where the joint was seen
-    (lost), and only for the clips and joints that recorded such frames (their number; None for ``"both"``)."""
-    if frames not in ("both", "seen", "lost"):
-        raise ValueError(f"frames must be 'both', 'seen' or 'lost', got {frames!r}")
-    for r in results:
-        if corrected not in r["methods"] or filt not in r["methods"]:
-            continue
-        a_all, b_all, p = _compared(r, corrected, filt)
-        if frames != "both":
-            if p is None or f"{frames}_n" not in p:
-                continue
-            a_all, b_all = p[f"{frames}_rmse_cm"], p[f"{frames}_filter_rmse_cm"]
-        for joint in ARM_JOINTS:
-            n = None if frames == "both" else p[f"{frames}_n"][joint][2]
-            if n == 0:
-                continue
-            yield r["name"], joint, a_all[joint], b_all[joint], p is not None, n
-
-def worst_regression(results: list[dict], corrected: str, filt: str, frames: str = "both") -> dict:
-    """The largest RMSE increase (cm) of ``corrected`` over ``filt`` on any clip, arm joint and axis.
-
-    On the frames where both estimate (``"paired": True``; a result without paired errors, from before they were
-    recorded, compares each method's RMSE over its own frames); with ``frames="seen"`` (``"lost"``), on those of
-    them where the joint was seen (lost: :func:`paired_errors`), whose number is then the record's ``frames``.
-    """
-    worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired, n in _joint_pairs(results, corrected, filt, frames):
-        for i, ax in enumerate(AXES):
-            dlt = a[i] - b[i]
-            if dlt > worst["delta_cm"]:
-                worst = {"delta_cm": dlt, "clip": name, "joint": joint, "axis": ax, "paired": paired}
-                if n is not None:
-                    worst["frames"] = n
-    return worst
-
-
-def _norm3(v) -> float:
-    """The 3D RMSE from per-axis RMSEs: the root of the sum of the three axes' mean squared errors."""
-    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-
-
-def worst_regression_3d(results: list[dict], corrected: str, filt: str, frames: str = "both") -> dict:
-    """The largest 3D RMSE increase (cm) of ``corrected`` over ``filt`` on any clip and arm joint.
-
-    The 3D RMSE is the root of the sum of the three axes' mean squared errors, each axis paired as in
-    :func:`worst_regression` (``frames`` too). A corrector that trades one axis for the others (a lost joint's
-    depth for its x, y) shows here what the per-axis figure does not.
-    """
-    worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired, n in _joint_pairs(results, corrected, filt, frames):
-        dlt = _norm3(a) - _norm3(b)
-        if dlt > worst["delta_cm"]:
-            worst = {"delta_cm": dlt, "clip": name, "joint": joint, "paired": paired}
-            if n is not None:
-                worst["frames"] = n
-    return worst
-
-
-def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
-    """Mean z RMSE of ``filt`` and ``corrected`` over the (clip, joint) pairs the camera loses (cm).
-
-    Paired as :func:`worst_regression` is; ``filter_3d_cm`` and ``corrected_3d_cm`` are the same pairs' mean 3D RMSE
-    (:func:`worst_regression_3d`). ``only_frames`` and ``only_z_cm``: over all clips and arm joints, the frames
-    where ``corrected`` gives a depth and ``filt`` none, and the pooled z RMSE of ``corrected`` there (None for
-    results without paired errors).
-    """
-    a, b, a3, b3 = [], [], [], []
-    only_n, only_sse, any_paired = 0, 0.0, False
-    for r in results:
-        if corrected not in r["methods"] or filt not in r["methods"]:
-            continue
-        a_all, b_all, p = _compared(r, corrected, filt)
-        any_paired |= p is not None
-        for joint in ARM_JOINTS:
-            if r["lost_share"][joint] >= LOST_SHARE:
-                a.append(b_all[joint][2])
-                b.append(a_all[joint][2])
-                a3.append(_norm3(b_all[joint]))
-                b3.append(_norm3(a_all[joint]))
-            if p is not None and p["only_n"][joint][2]:
-                only_n += p["only_n"][joint][2]
-                only_sse += p["only_n"][joint][2] * (p["only_rmse_cm"][joint][2] / 100.0) ** 2
-    return {"pairs": len(a), "filter_z_cm": float(np.mean(a)) if a else None,
-            "corrected_z_cm": float(np.mean(b)) if b else None,
-            "filter_3d_cm": float(np.mean(a3)) if a3 else None,
-            "corrected_3d_cm": float(np.mean(b3)) if b3 else None,
-            "only_frames": only_n if any_paired else None,
-            "only_z_cm": math.sqrt(only_sse / only_n) * 100.0 if only_n else None}
-
-
-def lost_frames(results: list[dict], corrected: str, filt: str) -> dict:
-    """``corrected`` against ``filt`` over every frame where an arm joint was lost (:func:`paired_errors`).
-
-    ``frames``: the joint-frames; ``filter_3d_cm``, ``corrected_3d_cm``: the 3D RMSE pooled over them (the root of
-    the three axes' pooled mean squared errors); ``pairs``: the (clip, joint) pairs with such frames, and
-    ``pairs_worse_3d`` those where ``corrected``'s 3D RMSE over them exceeds ``filt``'s. Counts of 0 and None
-    figures for results recorded without the mask.
-    """
-    n, sse_a, sse_b, pairs, worse = 0, 0.0, 0.0, 0, 0
-    for _, _, a, b, _, k in _joint_pairs(results, corrected, filt, "lost"):
-        sa, sb = sum(x * x for x in a), sum(x * x for x in b)
-        n, sse_a, sse_b, pairs, worse = n + k, sse_a + k * sa, sse_b + k * sb, pairs + 1, worse + (sa > sb)
-    return {"frames": n, "filter_3d_cm": math.sqrt(sse_b / n) if n else None,
-            "corrected_3d_cm": math.sqrt(sse_a / n) if n else None, "pairs": pairs, "pairs_worse_3d": worse}
 
 
 def evaluate_motion_dir(
@@ -485,6 +315,7 @@ def evaluate_motion_dir(
     rate_hz: float = 10.0,
     filter_settings: dict | None = None,
     camera: str | dict = "default",
+    body_scale: float = 1.0,
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -518,6 +349,7 @@ def evaluate_motion_dir(
             (:func:`~akc_drake.config.parse_filter_settings`; ``--filter-settings``), or None; the calibration's
             filter too.
         camera: the camera's placement, "default" or :func:`~akc_drake.config.parse_camera`'s (the T-pose's too).
+        body_scale: the operator's size: every length times this (``--body-scale``; the T-pose's too).
 
     Returns:
         ``{"protocol", "seed", "rate_hz", "camera", "body", "detector", "akc_plus", "filter_settings", "correctors",
@@ -528,13 +360,14 @@ def evaluate_motion_dir(
         "worst_regression_lost_3d" (over the frames each joint was lost), "lost_joint_gain", "lost_frames",
         "render_cache": {"dir", "hits", "misses"}, "elapsed_s"}``.
     """
-    from akc_drake.evaluation.cache import _resolve, camera_placement
+    from akc_drake.evaluation.cache import _resolve, camera_placement, check_body_scale
     from akc_drake.evaluation.executor import TaskFailure, run_tasks
     from akc_drake.evaluation.experiment import akc_plus_record, calibrate_session
     from akc_drake.evaluation.protocol import check_protocol, method_options, with_filter_settings
 
     check_protocol(protocol)
-    camera_placement(camera)  # (an unknown camera fails here, before anything renders)
+    camera_placement(camera)  # (an unknown camera or size fails here, before anything renders)
+    body_scale = check_body_scale(body_scale)
     filter_settings = dict(filter_settings) if filter_settings else None
     options = with_filter_settings(method_options(protocol), filter_settings)  # (a bad setting fails here)
     if akc_plus:
@@ -547,7 +380,7 @@ def evaluate_motion_dir(
     from tqdm import tqdm
 
     spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds,
-                      rate_hz=rate_hz, camera=camera)
+                      rate_hz=rate_hz, camera=camera, body_scale=body_scale)
     with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
         tpose, tpose_hit = render_clip(spec, cache=cache, progress=lambda n, _name: bar.update(n))
     dims = calibrate_session(tpose, "tpose", options)
@@ -556,7 +389,8 @@ def evaluate_motion_dir(
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
          "akc_plus": settings, "correctors": dict(correctors or {}), "rate_hz": float(rate_hz), "camera": camera,
-         "filter_settings": filter_settings, "frame_progress": bool(progress) and scheduler == "inprocess"}
+         "body_scale": float(body_scale), "filter_settings": filter_settings,
+         "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
     raw = run_tasks(evaluate_clip, items, scheduler=scheduler, n_workers=n_workers, desc="clips",
@@ -569,7 +403,9 @@ def evaluate_motion_dir(
         "protocol": protocol,
         "seed": seed,
         "rate_hz": float(rate_hz),
-        "camera": camera, "body": body,
+        "camera": camera,
+        "body": body,
+        "body_scale": float(body_scale),
         "detector": detector,
         "drive": drive,
         "akc_plus": settings,
@@ -612,9 +448,10 @@ def _setup(result: dict) -> str:
     from akc_drake.config import describe_camera
 
     body, det, camera = result.get("body", "primitive"), result.get("detector", "sim"), result.get("camera", "default")
-    rate = float(result.get("rate_hz", 10.0))
+    rate, scale = float(result.get("rate_hz", 10.0)), float(result.get("body_scale", 1.0))
     return ("" if (body, det) == ("primitive", "sim") else f", {body} body, {det} detector") + (
-        "" if rate == 10.0 else f", {rate:g} Hz") + ("" if camera == "default" else f", {describe_camera(camera)}")
+        "" if rate == 10.0 else f", {rate:g} Hz") + ("" if camera == "default" else f", {describe_camera(camera)}") + (
+        "" if scale == 1.0 else f", the operator scaled {scale:g}")
 
 
 def motion_dir_tables(result: dict) -> list:

@@ -41,7 +41,7 @@ rendered depth is its surface depth, or an occluder's.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -180,6 +180,20 @@ class OperatorParams:
                 f"OperatorParams.knuckle_offset ({self.knuckle_offset}) must be less than half of "
                 f"hand_width ({self.hand_width})"
             )
+
+    def scaled(self, k: float) -> OperatorParams:
+        """The same operator with every length times ``k`` (a smaller or taller person of the same build; angles
+        and colours kept): ``evaluate --body-scale``.
+
+        Raises:
+            ValueError: ``k`` not a positive finite number, or a length it puts out of range.
+        """
+        if isinstance(k, bool) or not isinstance(k, (int, float)) or not math.isfinite(k) or k <= 0.0:
+            raise ValueError(f"OperatorParams.scaled: the factor must be a positive number, got {k!r}")
+        lengths = {f.name: getattr(self, f.name) * k for f in fields(self)
+                   if f.name != "dims" and f.name != "wrist_extension_deg" and not f.name.endswith("_rgba")}
+        dims = BodyDimensions(**{n: v * k for n, v in self.dims.as_dict().items()})
+        return replace(self, dims=dims, **lengths)
 
     def shoulder_O(self, side: str) -> np.ndarray:
         """Shoulder joint centre of ``side`` in O."""
