@@ -7,6 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from akc_drake.core.akc_plus import STATE_SIZE, AKCPlusConfig, ArmKinematicCorrectorPlus
+from akc_drake.core.akc_plus_config import HAND_TO_FOREARM
 from akc_drake.core.skeleton import INDEX, BodyDimensions, segment_lengths
 
 LS, RS, LE, RE, LW, RW = (INDEX[n] for n in ("left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
@@ -25,9 +26,10 @@ def arm_pose(elbow_dir_l=(0.3, 0.5, -0.8), wrist_dir_l=(0.2, -0.3, -0.9)) -> tup
         p[w] = p[e] + 0.26 * dw / np.linalg.norm(dw)
     p[INDEX["left_hip"]] = [0.12, 0.5, 2.02]
     p[INDEX["right_hip"]] = [-0.12, 0.5, 2.02]
-    for side in ("left", "right"):  # (the knuckles a hand's length, AKCPlusConfig.hand_length_m, from the wrist)
+    hand = HAND_TO_FOREARM * 0.26  # (the knuckles a hand's length from the wrist: AKC+'s default for this forearm)
+    for side in ("left", "right"):
         for k in ("index", "pinky"):
-            p[INDEX[f"{side}_{k}"]] = p[INDEX[f"{side}_wrist"]] + [0.0, 0.05, -math.sqrt(0.085**2 - 0.05**2)]
+            p[INDEX[f"{side}_{k}"]] = p[INDEX[f"{side}_wrist"]] + [0.0, 0.05, -math.sqrt(hand**2 - 0.05**2)]
     lens = segment_lengths(p[None])
     dims = BodyDimensions(**{k: float(v[0]) for k, v in lens.items()})
     return p, dims

@@ -102,3 +102,22 @@ def test_per_frame_settings_mean_the_same_in_seconds(rate_hz):
 def test_per_frame_rejects_a_bad_period(period):
     with pytest.raises(ValueError, match="period_s"):
         per_frame(AKCPlusConfig(), period)
+
+
+def test_the_hand_rules_length_follows_the_operators_forearm():
+    from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
+    from akc_drake.core.akc_plus_config import HAND_TO_FOREARM, hand_lengths
+    from akc_drake.core.skeleton import BodyDimensions
+
+    # The default: a share of each calibrated forearm, 8.5 cm on the rendered adult's 27.5 cm forearm.
+    assert AKCPlusConfig().hand_length_m is None and HAND_TO_FOREARM == pytest.approx(0.30909, abs=1e-5)
+    assert hand_lengths(AKCPlusConfig(), (0.275, 0.275)) == pytest.approx((0.085, 0.085))
+    assert hand_lengths(AKCPlusConfig(), (0.32, 0.34)) == pytest.approx((0.102, 0.102))  # (1.2 times as large)
+    assert hand_lengths(AKCPlusConfig(hand_length_m=0.09), (0.275, 0.33)) == (0.09, 0.09)
+    # One hand size for both arms (the forearms' mean: a calibration's asymmetry is not the hands'); 0: off.
+    dims = BodyDimensions(LUA=0.3, LLA=0.22, RUA=0.3, RLA=0.26, SW=0.36)
+    hands = [h[-1] for h in ArmKinematicCorrectorPlus(dims)._hand]
+    assert hands == pytest.approx([0.24 * HAND_TO_FOREARM, 0.24 * HAND_TO_FOREARM])
+    assert ArmKinematicCorrectorPlus(dims, AKCPlusConfig(hand_length_m=0.0))._hand == ()
+    with pytest.raises(ValueError, match="hand_length_m must be a finite number >= 0"):
+        AKCPlusConfig(hand_length_m=-0.08)

@@ -103,8 +103,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   goes from the shoulder, the wrist behind its reading (:func:`akc_drake.core.arm_geometry.behind_reading`).
 * A measured wrist its own hand hides: the forearm (the filter's elbow to the measured wrist) toward the camera,
   the wrist's pixel reads the hand, up to a hand's length in front (the elbow's depth is dropped then, its pixel
-  near the wrist's). The measured knuckles (index and pinky; their midpoint lies ``hand_length_m`` from the
-  wrist) put it on its pixel ray that far behind them, and the filter's wrist is moved by the same step
+  near the wrist's). The measured knuckles (index and pinky; their midpoint ``hand_length_m``, by default a share
+  of the forearm, from the wrist) put it on its pixel ray that far behind them; the filter's wrist moves likewise
   (:func:`~akc_drake.core.arm_geometry.behind_hand`, the teleoperation's rule; the simulated detector read the
   wrist 10-16 cm in front on bvhtools_a4, MediaPipe 10-14 on cmu_01_01, where the elbow put on the circle to it
   was as far off).
@@ -168,7 +168,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from akc_drake.core.akc import AKCResult
-from akc_drake.core.akc_plus_config import AKCPlusConfig, per_frame
+from akc_drake.core.akc_plus_config import AKCPlusConfig, hand_lengths, per_frame
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     beyond_reach,
@@ -252,7 +252,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self.config = config
         self._lf, self._lu, self._ls = (dims.LLA, dims.RLA), (dims.LUA, dims.RUA), dims.SW
         self._offsets = tuple(tuple(3 * i for i in side_indices(side)) for side in SIDES)
-        self._hand = tuple((*o, config.hand_length_m) for o in _HAND if config.hand_length_m > 0)
+        self._hand = tuple((*o, k) for o, k in zip(_HAND, hand_lengths(config, self._lf), strict=True) if k > 0)
         self._pf = pf = per_frame(config, period_s)  # (the rate-dependent settings at this frame period)
         self._inv_t2, self._t_cap = 1.0 / pf.step_sigma_m**2, config.temporal_cap**2
         self._v_t, self._v_s, self._a_s = pf.temporal_walk_var, pf.shoulder_walk_var, pf.shoulder_alpha

@@ -9,6 +9,11 @@ from dataclasses import dataclass
 
 #: The settings that are switches (True, False or None: resolved by :func:`akc_plus_config`); the rest are numbers.
 SWITCHES = ("constrained_filter", "seen_wrist_anchor")
+#: The hand rule's length (``hand_length_m``) over the arm's calibrated forearm: 8.5 cm, MediaPipe's knuckles on
+#: the rendered adult (8-8.5 cm; the skinned body's 8.6-9.4), over its 27.5 cm forearm. As a share, it follows the
+#: operator's size: with a constant 8.5 cm the simulated detector on an operator 1.2 times as large (hand 10.8 cm)
+#: missed the per-axis target by +1.19 / +1.33 cm on the 10 clips, the wrists' seen frames; 10.2 cm met it.
+HAND_TO_FOREARM = 0.085 / 0.275
 
 
 @dataclass(frozen=True)
@@ -85,10 +90,11 @@ class AKCPlusConfig:
             variance times that mean is the error variance the residuals show (covariance matching): a lagging
             joint's grows, a still one's shrinks.
         nis_floor: the smallest factor the running mean may apply to the filter's variance.
-        hand_length_m: the wrist to its index and pinky knuckles' midpoint (MediaPipe's on the rendered adult:
-            8-8.5 cm; the skinned body's 8.6-9.4). A measured wrist its own hand hides (the forearm toward the
-            camera) reads the hand, up to a hand's length in front: it is put that far behind the knuckles
-            (:func:`~akc_drake.core.arm_geometry.behind_hand`; 0 turns it off).
+        hand_length_m: the wrist to its index and pinky knuckles' midpoint. A measured wrist its own hand hides
+            (the forearm toward the camera) reads the hand, up to a hand's length in front: it is put that far behind
+            the knuckles (:func:`~akc_drake.core.arm_geometry.behind_hand`). None (the default): the calibrated
+            forearms' mean times :data:`HAND_TO_FOREARM`, so that a smaller or a taller operator's hand is theirs; a
+            number: that length (0 turns the rule off).
         recent_frames: a depth not measured for up to this many frames (0.3 s at 10 Hz) whose filter variance
             is below the variance eq. 7-8 would rebuild it with counts as known: the filter's variance is a
             trustworthy error measure only shortly after a measurement (the running NIS was measured then;
@@ -148,13 +154,15 @@ class AKCPlusConfig:
     nis_floor: float = 0.01
     recent_frames: float = 3.0
     hips_lost_frames: float = 10.0
-    hand_length_m: float = 0.085
+    hand_length_m: float | None = None
     constrained_filter: bool | None = None
     seen_wrist_anchor: bool | None = None
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
+            if f.name == "hand_length_m" and v is None:  # (None: from the calibrated forearm)
+                continue
             if f.name in SWITCHES:  # (the switches; every other field is a number)
                 if v is not None and not isinstance(v, bool):
                     raise ValueError(f"AKCPlusConfig.{f.name} must be True, False or None, got {v!r}")
@@ -172,6 +180,15 @@ class AKCPlusConfig:
             raise ValueError(f"AKCPlusConfig.arm_cover_deg must be at most 90, got {self.arm_cover_deg!r}")
         if self.elbow_min_deg >= 180.0:
             raise ValueError(f"AKCPlusConfig.elbow_min_deg must be below 180, got {self.elbow_min_deg!r}")
+
+
+def hand_lengths(config: AKCPlusConfig, forearms) -> tuple[float, float]:
+    """Each arm's (left, right) hand length for the hand rule: ``config.hand_length_m``, or, None, the mean of the
+    calibrated forearms (``forearms``) times :data:`HAND_TO_FOREARM` (one hand size: a forearm's calibration error,
+    or a body's asymmetry, is not the hand's)."""
+    h = config.hand_length_m
+    h = HAND_TO_FOREARM * 0.5 * (forearms[0] + forearms[1]) if h is None else h
+    return h, h
 
 
 #: The frame period (s) at which :class:`AKCPlusConfig`'s per-frame settings are stated: 10 Hz, the paper's camera
