@@ -116,7 +116,7 @@ def render_spec(
     frames: int | None = None,
     body: str = "primitive",
     detector: str = "sim",
-    camera: str = "default",
+    camera: str | dict = "default",
     options: dict | None = None,
     body_scale: float = 1.0,
 ) -> dict:
