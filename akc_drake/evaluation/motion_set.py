@@ -25,10 +25,9 @@ import numpy as np
 
 from akc_drake.core.skeleton import ARM_JOINTS, INDEX
 from akc_drake.errors import UserError
-from akc_drake.evaluation.set_metrics import (  # noqa: F401 (the set's figures, public here too)
+from akc_drake.evaluation.set_metrics import (
     AXES,
     LOST_SHARE,
-    _joint_pairs,
     lost_frames,
     lost_joint_gain,
     paired_errors,
