@@ -1247,13 +1247,15 @@ def test_a_projected_arm_whose_elbow_is_in_front_of_its_reading_takes_the_config
 
 def _lost_and_drifting(lost, joint):
     """The arm still, the detector losing ``lost`` altogether for 8 frames while the filter runs them on at 3 cm a
-    frame in x claiming 7 cm on each axis: ``{constrained_filter: [joint's error per frame]}`` (lengths exact)."""
+    frame in x claiming 7 cm on each axis: ``{constrained_filter: [joint's error per frame]}`` (lengths exact). The
+    seen joints' depths are refitted as a KF's are (``seen_depth_sigma_m`` 0), so that the two differ in the holds
+    alone."""
     p, dims = arm_pose()
     m = p.copy()
     m[lost] = np.nan
     err = {}
     for constrained in (True, False):
-        akc = settled_corrector(p, dims, AKCPlusConfig(constrained_filter=constrained))
+        akc = settled_corrector(p, dims, AKCPlusConfig(constrained_filter=constrained, seen_depth_sigma_m=0.0))
         err[constrained] = []
         for k in range(1, 9):
             f = p.copy()
@@ -1314,6 +1316,27 @@ def test_a_wrist_lost_altogether_goes_radially_onto_the_forearm_sphere():
     assert abs(out[LW, 2] - truth[LW, 2]) < 0.075
     assert np.linalg.norm(out[[LS, LE]] - truth[[LS, LE]], axis=1).max() < 0.02  # (seen: MediaPipe's landmarks)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_after_an_ekf_a_seen_arm_keeps_the_depths_it_read():
+    # A frame of real data: MediaPipe's mocapbank clip (the skinned body, 10 Hz, after the EKF), frame 40. The
+    # right arm is seen whole, its three depths read within 1 cm of the joints; the EKF, lagging the arm as it
+    # swings away and held by its bone constraints, has them 2.5, 3.5 and 4.2 cm off. MediaPipe's 2D wrist is 4 cm
+    # off in y, so the arm as read has a forearm 5 cm short. Refitted by the running NIS (``seen_depth_sigma_m``
+    # 0), the depths stayed near the EKF's and the projection put the shortfall into depth: the wrist 6.6 cm in
+    # front. Taken as read (1.5 cm), the depths stay within 1.2 cm and the shortfall goes to the wrist's y.
+    z_err = {}
+    for sd in (0.015, 0.0):
+        akc, dims, d = _recorded_frame("mediapipe_mocapbank_ekf_10hz_frame40.npz", True, seen_depth_sigma_m=sd)
+        truth = d["truth"]
+        assert np.abs(d["measured"][[RS, RE, RW], 2] - truth[[RS, RE, RW], 2]).max() < 0.01
+        assert np.abs(d["pose"][[RS, RE, RW], 2] - truth[[RS, RE, RW], 2]).min() > 0.02
+        out = akc.correct(d["pose"], d["measured"], d["variance"]).pose
+        z_err[sd] = np.abs(out[[RS, RE, RW], 2] - truth[[RS, RE, RW], 2])
+        assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+        assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
+    assert z_err[0.015].max() < 0.012
+    assert z_err[0.0][2] > 0.06
 
 
 def test_the_seen_wrist_anchor_keeps_a_measured_wrist_that_the_forearm_fit_would_move():

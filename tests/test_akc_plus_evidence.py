@@ -92,6 +92,29 @@ def test_a_constrained_filter_is_refit_to_the_update_its_nis_shows():
         assert f[5] == f_post
 
 
+def test_after_a_constrained_filter_a_seen_depth_is_taken_as_read():
+    """``seen_var``: after an EKF, a measured depth passing the innovation test is the reading, at that variance;
+    x and y are refitted as before, a depth beyond the gate is not taken, and a plain KF ignores ``seen_var``."""
+    var = [5e-5, 5e-5, 4e-4] * 3
+    m = [0.10, 0.20, 2.03, NAN, NAN, NAN, 0.31, 0.42, 2.30]  # shoulder and wrist measured; the wrist 30 cm off
+    v = [0.10, 0.20, 2.00, 0.0, 0.0, 2.0, 0.30, 0.40, 2.00]
+    k = 1.5
+    f = list(v)
+    out = arm_variances(SUB, var, m, v, f, [k] * 9, 0.0, 0.01, 9.0, refit=True, seen_var=0.015**2)
+    assert f[2] == 2.03 and out[2] == pytest.approx(0.015**2, rel=1e-12)  # the depth as read
+    assert f[8] == 2.00 and out[8] == pytest.approx(4e-4 * k, rel=1e-12)  # beyond the gate: the filter's
+    # x, y are refitted (the update at the prior variance the NIS shows); the elbow, not measured, is the filter's
+    assert f[6] == pytest.approx(0.31 - 0.01 / k, abs=1e-12) and f[7] == pytest.approx(0.42 - 0.02 / k, abs=1e-12)
+    assert f[0:2] == v[0:2] and f[3:6] == v[3:6]
+    # The refit alone (seen_var 0) moves the depth part of the way; a plain KF keeps the filter's (p k < R).
+    f = list(v)
+    arm_variances(SUB, var, m, v, f, [k] * 9, 0.0, 0.01, 9.0, refit=True)
+    assert f[2] == pytest.approx(2.03 - 0.03 / k, abs=1e-12)
+    f = list(v)
+    arm_variances(SUB, var, m, v, f, [k] * 9, 0.0, 0.01, 9.0, seen_var=0.015**2)
+    assert f == v
+
+
 def test_an_extrapolated_blind_depth_is_held_at_the_last_output():
     prev = (0.1, 0.0, 2.0, 0.2, 0.2, 2.05, 0.3, 0.4, 2.0)
     vs = [1e-4] * 9

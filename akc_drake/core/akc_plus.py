@@ -30,8 +30,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
   that passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's. After an EKF
   (``constrained_filter``: its posterior also holds the bone lengths, which pull a seen joint off its measurement)
-  a measured coordinate whose running NIS ``k`` exceeds 1 is fused again with its measurement at the prior
-  variance the NIS shows, ``z - (z - f) / k`` (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`).
+  a depth passing the test is taken as read (``seen_depth_sigma_m``), an x or y whose running NIS ``k`` exceeds 1
+  refitted at the NIS's prior variance, ``z - (z - f) / k`` (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`).
 * *Minimal change*: when both depths are known (seen; or not measured this frame and known by the filter as
   well as a measurement would know them or, dropped at most ``recent_frames`` ago, better than eq. 7-8 would
   rebuild them from their neighbours: :func:`~akc_drake.core.arm_geometry.rebuild_variance`, which is large
@@ -240,7 +240,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost", "_s_floor",
-                 "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor")
+                 "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor", "_seen_var")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -259,8 +259,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
         self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
         self._inv_torso2 = 1.0 / config.sigma_torso_m**2 if config.sigma_torso_m > 0 else 0.0
-        self._no_prior, self._fits = set(), set()
-        self._cos_min = math.cos(math.radians(config.elbow_min_deg))
+        self._no_prior, self._fits, self._cos_min = set(), set(), math.cos(math.radians(config.elbow_min_deg))
         self._r_z, self._len_var = config.depth_sigma_m**2, config.length_sigma_m**2
         self._off_var = 0.5 * self._len_var  # (the projections' landmark-offset variance per coordinate: ``_arm``)
         self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
@@ -278,6 +277,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         self._refit, self._wrist_anchor = config.constrained_filter is True, config.seen_wrist_anchor is True
         # A constrained filter's variance of a joint lost altogether is no error measure after ``recent_frames``.
         self._blind_honest = pf.recent_frames if self._refit else _inf
+        self._seen_var = config.seen_depth_sigma_m**2 if self._refit else 0.0  # (a seen depth's: ``arm_variances``)
         self._cons, self._xy_tol, self._occ_r2 = config.consistency_m, config.xy_tol_m, config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
         self._fs_r, self._fs_k2 = config.arm_radius_m, (config.arm_radius_m + config.consistency_m) ** 2
@@ -332,7 +332,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2,
-                                               self._refit)
+                                               self._refit, self._seen_var)
             if m is not None and (m[o_s] != m[o_s] or m[o_w] != m[o_w]):  # (a joint lost altogether that its
                 # filter put beyond the measured elbow's reach)
                 beyond_reach(f, vs, m, offsets, prev, self._lu[side], self._lf[side], self._r_axes, self._len_var,

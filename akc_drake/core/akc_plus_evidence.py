@@ -21,7 +21,8 @@ if TYPE_CHECKING:  # (read by Cython when compiling: typed indices, see setup.py
 _NAN = float("nan")
 
 
-def arm_variances(sub_index, var, m, v, f, nis, alpha: float, floor: float, g2: float, refit=False):
+def arm_variances(sub_index, var, m, v, f, nis, alpha: float, floor: float, g2: float, refit=False,
+                  seen_var: float = 0.0):
     """The nine error variances of an arm (shoulder, elbow, wrist): the filter's times the running NIS.
 
     The running NIS measures the filter's error against its model while it is measured; an axis not measured
@@ -43,6 +44,10 @@ def arm_variances(sub_index, var, m, v, f, nis, alpha: float, floor: float, g2: 
     from lag: moving its estimate so towards the measurement made the wrists' depth 0.15-0.71 cm worse on 8 of
     the 14 real-motion clips and windows (the binary rule above is its limit, and stays).
 
+    With ``refit`` and ``seen_var`` > 0, a measured depth that passes the test is taken as read instead, with the
+    variance ``seen_var`` (``AKCPlusConfig.seen_depth_sigma_m`` squared): the EKF's bone constraints and its lag
+    keep a seen joint's depth off its reading by more than the reading errs; x and y are refitted as above.
+
     Args:
         sub_index: per coordinate ``(position in the arm, flat index, R, NIS index)``.
         var: the filter's flat (36) posterior variances P.
@@ -53,6 +58,7 @@ def arm_variances(sub_index, var, m, v, f, nis, alpha: float, floor: float, g2: 
         alpha: the newest frame's weight in the running mean; floor: the smallest factor it may apply.
         g2: the innovation gate squared (each frame's NIS is winsorised at it).
         refit: the filter's posterior holds constraints (see above).
+        seen_var: with ``refit``, a seen depth's error variance (0: refitted like x and y).
 
     Returns:
         The nine variances (a list).
@@ -77,10 +83,14 @@ def arm_variances(sub_index, var, m, v, f, nis, alpha: float, floor: float, g2: 
             k = nis[n] = b * k + alpha * (q if q < g2 else g2)
         vi = p * (k if k > floor else floor)
         refit_k = refit and k > 1.0 and r > p
-        if refit_k or vi > r:
+        seen_z = refit and seen_var > 0.0 and i % 3 == 2  # (a depth, after a constrained filter: ``seen_var``)
+        if seen_z or refit_k or vi > r:
             d = z - f[i]
             if d * d <= g2 * ((r - p if r > p else 0.0) + (vi - p if vi > p else 0.0)) + 1e-12:
-                if refit_k:  # the update at the prior variance the NIS shows
+                if seen_z:  # the reading, at the error a seen depth has
+                    f[i] = z
+                    vi = seen_var
+                elif refit_k:  # the update at the prior variance the NIS shows
                     f[i] = z - d / k
                     vi = r - (r - p) / k
                 else:  # the measurement replaces the filter

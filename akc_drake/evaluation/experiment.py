@@ -162,21 +162,20 @@ class ExperimentConfig:
             with_filter_settings(self.options, self.filter_settings)  # (likewise)
 
     def run_options(self) -> MethodOptions:
-        """The stage settings the methods run with: the protocol's, with this config's occlusion thresholds and
-        filter settings."""
+        """The stage settings the methods run with: the protocol's, with this config's occlusion thresholds, filter
+        settings and AKC+ settings (over the protocol's own: :func:`~akc_drake.evaluation.protocol.with_akc_plus`)."""
         import dataclasses
 
-        from akc_drake.evaluation.protocol import method_options, with_filter_settings
+        from akc_drake.evaluation.protocol import method_options, with_akc_plus, with_filter_settings
 
         if self.protocol == "ours":
             return with_filter_settings(self.options, self.filter_settings)
-        return with_filter_settings(dataclasses.replace(
+        return with_filter_settings(with_akc_plus(dataclasses.replace(
             method_options(self.protocol),
             visibility_threshold=self.options.visibility_threshold,
             proximity=self.options.proximity,
-            akc_plus_config=self.options.akc_plus_config,
             correctors=self.options.correctors,
-        ), self.filter_settings)
+        ), self.options.akc_plus_config), self.filter_settings)
 
     @property
     def motion_names(self) -> tuple[str, ...]:

@@ -214,7 +214,7 @@ def evaluate_clip(item: dict) -> dict:
     from akc_drake.core.skeleton import BodyDimensions
     from akc_drake.evaluation.cache import spec_key
     from akc_drake.evaluation.methods import MethodRunner, parse_method
-    from akc_drake.evaluation.protocol import method_options, with_filter_settings
+    from akc_drake.evaluation.protocol import method_options, with_akc_plus, with_filter_settings
 
     clip = item["clip"]
     protocol = item.get("protocol", "paper")
@@ -234,7 +234,7 @@ def evaluate_clip(item: dict) -> dict:
     dims = BodyDimensions(**item["dims"])
     options = with_filter_settings(method_options(protocol), item.get("filter_settings"))
     if item.get("akc_plus"):
-        options = dataclasses.replace(options, akc_plus_config=dict(item["akc_plus"]))
+        options = with_akc_plus(options, dict(item["akc_plus"]))
     own = dict(item.get("correctors") or {})
     if own:
         options = dataclasses.replace(options, correctors=own)
