@@ -1291,7 +1291,9 @@ def _recorded_frame(name, constrained_filter=False, **settings):
     """A frame of real data (tests/data/akc_plus/NAME: a MediaPipe evaluation clip's frame, after the KF, or after
     the EKF with ``constrained_filter``) and AKC+ in the state it had after the frames before: ``(corrector, dims,
     data)``; ``data`` holds ``pose``, ``measured``, ``variance`` (the corrector's inputs) and ``truth``. Recorded
-    with ``get_state_vector`` while the evaluation ran; a change of the state's layout needs them recorded again."""
+    with ``get_state_vector`` while the evaluation ran; a state that grew since is extended with the new entries'
+    values before any frame (``[101:103]``, the elbows' remembered readings: NaN), and a reordered one needs them
+    recorded again."""
     d = np.load(Path(__file__).parent / "data" / "akc_plus" / name)
     dims = BodyDimensions(**dict(zip(("LUA", "LLA", "RUA", "RLA", "SW"), d["dims"].tolist(), strict=True)))
     akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=constrained_filter, **settings),
@@ -1337,6 +1339,28 @@ def test_after_an_ekf_a_seen_arm_keeps_the_depths_it_read():
         assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
     assert z_err[0.015].max() < 0.012
     assert z_err[0.0][2] > 0.06
+
+
+def test_an_elbow_judged_behind_the_chest_stays_behind_it_once_its_wrist_is_lost():
+    # A frame of real data: MediaPipe's bvhtools_a2 window (the skinned body, 10 Hz, after the EKF), frame 488. The
+    # left elbow, 10 cm behind the shoulder with its pixel inside the torso's outline, has been read 18-19 cm in
+    # front for two frames: the chest. With the wrist seen the arm's lengths contradicted the reading and AKC+ put
+    # the elbow behind it (``behind_surface``); the state remembers the chest's depth. Now the wrist is lost
+    # altogether and the EKF has followed the reading halfway: the elbow rebuilt radially towards it went 21 cm in
+    # front, the wrist 16 cm. The verdict holds (the same surface, the body covers the pixel): within 7 cm.
+    akc, dims, d = _recorded_frame("mediapipe_bvhtools_a2_window_ekf_10hz_frame488.npz", True)
+    truth, m, state = d["truth"], d["measured"], d["state"]
+    assert np.isnan(m[LW]).all() and m[LE, 2] < truth[LE, 2] - 0.18 and abs(state[101] - m[LE, 2]) < 0.05
+    out = akc.correct(d["pose"], m, d["variance"]).pose
+    assert abs(out[LE, 2] - truth[LE, 2]) < 0.07 and abs(out[LW, 2] - truth[LW, 2]) < 0.02
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+    assert akc.get_state_vector()[101] == m[LE, 2]  # (still judged behind this frame's reading)
+    forgot = state.copy()
+    forgot[101] = np.nan  # no memory: the old output
+    akc.set_state_vector(forgot)
+    out = akc.correct(d["pose"], m, d["variance"]).pose
+    assert out[LE, 2] < truth[LE, 2] - 0.18 and out[LW, 2] < truth[LW, 2] - 0.12
 
 
 def test_the_seen_wrist_anchor_keeps_a_measured_wrist_that_the_forearm_fit_would_move():

@@ -6,6 +6,7 @@ import pytest
 from scipy.optimize import minimize
 
 from akc_drake.core.akc_plus_lengths import (
+    SurfaceMemory,
     behind_surface,
     circle_pair,
     measured_arm,
@@ -15,6 +16,7 @@ from akc_drake.core.akc_plus_lengths import (
     sphere_point,
 )
 from akc_drake.core.arm_geometry import circle_point
+from akc_drake.core.skeleton import INDEX
 
 
 def test_forearm_projection_is_the_arm_projection_with_a_fixed_shoulder():
@@ -269,3 +271,64 @@ def test_behind_surface_switches_only_with_evidence():
     # The elbow's image position beyond the upper arm's reach of the shoulder: no candidate behind it.
     far = (*read[0:3], read[3] + 0.3, *read[4:9])
     assert behind_surface(arm, far, v, lu, lf, read[5], 0.05, truth[5], 5e-5) is arm
+
+
+class _Memory(SurfaceMemory):
+    """SurfaceMemory's rules on the attributes AKC+ gives them (``consistency_m`` 5 cm, ``arm_radius_m`` 5 cm)."""
+
+    __slots__ = ("_cons", "_fs_r", "_read_e", "_v", "_verdict")
+
+    def __init__(self, pose, read_e):
+        self._cons, self._fs_r, self._read_e, self._v, self._verdict = 0.05, 0.05, list(read_e), pose, False
+
+
+def _left_elbow_behind_the_chest():
+    """A pose 2 m from the camera, the left elbow's pixel inside the torso's outline (behind the belly), as a flat
+    list; and the elbow's flat offset."""
+    p = np.full((12, 3), 5.0)  # (hands and the right arm far off)
+    for name, xyz in (("left_shoulder", (0.18, 0.0, 2.0)), ("right_shoulder", (-0.18, 0.0, 2.0)),
+                      ("left_hip", (0.12, 0.5, 2.0)), ("right_hip", (-0.12, 0.5, 2.0)),
+                      ("left_elbow", (0.08, 0.27, 2.1)), ("left_wrist", (0.0, 0.5, 1.9))):
+        p[INDEX[name]] = xyz
+    return p.reshape(-1).tolist(), 3 * INDEX["left_elbow"]
+
+
+def test_surface_memory_holds_a_verdict_while_the_same_surface_is_read_and_the_body_covers_the_pixel():
+    v, o = _left_elbow_behind_the_chest()
+    nan = float("nan")
+    # No verdict: only an elbow in front of its reading beyond consistency_m is put behind it (behind_surface).
+    mem = _Memory(v, (nan, nan))
+    assert mem._surface_tol(0, 1.92, 1.85, o) == 0.05
+    assert math.isnan(mem._surface_tol(0, 1.92, 1.92, o))
+    # Last frame's verdict: the chest read at 1.92 m. The same surface now (1.90): an elbow at the reading (the
+    # filter followed it) must go behind it beyond consistency_m (tol -5 cm) ...
+    mem = _Memory(v, (1.92, nan))
+    assert mem._surface_tol(0, 1.90, 1.90, o) == -0.05
+    assert math.isnan(mem._surface_tol(1, 1.90, 1.90, o))  # (the other arm's memory is its own)
+    # ... not one already behind it, nor once the pixel reads another surface (moved beyond consistency_m) ...
+    assert math.isnan(mem._surface_tol(0, 1.90, 1.96, o))
+    assert math.isnan(mem._surface_tol(0, 1.86, 1.86, o))
+    # ... nor where nothing of the body can lie on the ray (the elbow raised to the side).
+    side = list(v)
+    side[o:o + 3] = [0.45, -0.1, 2.0]
+    assert math.isnan(_Memory(side, (1.92, nan))._surface_tol(0, 1.90, 1.90, o))
+    # The radial elbow of a lost wrist goes to the Pythagorean candidate behind the shoulder at its image x, y,
+    # when that is behind the reading and nearer our last output's depth; the verdict is noted.
+    s, lu = (0.18, 0.0, 2.0), 0.29
+    e = (0.08, 0.27, 1.93)
+    out = mem._behind_radial(0, o, s, e, 0.08, 0.27, 1.90, 2.10, lu)
+    assert out[:2] == (0.08, 0.27) and out[2] == pytest.approx(2.0 + math.sqrt(lu**2 - 0.1**2 - 0.27**2))
+    assert math.dist(s, out) == pytest.approx(lu) and mem._verdict
+    mem = _Memory(v, (1.92, nan))
+    assert mem._behind_radial(0, o, s, e, 0.08, 0.27, 1.90, 1.93, lu) is e and not mem._verdict  # last output in front
+    # After the output: the reading is remembered only with a verdict, the elbow behind it beyond consistency_m.
+    m = [nan] * 36
+    m[o:o + 3] = [0.08, 0.27, 1.90]
+    out9 = (*s, 0.08, 0.27, 2.06, 0.0, 0.5, 1.9)
+    mem._remember_surface(0, out9, m, o)
+    assert math.isnan(mem._read_e[0])
+    mem._verdict = True
+    mem._remember_surface(0, out9, m, o)
+    assert mem._read_e[0] == 1.90
+    mem._remember_surface(0, (*out9[:5], 1.93, *out9[6:]), m, o)
+    assert math.isnan(mem._read_e[0])

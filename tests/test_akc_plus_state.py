@@ -86,3 +86,21 @@ def test_state_round_trips_while_a_shoulder_is_held_on_the_other_one():
     bad[94] = -1.0
     with pytest.raises(ValueError, match="shoulder-pair frame count"):
         other.set_state_vector(bad)
+
+
+def test_state_round_trips_the_elbows_remembered_readings():
+    # [101:103]: per side the elbow's depth read where a rule put the elbow behind it (NaN: none). A corrector
+    # restored from the vector remembers it; an infinite reading is no state.
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    v = akc.get_state_vector()
+    assert np.isnan(v[101:103]).all()
+    v[101] = 1.92
+    other = ArmKinematicCorrectorPlus(dims)
+    other.set_state_vector(v)
+    np.testing.assert_array_equal(other.get_state_vector(), v)
+    other.reset()
+    assert np.isnan(other.get_state_vector()[101:103]).all()
+    v[102] = np.inf
+    with pytest.raises(ValueError, match="elbow readings"):
+        other.set_state_vector(v)

@@ -8,6 +8,7 @@ from akc_drake.core.arm_geometry import (
     behind_hand,
     behind_reading,
     bends_backwards,
+    body_covers,
     circle_point,
     elbow_angle_deg,
     follow,
@@ -270,3 +271,38 @@ def test_segment_distance2_is_to_the_nearest_point_of_the_segment_in_the_image()
     assert segment_distance2(0.2, 0.0, 0.0, 0.0, 0.3, 0.0) == pytest.approx(0.0, abs=1e-15)
     # a forearm pointing at the camera (both ends on one pixel): the distance to that point
     assert segment_distance2(0.03, 0.04, 0.1, 0.1, 0.1, 0.1) == pytest.approx(0.07**2 + 0.06**2)
+
+
+def _covers(pose, joint, side, r=0.05):
+    return body_covers(pose.reshape(-1).tolist(), 3 * INDEX[joint], side, r)
+
+
+def test_body_covers_an_elbow_inside_the_torsos_outline_or_near_another_limb_or_a_hand():
+    # The torso 36 cm wide at the shoulders, 24 at the hips, 50 cm tall, 2 m from the camera; the hands far away.
+    v = np.full((12, 3), np.nan)
+    v[:10] = [1.0, 1.0, 2.0]
+    v[:4] = _pose_facing_camera()[:4]
+    v[[INDEX["left_hip"], INDEX["right_hip"]]] = _pose_facing_camera()[[INDEX["left_hip"], INDEX["right_hip"]]]
+    v[INDEX["right_elbow"]], v[INDEX["right_wrist"]] = [-0.45, 0.0, 2.0], [-0.70, 0.0, 2.0]  # (the right arm out)
+    le = INDEX["left_elbow"]
+    v[le] = [0.05, 0.25, 2.2]  # behind the belly, its pixel inside the outline
+    assert _covers(v, "left_elbow", 0)
+    v[le] = [0.20, 0.25, 2.0]  # 5 cm outside the edge (x 0.15 at this height), 4.96 cm from it: within r = 5 cm
+    assert _covers(v, "left_elbow", 0)
+    assert not _covers(v, "left_elbow", 0, r=0.04)
+    v[le] = [0.40, 0.25, 2.0]  # out to the side: nothing in front
+    assert not _covers(v, "left_elbow", 0)
+    v[le] = [0.05, 0.25, 1.0]  # the same pixel as (0.1, 0.5) at 2 m: the image decides, not the metric position
+    assert _covers(v, "left_elbow", 0)
+    v[le] = [0.40, 0.25, 2.0]
+    v[INDEX["right_wrist"]] = [0.40, 0.30, 1.7]  # the other forearm passes 7 cm from it in the image ...
+    assert _covers(v, "left_elbow", 0)  # ... within two radii (10 cm at its depth)
+    v[INDEX["right_wrist"]] = [0.40, 0.36, 1.7]  # ... 13 cm: not
+    assert not _covers(v, "left_elbow", 0)
+    v[INDEX["right_wrist"]] = [-0.70, 0.0, 2.0]
+    v[INDEX["left_index"]] = [0.37, 0.23, 1.85]  # its own hand's knuckles in front of it
+    assert _covers(v, "left_elbow", 0)
+    v[INDEX["left_index"]] = [1.0, 1.0, 2.0]
+    assert not _covers(v, "left_elbow", 0)
+    v[INDEX["left_hip"]] = np.nan  # a torso not known cannot be ruled out
+    assert _covers(v, "left_elbow", 0)

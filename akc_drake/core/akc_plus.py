@@ -97,7 +97,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   and the projection tipped to the mirror configuration, the elbow in front of the wrist. The projection from the
   elbow's Pythagorean candidate behind the shoulder replaces it when that leaves the elbow behind its reading, its
   depth nearer our last output's (:func:`~akc_drake.core.akc_plus_lengths.behind_surface`; AKC+(KF)'s worst increase on
-  the MediaPipe windows +1.15 -> +0.80 cm).
+  the MediaPipe windows +1.15 -> +0.80 cm). The verdict holds while the pixel reads the same surface and another
+  part of the body can cover it, also once the filter and the arm fit the reading (``SurfaceMemory``: the same
+  elbow behind the chest, its wrist then lost; AKC+(EKF)'s worst increase on those windows +1.25 -> +0.64 cm).
 * A wrist behind a lost elbow, its forearm along the ray (2D length < ``r l_f / (r + consistency_m)``, r =
   ``arm_radius_m``), reads the forearm: if the circle to a kept shoulder moves the elbow off its x, y, the elbow
   goes from the shoulder, the wrist behind its reading (:func:`akc_drake.core.arm_geometry.behind_reading`).
@@ -180,6 +182,7 @@ from akc_drake.core.akc_plus_evidence import (
     wrist_misfit,
 )
 from akc_drake.core.akc_plus_lengths import (
+    SurfaceMemory,
     anchored_wrist,
     behind_surface,
     circle_pair,
@@ -192,6 +195,7 @@ from akc_drake.core.akc_plus_lengths import (
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
 from akc_drake.core.akc_plus_torso import _XYZ, NO_HIPS, TorsoReference, learn_offset
+from akc_drake.core.arm_geometry import arm_inputs, ray_check
 from akc_drake.core.arm_geometry import behind_reading as _behind_reading
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -200,7 +204,6 @@ from akc_drake.core.arm_geometry import follow as _follow
 from akc_drake.core.arm_geometry import nearest_depth as _nearest_depth
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
-from akc_drake.core.arm_geometry import ray_check
 from akc_drake.core.arm_geometry import turn_with as _turn_with
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
@@ -220,7 +223,7 @@ _FLAT, _SHAPE = 3 * NUM_LANDMARKS, (NUM_LANDMARKS, 3)
 _HAND = tuple(tuple(3 * INDEX[f"{s}_{j}"] for j in ("elbow", "wrist", "index", "pinky")) for s in SIDES)
 
 
-class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
+class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, StateVector):
     """AKC+ for both arms (see the module docstring); the same interface as the paper's corrector.
 
     Args:
@@ -240,7 +243,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost", "_s_floor",
-                 "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor", "_seen_var")
+                 "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor", "_seen_var", "_read_e",
+                 "_verdict")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -306,26 +310,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
         q: float; d: float; d0: float; d1: float; d2: float; df: float; jump: float; inv_w2: float; lf: float; lu: float
         g2: float; rz: float; tol: float; cons: float  # (C doubles when compiled: setup.py)
         o_s: cython.Py_ssize_t; o_e: cython.Py_ssize_t; o_w: cython.Py_ssize_t
-        prev = self._prev[side]
+        prev, self._verdict = self._prev[side], False
         o_s, o_e, o_w = offsets = self._offsets[side]
-        # (``arm_inputs`` inline, its operations in the same order: this runs for every arm.)
-        wx, wy, wz = v[o_w], v[o_w + 1], v[o_w + 2]
-        if not _isfinite(wx + wy + wz):
+        inputs = arm_inputs(v, offsets, prev)  # (wrist lost: hold; x, y or depth missing: prev's or a neighbour's)
+        if inputs is None:
             return None
-        ex, ey, ez = v[o_e], v[o_e + 1], v[o_e + 2]
-        if not _isfinite(ex + ey):
-            if prev is None:
-                return None
-            ex, ey = prev[3], prev[4]
-        if not _isfinite(ez):
-            ez = prev[5] if prev is not None else wz
-        sx, sy, sz = v[o_s], v[o_s + 1], v[o_s + 2]
-        if not _isfinite(sx + sy):
-            if prev is None:
-                return None
-            sx, sy = prev[0], prev[1]
-        if not _isfinite(sz):
-            sz = prev[2] if prev is not None else ez
+        sx, sy, sz, ex, ey, ez, wx, wy, wz = inputs
         var = self._var
         s_held = e_fused = False  # the shoulder held on the torso, the elbow fused with its held upper arm
         if var is not None:
@@ -497,8 +487,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             a9 = (sx, sy, sz, ex, ey, ez, wx, wy, wz)
             arm = project_arm(a9, vs, lu, lf, 0.0, self._chi2_gate, self._off_var, t)
             if arm is not None:  # (an elbow not in front of the surface its pixel read: ``behind_surface``)
-                if me and arm[5] < m[o_e + 2] - self._cons and prev is not None:
-                    return behind_surface(arm, a9, vs, lu, lf, m[o_e + 2], self._cons, prev[5], self._off_var)
+                if me and prev is not None and (t := self._surface_tol(side, m[o_e + 2], arm[5], o_e)) == t:
+                    return self._judged(arm, behind_surface(arm, a9, vs, lu, lf, m[o_e + 2], t, prev[5], self._off_var))
                 return arm
         pe = (prev[3], prev[4], prev[5]) if prev is not None else None
         w = (wx, wy, wz)
@@ -572,8 +562,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                 # contradicts a seen elbow): then the elbow is placed from the shoulder (radially when seen, else the
                 # shoulder's Pythagorean candidate, x, y kept, that best fits the filter, the previous output and the
                 # wrist) and the wrist at l_f from it along its own direction.
-                if me:
+                if me:  # (behind the surface its pixel read, as judged last frame: ``SurfaceMemory``)
                     e = _radial(sx, sy, sz, ex, ey, ez, lu)
+                    if pe is not None:
+                        e = self._behind_radial(side, o_e, s, e, ex, ey, m[o_e + 2], pe[2], lu)
                 else:
                     # The Pythagorean pair (x, y kept) and the point at l_u nearest the filter's estimate
                     # (the filter's own elbow when only the lengths contradict it).
@@ -589,9 +581,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
                                                                       self._off_var, self._gate2)):
                         return kept
                     if arm is not None:  # (as after the projection above)
-                        if me and arm[5] < m[o_e + 2] - self._cons and pe is not None:
-                            return behind_surface(arm, (*s, ex, ey, e[2], wx, wy, wz), vs, lu, lf, m[o_e + 2],
-                                                  self._cons, pe[2], self._off_var, True)
+                        if me and pe is not None and (t := self._surface_tol(side, m[o_e + 2], arm[5], o_e)) == t:
+                            return self._judged(arm, behind_surface(arm, (*s, ex, ey, e[2], wx, wy, wz), vs, lu, lf,
+                                                                    m[o_e + 2], t, pe[2], self._off_var, True))
                         return arm
                 if w_lost and vs is not None:  # A wrist no anchor: at l_f from the elbow, behind a reading of its
                     # forearm, nearest in its own metric (depth rejected) or radially (not detected: README "AKC+").
@@ -674,6 +666,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, StateVector):
             out = self._arm(v, m, side)  # (the other shoulder for the width term: ``_other_shoulder``, lazily)
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out
+                self._remember_surface(side, out, m, o_e)
                 if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected, and the
                     # upper arm then (the held forearm turns with it: ``_arm``)
                     self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0,

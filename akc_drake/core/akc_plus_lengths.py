@@ -21,9 +21,12 @@ from __future__ import annotations
 
 import math
 
+from akc_drake.core.arm_geometry import body_covers
+
 _hypot = math.hypot
 _sqrt = math.sqrt
 _inf = math.inf
+_NAN = float("nan")
 _isfinite = math.isfinite
 #: A segment shorter than this (m) has no direction.
 _MIN_SEGMENT_M = 1e-12
@@ -289,6 +292,63 @@ def behind_surface(arm, f, v, lu, lf, z_read, tol, z_prev, offset_var=0.0, shoul
     if alt is None or alt[5] < z_read - tol or abs(alt[5] - z_prev) >= abs(arm[5] - z_prev):
         return arm
     return alt
+
+
+class SurfaceMemory:
+    """An elbow judged behind the surface its pixel read, remembered while the pixel reads that surface: a mixin of
+    :class:`~akc_drake.core.akc_plus.ArmKinematicCorrectorPlus` (its attributes ``_read_e``: per side the depth
+    read when our output was put behind it, NaN: none; ``_verdict``: this frame's ``_arm`` put it there;
+    ``_cons``, ``_fs_r``, ``_v``).
+
+    :func:`behind_surface` acts while the arm's lengths contradict the reading. Once the filter has followed the
+    reading onto the occluder, nothing in this frame contradicts it: MediaPipe's left elbow behind the chest
+    (bvhtools_a2's window, 10 Hz), read 19 cm in front, was put behind it while the wrist was seen; the wrist then
+    lost, the EKF at the chest and the elbow rebuilt radially from the shoulder towards it, the elbow and the lost
+    wrist went 20-30 cm in front for 30 frames. So the verdict holds while the pixel reads the same surface (within
+    ``consistency_m`` of the last frame's reading) and another part of the body can lie on its ray
+    (:func:`~akc_drake.core.arm_geometry.body_covers`: without it, a wrong verdict on an elbow raised to the side,
+    nothing in front, held it 15-25 cm behind its correct reading for 14 frames; MediaPipe, cmu_13_26)."""
+
+    __slots__ = ()
+
+    def _surface_tol(self, side, z: float, ze: float, o: int) -> float:
+        """:func:`behind_surface`'s ``tol`` for an elbow (flat offset ``o``) at depth ``ze`` read at ``z``:
+        ``consistency_m`` when it is in front of the reading beyond that; ``-consistency_m`` (it must go behind
+        the reading) where the last frame's verdict holds; NaN: neither."""
+        c = self._cons
+        if ze < z - c:
+            return c
+        zr = self._read_e[side]
+        if zr == zr and abs(z - zr) <= c and ze < z + c and body_covers(self._v, o, side, self._fs_r):
+            return -c
+        return _NAN
+
+    def _judged(self, arm, alt):
+        """``alt`` (:func:`behind_surface`'s result), the verdict noted when it is not ``arm``."""
+        if alt is not arm:
+            self._verdict = True
+        return alt
+
+    def _behind_radial(self, side, o: int, s, e, ex: float, ey: float, z: float, z_prev: float, lu: float):
+        """The elbow ``e`` put on the upper arm's sphere radially (a lost wrist: no projection), or, under
+        :meth:`_surface_tol`, the Pythagorean candidate behind the shoulder at its image ``ex, ey`` when that is
+        behind the reading ``z`` and nearer our previous output's depth ``z_prev`` (as :func:`behind_surface`)."""
+        t = self._surface_tol(side, z, e[2], o)
+        r2 = lu * lu - (ex - s[0]) ** 2 - (ey - s[1]) ** 2
+        if t != t or z_prev != z_prev or r2 < 0.0:
+            return e
+        gz = s[2] + _sqrt(r2)
+        if gz < z - t or abs(gz - z_prev) >= abs(e[2] - z_prev):
+            return e
+        self._verdict = True
+        return ex, ey, gz
+
+    def _remember_surface(self, side, out, m, o: int) -> None:
+        """After this frame's output ``out`` of arm ``side``: its elbow's reading (flat offset ``o`` of ``m``)
+        remembered when a rule put the elbow behind it beyond ``consistency_m``."""
+        z = _NAN if m is None else m[o + 2]
+        keep = self._verdict and z == z and out[5] > z + self._cons and _isfinite(m[o] + m[o + 1])
+        self._read_e[side] = z if keep else _NAN
 
 
 def circle_pair(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, p, p2):

@@ -9,7 +9,8 @@ side the upper arm when the held forearm was kept (x, y, z; NaN once the forearm
 ``[78:84]``, per side (x, y, z, frames) the shoulder's offset from the other shoulder ``[84:92]``, and the frames
 since the hips were last the torso's reference ``[92]``, and per side the measured depth's running-mean difference
 from the other shoulder's (NaN: none yet), the frames it has held the shoulder, the depth last measured and the
-frames since ``[93:101]``.
+frames since ``[93:101]``, and per side the elbow's depth read where our output was judged behind the surface it
+read (NaN: none; :class:`~akc_drake.core.akc_plus_lengths.SurfaceMemory`) ``[101:103]``.
 """
 
 from __future__ import annotations
@@ -20,14 +21,14 @@ import numpy as np
 
 from akc_drake.core.skeleton import SIDES
 
-STATE_SIZE = 101
-_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST, _PAIR_Z = 36, 54, 62, 70, 78, 84, 92, 93
+STATE_SIZE = 103
+_NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST, _PAIR_Z, _READ_E = 36, 54, 62, 70, 78, 84, 92, 93, 101
 
 
 class StateVector:
     """:meth:`reset`, :meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``,
     ``_lost``, ``_f0``, ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``, ``_hips_lost``,
-    ``_pair_z``)."""
+    ``_pair_z``, ``_read_e``)."""
 
     __slots__ = ()
 
@@ -52,6 +53,8 @@ class StateVector:
         # per side: the measured depth minus the other shoulder's (a running mean; NaN: none yet), the frames it has
         # held the shoulder, the depth last measured and the frames since (``TorsoReference._shoulder_jumped``)
         self._pair_z = [[math.nan, 0.0, math.nan, 0.0], [math.nan, 0.0, math.nan, 0.0]]
+        # per side: the elbow's depth read last frame where a rule put the elbow behind it (``SurfaceMemory``)
+        self._read_e = [math.nan, math.nan]
 
     def get_state_vector(self) -> np.ndarray:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
@@ -59,7 +62,8 @@ class StateVector:
         NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
         its frames, then per side the upper arm the held forearm turns with, the shoulder's offset from the
         other shoulder and its frames, the frames since the hips were the torso's reference, and per side the
-        shoulders' measured depth difference, its held frames, the depth last measured and the frames since."""
+        shoulders' measured depth difference, its held frames, the depth last measured and the frames since, and per
+        side the elbow's reading judged in front of it."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -80,7 +84,8 @@ class StateVector:
             if self._blind[side] is not None:
                 v[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3] = self._blind[side][4:7]
         v[_HIPS_LOST] = self._hips_lost
-        v[_PAIR_Z:STATE_SIZE] = self._pair_z[0] + self._pair_z[1]
+        v[_PAIR_Z:_READ_E] = self._pair_z[0] + self._pair_z[1]
+        v[_READ_E:STATE_SIZE] = self._read_e
         return v
 
     def set_state_vector(self, v) -> None:
@@ -132,12 +137,17 @@ class StateVector:
         if not (math.isfinite(hl) and hl >= 0):
             raise ValueError(f"AKC+ state vector: hips-lost frames [{_HIPS_LOST}] must be >= 0, got {hl!r}")
         self._hips_lost = float(hl)
-        pz = a[_PAIR_Z:STATE_SIZE].tolist()
+        pz = a[_PAIR_Z:_READ_E].tolist()
         for i in (1, 3, 5, 7):
             if not (math.isfinite(pz[i]) and pz[i] >= 0):
                 raise ValueError(f"AKC+ state vector: shoulder-pair frame count [{_PAIR_Z + i}] must be >= 0, "
                                  f"got {pz[i]!r}")
         self._pair_z = [pz[0:4], pz[4:8]]
+        read = a[_READ_E:STATE_SIZE]
+        if np.any(np.isinf(read)):
+            raise ValueError(f"AKC+ state vector: elbow readings [{_READ_E}:{STATE_SIZE}] must be finite or NaN, "
+                             f"got {read.tolist()}")
+        self._read_e = read.tolist()
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()

@@ -425,3 +425,59 @@ def turn_with(vx: float, vy: float, vz: float, ax: float, ay: float, az: float, 
     q = (kx * vx + ky * vy + kz * vz) / (1.0 + c)
     return (vx * c + ky * vz - kz * vy + q * kx, vy * c + kz * vx - kx * vz + q * ky,
             vz * c + kx * vy - ky * vx + q * kz)
+
+
+#: Flat offsets (3 x landmark index) of the torso's outline in the image, in order around it: the left shoulder,
+#: the right shoulder, the right hip, the left hip.
+_TORSO = tuple(3 * INDEX[n] for n in ("left_shoulder", "right_shoulder", "right_hip", "left_hip"))
+#: Per side (left, right): the other arm's shoulder, elbow and wrist, then the hands' points that can cover an
+#: elbow's pixel (its own wrist and knuckles and the other hand's knuckles), as flat offsets.
+_COVERS = tuple(
+    (tuple(3 * INDEX[f"{o}_{j}"] for j in ("shoulder", "elbow", "wrist")),
+     tuple(3 * INDEX[n] for n in (f"{s}_wrist", f"{s}_pinky", f"{s}_index", f"{o}_pinky", f"{o}_index")))
+    for s, o in (("left", "right"), ("right", "left")))
+
+
+def body_covers(v, o: int, side: int, r: float) -> bool:
+    """Whether another part of the body can lie on the pixel ray of the joint at flat offset ``o`` of arm ``side``
+    (0 left, 1 right) in pose ``v`` (36 floats, camera frame): the torso (the shoulders' and hips' quadrilateral in
+    the image, widened by ``r``), the other arm (its upper arm and forearm within ``2 r``: two limbs' radii), or a
+    hand (its own wrist or either hand's knuckles within ``2 r``). Compared in the image (x / z, y / z), the widths
+    taken at the joint's depth. A torso point not known (NaN, or no positive depth) cannot rule the torso out: True.
+
+    A camera reads the first surface on a joint's ray; a depth read in front of the joint needs an occluder there.
+    An elbow read 19 cm in front was the chest (its pixel inside the torso's outline: MediaPipe, bvhtools_a2); one
+    raised to the side, 16 cm outside it, had nothing in front and its reading was right (cmu_13_26).
+    """
+    ez = v[o + 2]
+    if not ez > 0.0:
+        return True
+    u, w, q = v[o] / ez, v[o + 1] / ez, r / ez
+    pts = []
+    for k in _TORSO:
+        z = v[k + 2]
+        if not (z > 0.0 and _isfinite(v[k] + v[k + 1])):
+            return True
+        pts.append((v[k] / z, v[k + 1] / z))
+    inside = False
+    for i in range(4):
+        ax, ay = pts[i]
+        bx, by = pts[i - 3]
+        if (ay > w) != (by > w) and u < ax + (w - ay) * (bx - ax) / (by - ay):
+            inside = not inside
+        if segment_distance2(u, w, ax, ay, bx, by) <= q * q:
+            return True
+    if inside:
+        return True
+    q2 = 4.0 * q * q
+    arm, hands = _COVERS[side]
+    for a, b in ((arm[0], arm[1]), (arm[1], arm[2])):
+        za, zb = v[a + 2], v[b + 2]
+        if za > 0.0 and zb > 0.0 and segment_distance2(u, w, v[a] / za, v[a + 1] / za, v[b] / zb,
+                                                       v[b + 1] / zb) <= q2:
+            return True
+    for k in hands:
+        z = v[k + 2]
+        if z > 0.0 and (v[k] / z - u) ** 2 + (v[k + 1] / z - w) ** 2 <= q2:
+            return True
+    return False
