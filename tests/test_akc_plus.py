@@ -1363,6 +1363,28 @@ def test_an_elbow_judged_behind_the_chest_stays_behind_it_once_its_wrist_is_lost
     assert out[LE, 2] < truth[LE, 2] - 0.18 and out[LW, 2] < truth[LW, 2] - 0.12
 
 
+def test_an_elbow_lost_after_an_occluders_reading_is_held_on_the_upper_arm_not_on_the_filter():
+    # A frame of real data: MediaPipe's held-out cmu_01_06 clip with the camera 1 m to the side (the skinned body,
+    # 10 Hz, after the KF), frame 180. The right arm, the far one, was behind the body for four frames and its
+    # elbow read 30-41 cm in front; AKC+ kept it behind (the state remembers the reading), but the KF followed it.
+    # Now the detector loses the elbow and the wrist altogether; the KF runs on 50 cm in front. Fused with it, the
+    # elbow went 40 cm in front and the wrist with it; the filter that followed the occluder is no evidence, and
+    # the upper arm held at the shoulder leaves them within 13 and 22 cm.
+    akc, dims, d = _recorded_frame("mediapipe_cmu_01_06_side_camera_10hz_frame180.npz")
+    truth, m, pose, state = d["truth"], d["measured"], d["pose"], d["state"]
+    assert np.isnan(m[[RE, RW]]).all() and np.isfinite(state[102]) and pose[RE, 2] < truth[RE, 2] - 0.45
+    out = akc.correct(pose, m, d["variance"]).pose
+    err = np.abs(out[[RE, RW], 2] - truth[[RE, RW], 2])
+    assert err[0] < 0.13 and err[1] < 0.22
+    assert akc.get_state_vector()[102] == state[102]  # (the memory stays through the loss)
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+    forgot = state.copy()
+    forgot[102] = np.nan
+    akc.set_state_vector(forgot)
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert np.all(out[[RE, RW], 2] < truth[[RE, RW], 2] - 0.35)
+
+
 def test_the_seen_wrist_anchor_keeps_a_measured_wrist_that_the_forearm_fit_would_move():
     # A frame of the teleop demo's pick-and-place (MediaPipe on the skinned body, seed 0, AKC+(KF) with the teleop
     # filter, t = 5.4 s): the right arm reaches down and towards the camera. MediaPipe's 2D elbow is 13 cm below

@@ -219,6 +219,17 @@ def test_a_blind_elbow_is_the_product_of_the_filter_and_the_upper_arm_held_at_th
     assert f[:3] == [0.2, 0.0, 2.0] and f[6:] == [1.0, 2.0, 3.0] and vs[6:] == [0.5] * 3
 
 
+def test_a_blind_elbow_whose_filter_followed_an_occluder_is_the_upper_arm_held_alone():
+    # As above, but the filter followed a depth judged an occluder's (``no_evidence``): the hold, its variance.
+    f = [0.2, 0.0, 2.0, 0.5, 0.4, 1.6, 1.0, 2.0, 3.0]
+    vs = [1e-4] * 3 + [0.03, 0.01, NAN] + [0.5] * 3
+    blind = [0.1, 0.3, -0.1, 2.0]
+    fuse_held(f, vs, blind, f[0:3], 0.01, 3, no_evidence=True)
+    assert blind[3] == 3.0 and f[3:6] == pytest.approx([0.3, 0.3, 1.9], abs=1e-15)
+    assert vs[3:6] == pytest.approx([0.03] * 3, rel=1e-12)  # (three blind frames of 0.01)
+    assert f[:3] == [0.2, 0.0, 2.0] and f[6:] == [1.0, 2.0, 3.0] and vs[6:] == [0.5] * 3
+
+
 def test_a_dropped_shoulder_is_the_product_of_the_filter_and_the_shoulder_held_on_the_hips():
     # The filter holds the shoulder at depth 2.10 with variance 0.03 (a constant-velocity filter blind for long);
     # it was last seen 0.05 m in front of the hips, which are at 2.00 now; the third blind frame: the held

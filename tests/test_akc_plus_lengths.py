@@ -332,3 +332,9 @@ def test_surface_memory_holds_a_verdict_while_the_same_surface_is_read_and_the_b
     assert mem._read_e[0] == 1.90
     mem._remember_surface(0, (*out9[:5], 1.93, *out9[6:]), m, o)
     assert math.isnan(mem._read_e[0])
+    # Lost altogether (no x, y): the memory stays until the elbow is detected again.
+    mem._remember_surface(0, out9, m, o)
+    m[o:o + 3] = [nan, nan, nan]
+    mem._verdict = False
+    mem._remember_surface(0, out9, m, o)
+    assert mem._read_e[0] == 1.90

@@ -349,7 +349,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             # An elbow, then a wrist, lost altogether (no x, y): the filter's extrapolation and the segment held
             # at the joint before it (the shoulder, then the elbow, as fused), fused.
             if m is not None and self._blind_e[side] is not None and m[o_e] != m[o_e] and m[o_e + 1] != m[o_e + 1]:
-                fuse_held(f, vs, self._blind_e[side], f[0:3], self._v_t, 3, _XYZ, self._blind_honest)
+                fuse_held(f, vs, self._blind_e[side], f[0:3], self._v_t, 3, _XYZ, self._blind_honest,
+                          self._read_e[side] == self._read_e[side])  # (a filter that followed an occluder: none)
                 e_fused = True
             b = self._blind[side]
             if m is not None and b is not None and m[o_w] != m[o_w] and m[o_w + 1] != m[o_w + 1]:

@@ -151,7 +151,8 @@ def hold_blind(p, vs, base, f0, prev, r_z):
     return p, False
 
 
-def fuse_held(f, vs, held, anchor, v_step: float, base, axes=(0, 1, 2), honest_frames: float = math.inf):
+def fuse_held(f, vs, held, anchor, v_step: float, base, axes=(0, 1, 2), honest_frames: float = math.inf,
+              no_evidence: bool = False):
     """A joint not measured this frame: the filter's estimate fused with the joint held at an offset from an anchor.
 
     Two Gaussian priors of the joint ``f[base:base + 3]``: the filter's (its covariance-matched variances
@@ -187,6 +188,8 @@ def fuse_held(f, vs, held, anchor, v_step: float, base, axes=(0, 1, 2), honest_f
         honest_frames: after this many blind frames the filter's variance is no error measure (a constrained
             filter's, whose bone constraints shrink the posterior of a joint nothing measures): each axis counts
             it at least the hold's variance (inf: always the filter's).
+        no_evidence: the filter's estimate is no evidence (it followed a depth judged an occluder's:
+            :class:`~akc_drake.core.akc_plus_lengths.SurfaceMemory`): the hold alone, with its variance.
     """
     n: float; v: float
     n = held[3] = held[3] + 1.0
@@ -194,7 +197,9 @@ def fuse_held(f, vs, held, anchor, v_step: float, base, axes=(0, 1, 2), honest_f
     for k in axes:
         i = base + k
         v = vs[i]
-        if v == v:  # (a variance the filter does not know: NaN, left as it is)
+        if no_evidence:
+            f[i], vs[i] = anchor[k] + held[k], vh
+        elif v == v:  # (a variance the filter does not know: NaN, left as it is)
             if n > honest_frames and v < vh:
                 v = vh  # (no surer than the hold: ``honest_frames``)
             s = v + vh

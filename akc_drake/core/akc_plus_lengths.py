@@ -9,6 +9,8 @@
   from a kept shoulder (:mod:`akc_drake.core.akc_plus`), about half the frames of some clips.
 * :func:`circle_pair`: ``circle_point`` for the two Pythagorean elbow candidates, the circle computed once.
 * :func:`measured_arm`: the arm as measured this frame, whose lengths ``project_arm`` tests after an EKF.
+* :func:`behind_surface` and :class:`SurfaceMemory`: an elbow the projection puts in front of the surface its pixel
+  read goes behind it, and the verdict is remembered while the pixel reads that surface.
 
 Both projections take two steps of sequential quadratic programming (fewer once the lengths are met to 0.01 mm)
 written out, with :func:`~akc_drake.core.arm_geometry.circle_point` inlined: a loop over the steps, its branches on
@@ -307,7 +309,13 @@ class SurfaceMemory:
     wrist went 20-30 cm in front for 30 frames. So the verdict holds while the pixel reads the same surface (within
     ``consistency_m`` of the last frame's reading) and another part of the body can lie on its ray
     (:func:`~akc_drake.core.arm_geometry.body_covers`: without it, a wrong verdict on an elbow raised to the side,
-    nothing in front, held it 15-25 cm behind its correct reading for 14 frames; MediaPipe, cmu_13_26)."""
+    nothing in front, held it 15-25 cm behind its correct reading for 14 frames; MediaPipe, cmu_13_26).
+
+    When the detector then loses the elbow altogether, the memory stays until it is detected again, and the filter's
+    estimate, which followed the occluder, is no evidence: the elbow is the upper arm held at the shoulder
+    (:func:`~akc_drake.core.akc_plus_evidence.fuse_held` with ``no_evidence``). From the side (MediaPipe, held-out
+    cmu_01_06, the far arm behind the body, read 30-41 cm in front), the KF ran on to 60-88 cm in front after the
+    loss, and the elbow fused with it 40-50 cm."""
 
     __slots__ = ()
 
@@ -345,7 +353,10 @@ class SurfaceMemory:
 
     def _remember_surface(self, side, out, m, o: int) -> None:
         """After this frame's output ``out`` of arm ``side``: its elbow's reading (flat offset ``o`` of ``m``)
-        remembered when a rule put the elbow behind it beyond ``consistency_m``."""
+        remembered when a rule put the elbow behind it beyond ``consistency_m``; kept while the detector loses the
+        elbow altogether (no x, y)."""
+        if m is not None and not _isfinite(m[o] + m[o + 1]):
+            return  # (lost altogether: the memory stays, and the filter that followed the surface is no evidence)
         z = _NAN if m is None else m[o + 2]
         keep = self._verdict and z == z and out[5] > z + self._cons and _isfinite(m[o] + m[o + 1])
         self._read_e[side] = z if keep else _NAN
