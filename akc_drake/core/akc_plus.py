@@ -98,8 +98,9 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   elbow's Pythagorean candidate behind the shoulder replaces it when that leaves the elbow behind its reading, its
   depth nearer our last output's (:func:`~akc_drake.core.akc_plus_lengths.behind_surface`; AKC+(KF)'s worst increase on
   the MediaPipe windows +1.15 -> +0.80 cm). The verdict holds while the pixel reads the same surface and another
-  part of the body can cover it, also once the filter and the arm fit the reading (``SurfaceMemory``: the same
-  elbow behind the chest, its wrist then lost; AKC+(EKF)'s worst increase on those windows +1.25 -> +0.64 cm).
+  part of the body can cover it, also once the filter and the arm fit the reading, and a filter that followed it
+  is no evidence for the elbow lost next (``SurfaceMemory``: the same elbow behind the chest, its wrist then lost;
+  AKC+(EKF)'s worst increase on those windows +1.25 -> +0.37 cm).
 * A wrist behind a lost elbow, its forearm along the ray (2D length < ``r l_f / (r + consistency_m)``, r =
   ``arm_radius_m``), reads the forearm: if the circle to a kept shoulder moves the elbow off its x, y, the elbow
   goes from the shoulder, the wrist behind its reading (:func:`akc_drake.core.arm_geometry.behind_reading`).

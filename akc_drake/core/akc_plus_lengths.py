@@ -358,8 +358,7 @@ class SurfaceMemory:
         if m is not None and not _isfinite(m[o] + m[o + 1]):
             return  # (lost altogether: the memory stays, and the filter that followed the surface is no evidence)
         z = _NAN if m is None else m[o + 2]
-        keep = self._verdict and z == z and out[5] > z + self._cons and _isfinite(m[o] + m[o + 1])
-        self._read_e[side] = z if keep else _NAN
+        self._read_e[side] = z if self._verdict and out[5] > z + self._cons else _NAN  # (NaN z: NaN)
 
 
 def circle_pair(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, p, p2):
