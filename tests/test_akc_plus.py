@@ -294,6 +294,53 @@ def test_arm_lengths_exact_for_any_finite_input_with_the_covariance(flat, flat_m
             assert np.linalg.norm(out[s] - out[e]) == pytest.approx(lu, abs=1e-9)
 
 
+@given(st.lists(finite, min_size=36, max_size=36), st.lists(finite, min_size=36, max_size=36),
+       st.lists(st.floats(1e-8, 1.0), min_size=36, max_size=36), st.floats(-0.05, 0.05))
+def test_arm_lengths_exact_for_any_finite_input_with_a_remembered_surface(flat, flat_m, flat_v, dz):
+    # The same with each elbow judged behind a surface last frame, read dz from this frame's reading
+    # (``SurfaceMemory``: the verdict's paths, the radial elbow of a lost wrist, and the lost elbow's hold with
+    # the filter as no evidence).
+    _, dims = arm_pose()
+    pose, meas, var = (np.array(x).reshape(12, 3) for x in (flat, flat_m, flat_v))
+    akc = ArmKinematicCorrectorPlus(dims)
+    akc.correct(pose, measured=meas, variance=var)
+    state = akc.get_state_vector()
+    state[101:103] = meas[[LE, RE], 2] + dz
+    rows = np.arange(12)[:, None]
+    for m in (meas, np.where(rows == LE, np.nan, meas), np.where(rows == LW, np.nan, meas)):  # (elbow, wrist lost)
+        akc.set_state_vector(state)
+        out = akc.correct(pose, measured=m, variance=var).pose
+        for s, e, w, lu, lf in ((LS, LE, LW, dims.LUA, dims.LLA), (RS, RE, RW, dims.RUA, dims.RLA)):
+            assert np.linalg.norm(out[e] - out[w]) == pytest.approx(lf, abs=1e-9)
+            assert np.linalg.norm(out[s] - out[e]) == pytest.approx(lu, abs=1e-9)
+
+
+@pytest.mark.parametrize("z", [1.1754943508222875e-38, 2.2250738585072014e-308, 0.0, -0.5])
+def test_a_depth_nearer_than_any_camera_reads_is_no_reading(z):
+    # Found by the property tests above: a shoulder read at a subnormal depth, its x, y finite, put on its pixel's
+    # ray by the torso's hold, went 1e37 m off (lengths lost, or the elbow's candidates all infinitely costly:
+    # None). A depth nearer than MIN_DEPTH_M (1 cm) is no reading: the row counts as not measured.
+    from akc_drake.core.arm_geometry import MIN_DEPTH_M
+
+    assert MIN_DEPTH_M == 0.01
+    _, dims = arm_pose()
+    pose = np.zeros((12, 3))
+    pose[[LS, LE, LW, RS, RE, RW], 2] = 1.0
+    meas = np.zeros((12, 3))
+    meas[RS] = [0.0, 1.0, z]
+    outs = []
+    for m in (meas, np.where(np.arange(12)[:, None] == RS, np.nan, meas)):
+        akc = ArmKinematicCorrectorPlus(dims)
+        for _ in range(2):
+            out = akc.correct(pose, measured=m, variance=np.full((12, 3), 1e-4)).pose
+        assert np.isfinite(out).all() and np.abs(out).max() < 10.0
+        for s, e, w, lu, lf in ((LS, LE, LW, dims.LUA, dims.LLA), (RS, RE, RW, dims.RUA, dims.RLA)):
+            assert np.linalg.norm(out[e] - out[w]) == pytest.approx(lf, abs=1e-9)
+            assert np.linalg.norm(out[s] - out[e]) == pytest.approx(lu, abs=1e-9)
+        outs.append(out)
+    np.testing.assert_array_equal(outs[0], outs[1])  # (the same as the shoulder not measured at all)
+
+
 def test_blind_extrapolation_is_held_but_a_holding_filter_is_followed():
     # The elbow lost altogether (no x, y, z) for 5 frames. A filter extrapolating its depth at 3 cm/frame
     # (variance growing past the measurement's) is not followed: our last output is held. A filter holding

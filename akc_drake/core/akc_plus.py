@@ -196,7 +196,7 @@ from akc_drake.core.akc_plus_lengths import (
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
 from akc_drake.core.akc_plus_torso import _XYZ, NO_HIPS, TorsoReference, learn_offset
-from akc_drake.core.arm_geometry import arm_inputs, ray_check
+from akc_drake.core.arm_geometry import MIN_DEPTH_M, arm_inputs, ray_check
 from akc_drake.core.arm_geometry import behind_reading as _behind_reading
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -644,6 +644,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             if b.shape != _SHAPE:
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.reshape(_FLAT).tolist()
+            for o in range(2, _FLAT, 3):  # (a depth nearer than MIN_DEPTH_M: no reading; its ray is degenerate)
+                if m[o] < MIN_DEPTH_M:
+                    m[o - 2] = m[o - 1] = m[o] = _NAN
             for o in self._hand:  # (a wrist its own hand hides, put behind it: ``hidden_wrist``)
                 hidden_wrist(v, m, o[0], o[1], o[2], o[3], o[4])
         self._var = None

@@ -342,7 +342,7 @@ class SurfaceMemory:
         :meth:`_surface_tol`, the Pythagorean candidate behind the shoulder at its image ``ex, ey`` when that is
         behind the reading ``z`` and nearer our previous output's depth ``z_prev`` (as :func:`behind_surface`)."""
         t = self._surface_tol(side, z, e[2], o)
-        r2 = lu * lu - (ex - s[0]) ** 2 - (ey - s[1]) ** 2
+        r2 = lu * lu - (ex - s[0]) * (ex - s[0]) - (ey - s[1]) * (ey - s[1])
         if t != t or z_prev != z_prev or r2 < 0.0:
             return e
         gz = s[2] + _sqrt(r2)

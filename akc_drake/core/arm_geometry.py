@@ -17,6 +17,9 @@ _isfinite = math.isfinite
 _NAN = float("nan")
 #: A segment shorter than this (m) has no direction.
 _MIN_SEGMENT_M = 1e-12
+#: A depth nearer than this (m) is no reading: no depth camera measures there (the D435 from about 0.2 m), and a pixel
+#: ray scaled to it is degenerate (a reading of 1e-38 m put a shoulder 1e37 m off on its ray).
+MIN_DEPTH_M = 0.01
 
 def elbow_angle_deg(p_s, p_e, p_w) -> float:
     """Angle at the elbow between (shoulder - elbow) and (wrist - elbow), degrees; NaN if undefined."""
@@ -443,20 +446,21 @@ def body_covers(v, o: int, side: int, r: float) -> bool:
     (0 left, 1 right) in pose ``v`` (36 floats, camera frame): the torso (the shoulders' and hips' quadrilateral in
     the image, widened by ``r``), the other arm (its upper arm and forearm within ``2 r``: two limbs' radii), or a
     hand (its own wrist or either hand's knuckles within ``2 r``). Compared in the image (x / z, y / z), the widths
-    taken at the joint's depth. A torso point not known (NaN, or no positive depth) cannot rule the torso out: True.
+    taken at the joint's depth. A torso point not known (NaN, or nearer than :data:`MIN_DEPTH_M`) cannot rule the torso
+    out: True.
 
     A camera reads the first surface on a joint's ray; a depth read in front of the joint needs an occluder there.
     An elbow read 19 cm in front was the chest (its pixel inside the torso's outline: MediaPipe, bvhtools_a2); one
     raised to the side, 16 cm outside it, had nothing in front and its reading was right (cmu_13_26).
     """
     ez = v[o + 2]
-    if not ez > 0.0:
+    if not ez >= MIN_DEPTH_M:
         return True
     u, w, q = v[o] / ez, v[o + 1] / ez, r / ez
     pts = []
     for k in _TORSO:
         z = v[k + 2]
-        if not (z > 0.0 and _isfinite(v[k] + v[k + 1])):
+        if not (z >= MIN_DEPTH_M and _isfinite(v[k] + v[k + 1])):
             return True
         pts.append((v[k] / z, v[k + 1] / z))
     inside = False
@@ -473,11 +477,11 @@ def body_covers(v, o: int, side: int, r: float) -> bool:
     arm, hands = _COVERS[side]
     for a, b in ((arm[0], arm[1]), (arm[1], arm[2])):
         za, zb = v[a + 2], v[b + 2]
-        if za > 0.0 and zb > 0.0 and segment_distance2(u, w, v[a] / za, v[a + 1] / za, v[b] / zb,
+        if za >= MIN_DEPTH_M and zb >= MIN_DEPTH_M and segment_distance2(u, w, v[a] / za, v[a + 1] / za, v[b] / zb,
                                                        v[b + 1] / zb) <= q2:
             return True
     for k in hands:
         z = v[k + 2]
-        if z > 0.0 and (v[k] / z - u) ** 2 + (v[k + 1] / z - w) ** 2 <= q2:
+        if z >= MIN_DEPTH_M and _hypot(v[k] / z - u, v[k + 1] / z - w) ** 2 <= q2:
             return True
     return False
