@@ -283,17 +283,28 @@ def behind_surface(arm, f, v, lu, lf, z_read, tol, z_prev, offset_var=0.0, shoul
     if not arm[5] < z_read - tol or z_prev != z_prev:
         return arm
     sx, sy, sz = f[0], f[1], f[2]
-    r2 = lu * lu - (f[3] - sx) ** 2 - (f[4] - sy) ** 2
-    if r2 < 0.0:
+    gz = _behind_shoulder(sx, sy, sz, f[3], f[4], lu)
+    if gz != gz:
         return arm
-    g = (sx, sy, sz, f[3], f[4], sz + _sqrt(r2), f[6], f[7], f[8])
+    g = (sx, sy, sz, f[3], f[4], gz, f[6], f[7], f[8])
     if shoulder_kept:
         alt = project_forearm(g[0:3], g[3:9], v[3:9], lu, lf, offset_var)
     else:
         alt = project_arm(g, v, lu, lf, 0.0, _inf, offset_var)
-    if alt is None or alt[5] < z_read - tol or abs(alt[5] - z_prev) >= abs(arm[5] - z_prev):
-        return arm
-    return alt
+    return alt if alt is not None and _takes_behind(alt[5], arm[5], z_read, tol, z_prev) else arm
+
+
+def _behind_shoulder(sx: float, sy: float, sz: float, ex: float, ey: float, lu: float) -> float:
+    """The depth of the elbow's Pythagorean candidate behind the shoulder at its image ``ex, ey`` (eq. 8); NaN when
+    the upper arm cannot reach it."""
+    r2 = lu * lu - (ex - sx) * (ex - sx) - (ey - sy) * (ey - sy)
+    return sz + _sqrt(r2) if r2 >= 0.0 else _NAN
+
+
+def _takes_behind(z_alt: float, z: float, z_read: float, tol: float, z_prev: float) -> bool:
+    """Whether an elbow at depth ``z_alt`` replaces one at ``z``: not in front of the reading ``z_read`` beyond
+    ``tol``, and nearer our previous output's depth ``z_prev`` (no switch of configuration without both)."""
+    return not z_alt < z_read - tol and abs(z_alt - z_prev) < abs(z - z_prev)
 
 
 class SurfaceMemory:
@@ -342,11 +353,10 @@ class SurfaceMemory:
         :meth:`_surface_tol`, the Pythagorean candidate behind the shoulder at its image ``ex, ey`` when that is
         behind the reading ``z`` and nearer our previous output's depth ``z_prev`` (as :func:`behind_surface`)."""
         t = self._surface_tol(side, z, e[2], o)
-        r2 = lu * lu - (ex - s[0]) * (ex - s[0]) - (ey - s[1]) * (ey - s[1])
-        if t != t or z_prev != z_prev or r2 < 0.0:
+        if t != t or z_prev != z_prev:
             return e
-        gz = s[2] + _sqrt(r2)
-        if gz < z - t or abs(gz - z_prev) >= abs(e[2] - z_prev):
+        gz = _behind_shoulder(s[0], s[1], s[2], ex, ey, lu)
+        if not (gz == gz and _takes_behind(gz, e[2], z, t, z_prev)):
             return e
         self._verdict = True
         return ex, ey, gz
