@@ -1514,6 +1514,29 @@ def test_a_wrist_read_on_the_wall_behind_its_seen_elbow_is_no_anchor():
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
 
 
+def test_an_elbow_whose_2d_position_no_depth_fits_goes_on_the_circle_nearest_its_x_y():
+    # A frame of real motion held out of AKC+'s design (CMU subject 13, trial 26, driven bone by bone; MediaPipe on
+    # the skinned body, 10 Hz, after the KF), frame 190. The left elbow's depth has been dropped since frame 185; the
+    # shoulder and the wrist are seen. MediaPipe's 2D elbow is 3.6 cm short of the joint, so it lies farther from
+    # the wrist's x, y than the forearm is long: eq. 7-8 give no depth from the wrist. The shoulder's two Pythagorean
+    # depths are 18 cm either side of it, and the arm built from the one in front put the elbow 24.5 cm in front of
+    # the truth. On the circle between the shoulder and the wrist, the points nearest its x, y (two here; one 22 cm
+    # in front) are the candidates: within 5 cm.
+    from akc_drake.core.arm_geometry import circle_xy_pair
+
+    akc, dims, d = _recorded_frame("mediapipe_cmu_13_26_rig_10hz_frame190.npz")
+    truth, m = d["truth"], d["measured"]
+    assert np.isnan(m[LE, 2]) and np.isfinite(m[[LS, LW]]).all() and np.isfinite(m[LE, :2]).all()
+    assert math.hypot(*(m[LE, :2] - m[LW, :2])) > dims.LLA  # (no depth at l_f from the wrist)
+    pair = circle_xy_pair(*m[LW], *m[LS], dims.LLA, dims.LUA, *m[LE, :2])
+    assert min(p[2] for p in pair) < truth[LE, 2] - 0.18  # (a mirror to choose against)
+    out = akc.correct(d["pose"], m, d["variance"]).pose
+    assert np.abs(out[LE] - truth[LE]).max() < 0.05
+    assert np.abs(out[[LS, LW]] - truth[[LS, LW]]).max() < 0.04
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
 def test_a_seen_elbow_is_not_moved_to_a_shoulder_its_own_reading_contradicts():
     # A frame of real motion held out of AKC+'s design (CMU subject 01, trial 06, driven bone by bone; MediaPipe on
     # the skinned body, 10 Hz, after the KF). The left shoulder's pixel read the wall for six frames; the KF followed

@@ -9,7 +9,10 @@ from akc_drake.core.arm_geometry import (
     behind_reading,
     bends_backwards,
     body_covers,
+    circle_nearest,
+    circle_of,
     circle_point,
+    circle_xy_pair,
     elbow_angle_deg,
     follow,
     nearest_depth,
@@ -69,6 +72,65 @@ def test_circle_point_is_at_both_lengths_and_nearest():
     assert np.linalg.norm(np.array(p) - s) == pytest.approx(lu, abs=1e-12)
     assert np.linalg.norm(np.array(p) - e) < 0.02
     assert circle_point(*w, *(w + [2.0, 0, 0]), lf, lu, *e) is None
+
+
+def test_circle_of_is_where_the_two_spheres_meet_and_circle_nearest_projects_onto_it():
+    s, e, w, lu, lf = _arm()
+    cx, cy, cz, nx, ny, nz, h = circle_of(*w, *s, lf, lu)
+    c, n = np.array([cx, cy, cz]), np.array([nx, ny, nz])
+    assert np.linalg.norm(n) == pytest.approx(1.0, abs=1e-15) and np.allclose(np.cross(n, s - w), 0.0, atol=1e-15)
+    assert np.linalg.norm(np.cross(c - w, n)) < 1e-15  # (the centre on the wrist-shoulder line)
+    for t in np.linspace(0.0, 2.0 * np.pi, 7):  # every point of the circle is at both lengths
+        u = np.cross(n, [1.0, 0.0, 0.0])
+        p = c + h * (math.cos(t) * u / np.linalg.norm(u) + math.sin(t) * np.cross(n, u / np.linalg.norm(u)))
+        assert np.linalg.norm(p - w) == pytest.approx(lf, abs=1e-12)
+        assert np.linalg.norm(p - s) == pytest.approx(lu, abs=1e-12)
+    q = np.array(circle_nearest((cx, cy, cz, nx, ny, nz, h), *e))  # (e is on the circle: itself)
+    assert np.linalg.norm(q - e) < 1e-12
+    assert circle_of(*w, *(w + [2.0, 0, 0]), lf, lu) is None
+
+
+def test_circle_xy_pair_is_at_both_lengths_and_keeps_a_reachable_image_position():
+    s, e, w, lu, lf = _arm()
+    q, q2 = circle_xy_pair(*w, *s, lf, lu, e[0], e[1])
+    # The true elbow's x, y is on the circle's image: the nearest point has them exactly (the elbow itself or the
+    # circle's other point with the same x, y, its mirror).
+    for p in (q, q2):
+        assert np.linalg.norm(np.array(p) - w) == pytest.approx(lf, abs=1e-12)
+        assert np.linalg.norm(np.array(p) - s) == pytest.approx(lu, abs=1e-12)
+    assert math.hypot(q[0] - e[0], q[1] - e[1]) < 1e-7
+    assert min(np.linalg.norm(np.array(p) - e) for p in (q, q2)) < 1e-6
+    assert circle_xy_pair(*w, *(w + [2.0, 0, 0]), lf, lu, *e[:2]) is None  # (no circle: out of reach)
+
+
+def test_circle_xy_pair_finds_the_nearest_points_where_eq_7_8_has_none():
+    # An image position farther from the wrist's than the forearm is long (eq. 7-8 has no depth for it): the
+    # nearest points of the circle in x, y, against a dense sampling of the circle.
+    rng = np.random.default_rng(3)
+    lu, lf, found = 0.29, 0.27, 0
+    for _ in range(300):
+        s, w = rng.normal(size=3) * 0.2 + [0, 0, 2.0], rng.normal(size=3) * 0.2 + [0, 0, 2.0]
+        p = w[:2] + rng.normal(size=2) * 0.3
+        d = float(np.linalg.norm(s - w))
+        got = circle_xy_pair(*w, *s, lf, lu, *p)
+        if not abs(lf - lu) < d < lf + lu:
+            assert got is None
+            continue
+        n = (s - w) / d
+        a = (d * d + lf * lf - lu * lu) / (2 * d)
+        u = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
+        u /= np.linalg.norm(u)
+        t = np.linspace(0, 2 * np.pi, 20000)[:, None]
+        circle = w + a * n + math.sqrt(lf * lf - a * a) * (np.cos(t) * u + np.sin(t) * np.cross(n, u))
+        xy2 = ((circle[:, :2] - p) ** 2).sum(1)
+        q, q2 = (np.array(x) for x in got)
+        assert ((q[:2] - p) ** 2).sum() <= xy2.min() + 1e-12
+        assert ((q[:2] - p) ** 2).sum() <= ((q2[:2] - p) ** 2).sum()
+        for x in (q, q2):
+            assert np.linalg.norm(x - s) == pytest.approx(lu, abs=1e-12)
+            assert np.linalg.norm(x - w) == pytest.approx(lf, abs=1e-12)
+        found += math.hypot(*(p - w[:2])) > lf
+    assert found > 100  # (most positions beyond the forearm's reach: 155 of 234 circles)
 
 
 def test_rebuild_variance_first_order_far_from_the_image_plane_and_bounded_on_it():

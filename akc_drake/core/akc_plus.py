@@ -144,14 +144,15 @@ replaced or follows a rejected depth). A seen shoulder is kept and the elbow goe
 and the wrist (the wrist follows when that would move a seen elbow, or a lost elbow of a wrist not measured in
 3D, by more than ``xy_tol_m`` off its image x, y: a wrist measured in 3D keeps its place, the detector's 2D
 elbow is off the joint centre too; with MediaPipe 3-7 cm, and moving the wrist turned that into 10-20 cm of
-depth error). When neither is kept and all three joints' x, y were detected, the candidates choose the
-configuration (the side of the image plane each segment points to): a filter's arm that bends the same way
-and passes the lengths' chi2 test gives the estimate instead, the arm nearest it with the exact lengths (as
-for known depths: eq. 7-8 take the detected x, y as exact, the projection weighs them, the filter's depths
-and the lengths by their variances). The temporal term is capped so that persistent evidence can undo a wrong
-configuration; a mirror switch needs evidence over several frames. The anatomical tests (elbow folded below
-``elbow_min_deg``, hyperextended by m5's signed angle) are a finite penalty of 5 standard deviations squared, no
-veto (both are tests on noisy positions near their limits).
+depth error; a 2D elbow farther from that wrist's than l_f, where eq. 7-8 have no depth, takes the circle's
+points nearest its x, y: ``arm_geometry.circle_xy_pair``). When neither is kept and all three joints' x, y were
+detected, the candidates choose the configuration (the side of the image plane each segment points to): a
+filter's arm that bends the same way and passes the lengths' chi2 test gives the estimate instead, the arm
+nearest it with the exact lengths (as for known depths: eq. 7-8 take the detected x, y as exact, the projection
+weighs them, the filter's depths and the lengths by their variances). The temporal term is capped so that
+persistent evidence can undo a wrong configuration; a mirror switch needs evidence over several frames. The
+anatomical tests (elbow folded below ``elbow_min_deg``, hyperextended by m5's signed angle) are a finite penalty
+of 5 standard deviations squared, no veto (both are tests on noisy positions near their limits).
 
 **Without the covariance** (``variance=None``; the system's variance input unconnected): the rules of the previous
 revision: seen = within ``consistency_m`` of the filter and ``jump_m`` of our last output (unless persisting
@@ -196,7 +197,7 @@ from akc_drake.core.akc_plus_lengths import (
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
 from akc_drake.core.akc_plus_torso import _XYZ, NO_HIPS, TorsoReference, learn_offset
-from akc_drake.core.arm_geometry import MIN_DEPTH_M, arm_inputs, ray_check
+from akc_drake.core.arm_geometry import MIN_DEPTH_M, arm_inputs, circle_xy_pair, ray_check
 from akc_drake.core.arm_geometry import behind_reading as _behind_reading
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -546,9 +547,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                 # instead to keep them carried that error into the wrist's and the elbow's depths, 10-20 cm).
                 w_seen = vs is not None and m is not None and _isfinite(m[o_w] + m[o_w + 1] + m[o_w + 2])
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
-                if pair is not None:
-                    # (The circle exists for both candidates or for neither: it depends on s and w alone.)
-                    qq = circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, pair[0], pair[1])  # (``_circle_point`` x 2)
+                if pair is not None or (exy and w_seen):
+                    # (The circle exists for both or neither: it depends on s, w alone. No pair: ``circle_xy_pair``.)
+                    qq = (circle_pair(wx, wy, wz, sx, sy, sz, lf, lu, pair[0], pair[1]) if pair is not None else
+                          circle_xy_pair(wx, wy, wz, sx, sy, sz, lf, lu, ex, ey))
                     if qq is not None:
                         q1, q2 = qq
                         # (Both off the elbow's image position: whichever is chosen is discarded below.)

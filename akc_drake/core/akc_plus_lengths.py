@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from akc_drake.core.arm_geometry import body_covers
+from akc_drake.core.arm_geometry import body_covers, circle_nearest, circle_of
 
 _hypot = math.hypot
 _sqrt = math.sqrt
@@ -36,28 +36,11 @@ _MIN_SEGMENT_M = 1e-12
 
 def _circle(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, px: float,
             py: float, pz: float):
-    """:func:`~akc_drake.core.arm_geometry.circle_point`'s operations, the arm returned (None if no circle)."""
-    d: float; q: float; h: float  # (C doubles when compiled: setup.py)
-    nx, ny, nz = sx - wx, sy - wy, sz - wz
-    d = _hypot(nx, ny, nz)
-    if not (abs(lf - lu) < d < lf + lu):
+    """:func:`~akc_drake.core.arm_geometry.circle_point`'s elbow in the arm (None if no circle)."""
+    c = circle_of(wx, wy, wz, sx, sy, sz, lf, lu)
+    if c is None:
         return None
-    nx, ny, nz = nx / d, ny / d, nz / d
-    a = (d * d + lf * lf - lu * lu) / (2.0 * d)
-    h = lf * lf - a * a
-    h = _sqrt(0.0 if 0.0 > h else h)  # (max(h, 0.0) exactly: -0.0 and NaN kept)
-    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
-    qx, qy, qz = px - cx, py - cy, pz - cz
-    t = qx * nx + qy * ny + qz * nz
-    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
-    q = _hypot(qx, qy, qz)
-    if q < 1e-12:  # p on the axis: any point of the circle; one orthogonal to the axis and to y
-        qx, qy, qz = nz, 0.0, -nx
-        q = _hypot(qx, qy, qz)
-        if q < 1e-12:
-            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
-    f = h / q
-    return (sx, sy, sz, cx + qx * f, cy + qy * f, cz + qz * f, wx, wy, wz)
+    return (sx, sy, sz, *circle_nearest(c, px, py, pz), wx, wy, wz)
 
 
 def project_arm(f, var, lu: float, lf: float, length_var: float, gate: float, offset_var: float = 0.0, tested=None):
@@ -375,40 +358,10 @@ def circle_pair(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float
     """:func:`~akc_drake.core.arm_geometry.circle_point` for two points ``p`` and ``p2`` (the two Pythagorean
     elbow candidates), the circle computed once: ``(q, q2)``, each bit-identical to ``circle_point``'s, or None
     when the circle does not exist (it depends on the shoulder and the wrist alone)."""
-    d: float; q: float; h: float; px: float; py: float; pz: float
-    nx, ny, nz = sx - wx, sy - wy, sz - wz
-    d = _hypot(nx, ny, nz)
-    if not (abs(lf - lu) < d < lf + lu):
+    c = circle_of(wx, wy, wz, sx, sy, sz, lf, lu)
+    if c is None:
         return None
-    nx, ny, nz = nx / d, ny / d, nz / d
-    a = (d * d + lf * lf - lu * lu) / (2.0 * d)
-    h = lf * lf - a * a
-    h = _sqrt(0.0 if 0.0 > h else h)  # (max(h, 0.0) exactly)
-    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
-    px, py, pz = p
-    qx, qy, qz = px - cx, py - cy, pz - cz
-    t = qx * nx + qy * ny + qz * nz
-    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
-    q = _hypot(qx, qy, qz)
-    if q < 1e-12:  # p on the axis: any point of the circle; one orthogonal to the axis and to y
-        qx, qy, qz = nz, 0.0, -nx
-        q = _hypot(qx, qy, qz)
-        if q < 1e-12:
-            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
-    f = h / q
-    r = (cx + qx * f, cy + qy * f, cz + qz * f)
-    px, py, pz = p2
-    qx, qy, qz = px - cx, py - cy, pz - cz
-    t = qx * nx + qy * ny + qz * nz
-    qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
-    q = _hypot(qx, qy, qz)
-    if q < 1e-12:  # p on the axis: any point of the circle; one orthogonal to the axis and to y
-        qx, qy, qz = nz, 0.0, -nx
-        q = _hypot(qx, qy, qz)
-        if q < 1e-12:
-            qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
-    f = h / q
-    return r, (cx + qx * f, cy + qy * f, cz + qz * f)
+    return circle_nearest(c, p[0], p[1], p[2]), circle_nearest(c, p2[0], p2[1], p2[2])
 
 
 def same_configuration(arm, sz, ez, wz):

@@ -205,33 +205,115 @@ def ray_check(m, offsets, f, vs, var, r_xy: float, r_z: float, g2: float, gate: 
                 vs[i], vs[i + 1], vs[i + 2] = r_xy, r_xy, r_z
 
 
-def circle_point(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, px: float,
-                 py: float, pz: float):
-    """The elbow at ``lf`` from the wrist and ``lu`` from the shoulder nearest to ``p``; None if none exists.
-
-    The two spheres meet in a circle (centre on the wrist-shoulder line, plane normal to it); the nearest
-    point of the circle to ``p`` is ``p``'s projection on the plane pushed out to the radius.
-    """
-    d: float; h: float; q: float
+def circle_of(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float):
+    """Where the spheres of radius ``lf`` about the wrist and ``lu`` about the shoulder meet: ``(cx, cy, cz, nx, ny,
+    nz, h)``, the circle's centre (on the wrist-shoulder line), its unit axis (wrist to shoulder) and its radius, or
+    None if they do not meet. Plain floats."""
+    d: float; h: float; a: float
     nx, ny, nz = sx - wx, sy - wy, sz - wz
     d = _hypot(nx, ny, nz)
     if not (abs(lf - lu) < d < lf + lu):
         return None
     nx, ny, nz = nx / d, ny / d, nz / d
     a = (d * d + lf * lf - lu * lu) / (2.0 * d)
-    h = math.sqrt(max(lf * lf - a * a, 0.0))
-    cx, cy, cz = wx + a * nx, wy + a * ny, wz + a * nz
+    h = lf * lf - a * a
+    h = math.sqrt(0.0 if 0.0 > h else h)  # (max(h, 0.0) exactly: -0.0 and NaN kept)
+    return wx + a * nx, wy + a * ny, wz + a * nz, nx, ny, nz, h
+
+
+def circle_nearest(c, px: float, py: float, pz: float):
+    """The point of circle ``c`` (:func:`circle_of`) nearest to ``p``: ``p``'s projection on the circle's plane
+    pushed out to the radius (``p`` on the axis: any point of the circle; one orthogonal to the axis and to y)."""
+    q: float; t: float; f: float
+    cx, cy, cz, nx, ny, nz, h = c
     qx, qy, qz = px - cx, py - cy, pz - cz
     t = qx * nx + qy * ny + qz * nz
     qx, qy, qz = qx - t * nx, qy - t * ny, qz - t * nz
     q = _hypot(qx, qy, qz)
-    if q < 1e-12:  # p on the axis: any point of the circle; take one orthogonal to the axis and to y
+    if q < 1e-12:
         qx, qy, qz = nz, 0.0, -nx
         q = _hypot(qx, qy, qz)
         if q < 1e-12:
             qx, qy, qz, q = 1.0, 0.0, 0.0, 1.0
     f = h / q
     return cx + qx * f, cy + qy * f, cz + qz * f
+
+
+def circle_point(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float, px: float,
+                 py: float, pz: float):
+    """The elbow at ``lf`` from the wrist and ``lu`` from the shoulder nearest to ``p``; None if none exists
+    (:func:`circle_of`, :func:`circle_nearest`)."""
+    c = circle_of(wx, wy, wz, sx, sy, sz, lf, lu)
+    return None if c is None else circle_nearest(c, px, py, pz)
+
+
+#: Samples of the circle in :func:`circle_xy_pair` before each minimum's refinement (15 degrees apart).
+_CIRCLE_SAMPLES = 24
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+def _xy2(t: float, a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
+    """``(a0 + a1 cos t + a2 sin t)^2 + (b0 + b1 cos t + b2 sin t)^2``."""
+    c: float = math.cos(t)
+    s: float = math.sin(t)
+    g: float = a0 + a1 * c + a2 * s
+    k: float = b0 + b1 * c + b2 * s
+    return g * g + k * k
+
+
+def circle_xy_pair(wx: float, wy: float, wz: float, sx: float, sy: float, sz: float, lf: float, lu: float,
+                   px: float, py: float):
+    """The elbows at ``lf`` from the wrist and ``lu`` from the shoulder nearest in x, y to ``(px, py)`` (the elbow's
+    image position): ``(q, q2)``, the nearest first (the same point twice when the distance has one minimum on the
+    circle), or None when the circle does not exist or every point of it is equally near.
+
+    Eq. 7-8's two depths keep the elbow's image x, y exactly; when it is farther from the wrist's in x, y than the
+    forearm is long they do not exist (a detector's 2D elbow a few cm off the joint). The elbow lies on the circle
+    between the shoulder and the wrist, and the points of that circle nearest its x, y keep them best. The squared
+    distance in x, y of the circle's point at angle ``t`` is a trigonometric polynomial of degree 2 in ``t`` (at most
+    two minima): sampled, then each sampled local minimum refined by golden-section search between its neighbours.
+    Plain floats.
+    """
+    h: float; t: float; c: float; s: float; g: float; lo: float; hi: float; t1: float; t2: float; f1: float
+    f2: float
+    circle = circle_of(wx, wy, wz, sx, sy, sz, lf, lu)
+    if circle is None:
+        return None
+    cx, cy, cz, nx, ny, nz, h = circle
+    # An orthonormal basis (u, v) of the circle's plane.
+    ux, uy, uz = (nz, 0.0, -nx) if abs(ny) < 0.9 else (0.0, -nz, ny)
+    g = _hypot(ux, uy, uz)
+    ux, uy, uz = ux / g, uy / g, uz / g
+    vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+    # The point at angle t: x - px = a0 + a1 cos t + a2 sin t, y - py = b0 + b1 cos t + b2 sin t.
+    a0, a1, a2 = cx - px, h * ux, h * vx
+    b0, b1, b2 = cy - py, h * uy, h * vy
+    n = _CIRCLE_SAMPLES
+    vals = [_xy2(2.0 * math.pi * k / n, a0, a1, a2, b0, b1, b2) for k in range(n)]
+    best = []
+    for k in range(n):
+        if vals[k] <= vals[k - 1] and vals[k] < vals[(k + 1) % n]:  # (a minimum within a sample either side)
+            lo, hi = 2.0 * math.pi * (k - 1) / n, 2.0 * math.pi * (k + 1) / n
+            t1, t2 = hi - _GOLDEN * (hi - lo), lo + _GOLDEN * (hi - lo)
+            f1, f2 = _xy2(t1, a0, a1, a2, b0, b1, b2), _xy2(t2, a0, a1, a2, b0, b1, b2)
+            while hi - lo > 1e-9:
+                if f1 <= f2:
+                    hi, t2, f2 = t2, t1, f1
+                    t1 = hi - _GOLDEN * (hi - lo)
+                    f1 = _xy2(t1, a0, a1, a2, b0, b1, b2)
+                else:
+                    lo, t1, f1 = t1, t2, f2
+                    t2 = lo + _GOLDEN * (hi - lo)
+                    f2 = _xy2(t2, a0, a1, a2, b0, b1, b2)
+            t = 0.5 * (lo + hi)
+            c, s = math.cos(t), math.sin(t)
+            best.append((_xy2(t, a0, a1, a2, b0, b1, b2), cx + h * (c * ux + s * vx), cy + h * (c * uy + s * vy),
+                         cz + h * (c * uz + s * vz)))
+    if not best:  # (every point equally near: the circle's axis along the line of sight and p on it)
+        return None
+    best.sort()
+    q = best[0][1:]
+    return q, (best[1][1:] if len(best) > 1 else q)
 
 
 # ------------------------------------------------------------------ AKC+'s candidates (plain floats)
