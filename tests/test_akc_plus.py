@@ -1537,6 +1537,22 @@ def test_an_elbow_whose_2d_position_no_depth_fits_goes_on_the_circle_nearest_its
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
 
 
+def test_a_filter_that_followed_a_rejected_depth_is_no_prior_for_the_elbow():
+    # A frame of a held-out motion (CMU subject 05, trial 11, driven bone by bone; the simulated detector on the
+    # skinned body, 30 Hz, after the KF), frame 29. The left arm reaches back, the elbow 23 cm behind the shoulder;
+    # its pixel reads an occluder 1.08 m in front (the 2D 18 cm off too), and the shoulder is lost altogether. The
+    # innovation test rejects the reading, but the KF, which has no gate, followed it 30 cm, with a 4 cm variance;
+    # as the prior it chose the elbow candidate in front, 53 cm in front of the truth, against our last output and
+    # the wrist. A filter that followed a rejected depth is no evidence (``followed_rejected``): within 2 cm.
+    akc, dims, d = _recorded_frame("sim_cmu_05_11_rig_30hz_frame29.npz")
+    truth, m, pose, state = d["truth"], d["measured"], d["pose"], d["state"]
+    assert m[LE, 2] < truth[LE, 2] - 1.0 and pose[LE, 2] < state[5] - 0.25 and np.isnan(m[LS]).all()
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert abs(out[LE, 2] - truth[LE, 2]) < 0.02 and np.linalg.norm(out[LE] - truth[LE]) < 0.10
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
 def test_a_seen_elbow_is_not_moved_to_a_shoulder_its_own_reading_contradicts():
     # A frame of real motion held out of AKC+'s design (CMU subject 01, trial 06, driven bone by bone; MediaPipe on
     # the skinned body, 10 Hz, after the KF). The left shoulder's pixel read the wall for six frames; the KF followed

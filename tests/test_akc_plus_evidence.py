@@ -1,6 +1,7 @@
 import pytest
 
 from akc_drake.core.akc_plus_evidence import (
+    followed_rejected,
     arm_variances,
     beyond_reach,
     fuse_held,
@@ -132,6 +133,18 @@ def _known(vs, lost, me=False, ms=True, no_prior=frozenset()):
     m = [NAN] * 9
     xy = (0.0, 0.0, 0.1, 0.25, 0.35, 0.3)  # shoulder, elbow, wrist x, y: segments near the image plane
     return known_depths(m, vs, me, ms, 3, 0, 0, 1, 0.29, 0.26, xy, R_Z, 1e-4, no_prior, lost, 3.0)
+
+
+def test_a_filter_that_moved_towards_a_rejected_reading_followed_it():
+    g2r = 9.0 * 0.05**2  # (the gate squared times R: 15 cm)
+    prev = [0.0, 0.0, 2.00, 0.0, 0.0, 2.15]
+    # The elbow (prev[5] 2.15) read 1.15: the filter moved 30 cm towards it, beyond the gate of R.
+    assert followed_rejected(1.15, 1.85, prev, 5, g2r)
+    assert not followed_rejected(1.15, 2.05, prev, 5, g2r)  # (10 cm: within what a measurement's noise moves)
+    assert not followed_rejected(1.15, 2.45, prev, 5, g2r)  # (moved away from the reading)
+    assert not followed_rejected(float("nan"), 1.85, prev, 5, g2r)  # (nothing read)
+    assert not followed_rejected(1.15, 1.85, None, 5, g2r)  # (no last output)
+    assert followed_rejected(3.50, 2.30, prev, 2, g2r)  # (a shoulder read on the wall behind, followed)
 
 
 def test_a_dropped_depth_is_known_when_the_filter_knows_it_as_well_as_a_measurement():

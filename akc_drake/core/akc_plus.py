@@ -176,6 +176,7 @@ from akc_drake.core.akc_plus_config import AKCPlusConfig, hand_lengths, per_fram
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     beyond_reach,
+    followed_rejected,
     fuse_held,
     hidden_wrist,
     hold_blind,
@@ -382,8 +383,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         no_prior = self._no_prior = set()
         tol = self._tol
         # Measured this frame and consistent with the filter (the filter is then a good prior) ...
-        # ``*_nis``: the filter also followed the depth: it passes the test and the filter has moved towards it
-        # since the joint was last seen (a filter whose constraints moved it away, or kept it, did not).
+        # ``*_nis``: the filter followed the depth: it passes the test and the filter moved towards it since last seen
+        # (not one its constraints moved away, or kept), or it fails and the filter followed it (``followed_rejected``).
         if m is None or var is None:
             me, ms = self._measured(m, o_e, ez), self._measured(m, o_s, sz)
             me_nis = ms_nis = False
@@ -392,11 +393,11 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             z, q = m[o_e + 2], rz - var[o_e + 2]
             d = (z - ez) ** 2
             me = _isfinite(m[o_e] + m[o_e + 1] + d) and d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
-            me_nis = me and (f0[ke] is None or d < (z - f0[ke][2]) ** 2)
+            me_nis = (f0[ke] is None or d < (z - f0[ke][2]) ** 2) if me else followed_rejected(z, ez, prev, 5, g2 * rz)
             z, q = m[o_s + 2], rz - var[o_s + 2]
             d = (z - sz) ** 2
             ms = _isfinite(m[o_s] + m[o_s + 1] + d) and d <= g2 * (q if q > 0.0 else 0.0) + 1e-12
-            ms_nis = ms and (f0[ks] is None or d < (z - f0[ks][2]) ** 2)
+            ms_nis = (f0[ks] is None or d < (z - f0[ks][2]) ** 2) if ms else followed_rejected(z, sz, prev, 2, g2 * rz)
         if prev is not None and var is None:
             geo_f = abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol
             geo_u = abs(_hypot(sx - ex, sy - ey, sz - ez) - lu) <= tol
@@ -442,14 +443,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                 ms = m[o_s + 2] - m[o_e + 2] > lu + self._cons and not (
                     me and m[o_w + 2] == m[o_w + 2] and abs(_hypot(ex - wx, ey - wy, ez - wz) - lf) <= tol)
         if vs is not None:
-            # A depth that another rule (proximity) rejects but the filter followed (``*_nis``): the filter's
-            # estimate and (small) variance are no independent evidence; its prior is left out.
+            # A depth rejected (by the test, or another rule: proximity) that the filter followed (``*_nis``): the
+            # filter's estimate and (small) variance are no independent evidence; its prior is left out.
             if not me and me_nis:
                 no_prior.add(ke)
             if not ms and ms_nis:
                 no_prior.add(ks)
-        # A lost depth whose filtered estimate still fits the calibrated length (to the wrist, or to the
-        # filtered elbow) within consistency_m shows no drift: its filter prior keeps its full weight.
+        # A lost depth at its length (to the wrist, the filtered elbow) within consistency_m: no drift, its full prior.
         if vs is None:  # (only the no-covariance prior uses it)
             cons = self._cons
             self._fits = set()
