@@ -1,9 +1,9 @@
 import pytest
 
 from akc_drake.core.akc_plus_evidence import (
-    followed_rejected,
     arm_variances,
     beyond_reach,
+    followed_rejected,
     fuse_held,
     hold_blind,
     known_depths,
