@@ -1,3 +1,4 @@
+import dataclasses
 import math
 from pathlib import Path
 
@@ -498,10 +499,13 @@ def test_a_dropped_shoulder_is_held_on_the_torso_and_moves_with_the_hips():
     # that grows as a constant-velocity model's (sigma 5 cm + 5 cm/frame); the seen elbow is 2 cm deep of the
     # truth and 1 cm towards the shoulder in the image: eq. 8 from it puts the shoulder 4-5.5 cm off. The held
     # shoulder (its last offset from the hips' depth, a random walk of 1 cm/frame) follows the hips.
+    # (The elbow's forearm points at the camera here: its covered depth is off, ``forearm_radius_m`` 0, to show
+    # the hold alone; its own test is further down.)
     p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.25))
     hips = [INDEX["left_hip"], INDEX["right_hip"]]
     results = {}
-    for name, config in (("held", None), ("not held", NO_HELD_SHOULDER)):
+    for name, config in (("held", AKCPlusConfig(forearm_radius_m=0.0)),
+                         ("not held", AKCPlusConfig(sigma_shoulder_m=0.0, forearm_radius_m=0.0))):
         akc = settled_corrector(p, dims, config)
         errs = []
         for k in range(1, 31):
@@ -1135,9 +1139,10 @@ def test_a_wrist_its_own_hand_hides_is_put_behind_the_hand():
 def _held_shoulder_error(rate_hz, period_s, config=None):
     """The dropped shoulder of :func:`test_a_dropped_shoulder_is_held_on_the_torso_and_moves_with_the_hips`, as a
     motion in time sampled at ``rate_hz``: the operator steps 0.1 m/s towards the camera for 3 s, the filter's held
-    shoulder's sigma grows 0.5 m/s; AKC+ built for frame period ``period_s``. The shoulder's z error at 0.5, 1, 2
-    and 3 s."""
+    shoulder's sigma grows 0.5 m/s; AKC+ built for frame period ``period_s`` (the elbow's covered depth off, as
+    there). The shoulder's z error at 0.5, 1, 2 and 3 s."""
     p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.25))
+    config = dataclasses.replace(config or AKCPlusConfig(), forearm_radius_m=0.0)
     akc = ArmKinematicCorrectorPlus(dims, config, period_s)
     for _ in range(int(round(rate_hz / 2))):  # (settled on the pose for 0.5 s)
         akc.correct(p, measured=p, variance=kf_var())
@@ -1549,6 +1554,23 @@ def test_a_filter_that_followed_a_rejected_depth_is_no_prior_for_the_elbow():
     assert m[LE, 2] < truth[LE, 2] - 1.0 and pose[LE, 2] < state[5] - 0.25 and np.isnan(m[LS]).all()
     out = akc.correct(pose, m, d["variance"]).pose
     assert abs(out[LE, 2] - truth[LE, 2]) < 0.02 and np.linalg.norm(out[LE] - truth[LE]) < 0.10
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_an_elbow_read_on_its_own_forearm_does_not_carry_a_held_shoulder_in_front():
+    # A frame of real data: MediaPipe's bvhtools_a4 window (the skinned body, 10 Hz, after the KF), frame 558. The
+    # left arm reaches towards the camera: the upper arm points at it (the shoulder's depth is dropped by the
+    # proximity rule and held on the torso, 4.4 cm sd) and so does the forearm, whose surface the elbow's pixel reads
+    # 3.6 cm in front of the joint, a depth the running NIS believed to 0.4 cm. The projection onto the exact lengths
+    # put the misfit into the held shoulder, 4.7 cm in front; the KF holds it 0.3 cm off. The elbow's depth may be
+    # ``covered_excess`` nearer (its forearm at ~25 degrees to the line of sight): with that variance the shoulder
+    # is 2.1 cm off in depth and the elbow within 0.5 cm.
+    akc, dims, d = _recorded_frame("mediapipe_bvhtools_a4_window_10hz_frame558.npz")
+    truth, m = d["truth"], d["measured"]
+    assert np.isnan(m[LS, 2]) and m[LW, 2] < m[LE, 2] - 0.2 and m[LE, 2] < truth[LE, 2] - 0.03
+    out = akc.correct(d["pose"], m, d["variance"]).pose
+    assert abs(out[LS, 2] - truth[LS, 2]) < 0.025 and abs(out[LE, 2] - truth[LE, 2]) < 0.005
     assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
 

@@ -13,6 +13,8 @@ from akc_drake.core.arm_geometry import (
     circle_of,
     circle_point,
     circle_xy_pair,
+    covered_excess,
+    drop_unreadable,
     elbow_angle_deg,
     follow,
     nearest_depth,
@@ -131,6 +133,27 @@ def test_circle_xy_pair_finds_the_nearest_points_where_eq_7_8_has_none():
             assert np.linalg.norm(x - w) == pytest.approx(lf, abs=1e-12)
         found += math.hypot(*(p - w[:2])) > lf
     assert found > 100  # (most positions beyond the forearm's reach: 155 of 234 circles)
+
+
+def test_covered_excess_is_a_limbs_radius_over_the_sine_of_its_angle_to_the_line_of_sight():
+    r, length = 0.05, 0.28
+    e = np.array([0.2, 0.1, 2.0])
+    for deg in (20.0, 35.0, 60.0):  # the forearm turned towards the camera, deg from the line of sight
+        t = math.radians(deg)
+        w = e + length * np.array([math.sin(t), 0.0, -math.cos(t)])
+        want = min(r * (1.0 / math.sin(t) - 1.0), length)
+        assert covered_excess(*e, *w, length, r) == pytest.approx(want, rel=1e-12)
+    assert covered_excess(*e, *(e + [0.0, 0.0, -length]), length, r) == pytest.approx(length)  # (end-on: capped)
+    assert covered_excess(*e, *(e + [0.2, 0.0, 0.19]), length, r) == 0.0  # (the wrist behind: nothing covers e)
+    assert covered_excess(*e, *(e + [0.3, 0.0, -0.01]), length, r) == 0.0  # (longer than l in x, y)
+    assert covered_excess(*e, 0.3, 0.1, float("nan"), length, r) == 0.0  # (no depth)
+
+
+def test_drop_unreadable_sets_rows_nearer_than_any_camera_reads_nan():
+    m = [0.1, 0.2, 2.0, 0.3, 0.4, 0.005, 0.5, 0.6, float("nan"), 0.7, 0.8, -1.0]
+    drop_unreadable(m)
+    assert m[:3] == [0.1, 0.2, 2.0]
+    assert all(math.isnan(x) for x in m[3:6] + m[8:9] + m[9:12]) and m[6:8] == [0.5, 0.6]
 
 
 def test_rebuild_variance_first_order_far_from_the_image_plane_and_bounded_on_it():

@@ -198,7 +198,7 @@ from akc_drake.core.akc_plus_lengths import (
 from akc_drake.core.akc_plus_search import CandidateSearch
 from akc_drake.core.akc_plus_state import STATE_SIZE, StateVector  # noqa: F401 (STATE_SIZE: public here too)
 from akc_drake.core.akc_plus_torso import _XYZ, NO_HIPS, TorsoReference, learn_offset
-from akc_drake.core.arm_geometry import MIN_DEPTH_M, arm_inputs, circle_xy_pair, ray_check
+from akc_drake.core.arm_geometry import arm_inputs, circle_xy_pair, covered_excess, drop_unreadable, ray_check
 from akc_drake.core.arm_geometry import behind_reading as _behind_reading
 from akc_drake.core.arm_geometry import candidates as _candidates
 from akc_drake.core.arm_geometry import circle_point as _circle_point
@@ -245,9 +245,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                  "_v_t", "_hand", "_ls", "_lu", "_nis", "_no_measurement", "_no_prior", "_occ_r2", "_offsets", "_prev",
                  "_r_axes", "_r_z", "_sub_index", "_nis_a", "_nis_floor", "_tol", "_cons", "_xy_tol", "_t_cap",
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
-                 "_inv_tz2", "_fs_r", "_fs_k2", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost", "_s_floor",
-                 "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor", "_seen_var", "_read_e",
-                 "_verdict")
+                 "_inv_tz2", "_fs_r", "_fs_k2", "_fa_r", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost",
+                 "_s_floor", "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor", "_seen_var",
+                 "_read_e", "_verdict")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -284,7 +284,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         self._refit, self._wrist_anchor = config.constrained_filter is True, config.seen_wrist_anchor is True
         # A constrained filter's variance of a joint lost altogether is no error measure after ``recent_frames``.
         self._blind_honest = pf.recent_frames if self._refit else _inf
-        self._seen_var = config.seen_depth_sigma_m**2  # (a seen depth's after a constrained filter: ``arm_variances``)
+        self._seen_var, self._fa_r = config.seen_depth_sigma_m**2, config.forearm_radius_m  # (``covered_excess``)
         self._cons, self._xy_tol, self._occ_r2 = config.consistency_m, config.xy_tol_m, config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
         self._fs_r, self._fs_k2 = config.arm_radius_m, (config.arm_radius_m + config.consistency_m) ** 2
@@ -326,6 +326,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2,
                                                self._refit, self._seen_var)
+            if m is not None and m[o_s + 2] != m[o_s + 2]:  # (a shoulder's depth not read: the seen elbow carries it)
+                vs[5] += covered_excess(*m[o_e:o_e + 3], *m[o_w:o_w + 3], self._lf[side], self._fa_r) ** 2
             if m is not None and (m[o_s] != m[o_s] or m[o_w] != m[o_w]):  # (a joint lost altogether that its
                 # filter put beyond the measured elbow's reach)
                 beyond_reach(f, vs, m, offsets, prev, self._lu[side], self._lf[side], self._r_axes, self._len_var,
@@ -646,9 +648,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             if b.shape != _SHAPE:
                 raise ValueError(f"measured must have shape ({NUM_LANDMARKS}, 3), got {b.shape}")
             m = b.reshape(_FLAT).tolist()
-            for o in range(2, _FLAT, 3):  # (a depth nearer than MIN_DEPTH_M: no reading; its ray is degenerate)
-                if m[o] < MIN_DEPTH_M:
-                    m[o - 2] = m[o - 1] = m[o] = _NAN
+            drop_unreadable(m)  # (a depth nearer than MIN_DEPTH_M: no reading; its ray is degenerate)
             for o in self._hand:  # (a wrist its own hand hides, put behind it: ``hidden_wrist``)
                 hidden_wrist(v, m, o[0], o[1], o[2], o[3], o[4])
         self._var = None

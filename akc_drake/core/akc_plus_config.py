@@ -69,6 +69,15 @@ class AKCPlusConfig:
             distance in x, y and the elbow in front, exceeds ``consistency_m`` does not count as seen (0 turns
             the rule off). With MediaPipe on the skinned body (bvhtools_a3: the arm 20 degrees off the line of
             sight) the shoulder read 6 cm in front and the kept shoulder moved the seen elbow 4-5 cm.
+        forearm_radius_m: the forearm's radius near the elbow (a 25 cm circumference). A forearm pointing towards
+            the camera covers its elbow's pixel as the upper arm covers its shoulder's; while the shoulder's depth
+            is not read (dropped, or lost), the elbow's depth carries it through the upper arm's length, and its
+            variance grows by the square of the excess ``r (l_f / d_xy - 1)``, ``d_xy`` the wrist's distance in x,
+            y (:func:`~akc_drake.core.arm_geometry.covered_excess`; 0 turns the rule off). The elbow's reading on
+            the evaluation's renders, by the cosine of the forearm's angle to the line of sight (0.8-0.9 /
+            0.9-1.0): 2.0 / 3.8 cm in front with the simulated detector, 1.1-1.6 / 2.1-2.8 with MediaPipe. Where
+            the shoulder is read too, the variance is left as it is: a softer depth there let MediaPipe's 2D errors
+            into it through the lengths (every MediaPipe set worse in 3D, session 48).
         arm_cover_deg: a seen shoulder's depth is outvoted as an occluder's (two against one: a seen elbow that
             fits the wrist, and a rebuilt shoulder behind the reading) only when its own arm can cover its pixel:
             the wrist's forearm passes within ``occlusion_radius_m`` of it in the image, or the upper arm points
@@ -156,6 +165,7 @@ class AKCPlusConfig:
     jump_m: float = 0.15
     occlusion_radius_m: float = 0.08
     arm_radius_m: float = 0.05
+    forearm_radius_m: float = 0.04
     arm_cover_deg: float = 37.0
     gate_frames: float = 10.0
     depth_sigma_m: float = 0.05
