@@ -58,6 +58,9 @@ def write_video(path, frames, fps=10.0):
 
 def akc(*argv, cwd):
     env = {k: v for k, v in os.environ.items() if k != "AKC_DRAKE_NATIVE_LOGS"}
+    # A native crash (one SIGSEGV of ``record --source bag:`` seen once on a loaded machine, not reproduced in 21
+    # runs) then prints the Python stack of every thread into the stderr that the failing assertion shows.
+    env["PYTHONFAULTHANDLER"] = "1"
     return subprocess.run(
         [sys.executable, "-m", "akc_drake.cli", *argv], cwd=cwd, env=env, capture_output=True, text=True,
         timeout=300,
