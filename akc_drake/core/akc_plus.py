@@ -284,7 +284,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         self._refit, self._wrist_anchor = config.constrained_filter is True, config.seen_wrist_anchor is True
         # A constrained filter's variance of a joint lost altogether is no error measure after ``recent_frames``.
         self._blind_honest = pf.recent_frames if self._refit else _inf
-        self._seen_var, self._fa_r = config.seen_depth_sigma_m**2, config.forearm_radius_m  # (``covered_excess``)
+        self._seen_var, self._fa_r = config.seen_depth_sigma_m**2 if self._refit else 0.0, config.forearm_radius_m
         self._cons, self._xy_tol, self._occ_r2 = config.consistency_m, config.xy_tol_m, config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
         self._fs_r, self._fs_k2 = config.arm_radius_m, (config.arm_radius_m + config.consistency_m) ** 2

@@ -13,10 +13,10 @@
   read goes behind it, and the verdict is remembered while the pixel reads that surface.
 
 Both projections take two steps of sequential quadratic programming (fewer once the lengths are met to 0.01 mm)
-written out, with :func:`~akc_drake.core.arm_geometry.circle_point` inlined: a loop over the steps, its branches on
-the step number and the calls cost about a third of the projection's time as source, and compiled still 0.8-1.0 us
-of AKC+'s ~18.7 us per frame (2026-11-25). ``offset_var`` (AKC+'s landmark offsets) is added to each variance here,
-as the caller's ``[x + offset_var for x in var]`` would.
+written out (the final circle from :func:`~akc_drake.core.arm_geometry.circle_of`): a loop over the steps, its
+branches on the step number and the calls cost about a third of the projection's time as source, and compiled still
+0.8-1.0 us of AKC+'s ~18.7 us per frame (2026-11-25). ``offset_var`` (AKC+'s landmark offsets) is added to each
+variance here, as the caller's ``[x + offset_var for x in var]`` would.
 """
 
 from __future__ import annotations

@@ -29,6 +29,7 @@ def drop_unreadable(m) -> None:
         if m[o] < MIN_DEPTH_M:
             m[o - 2] = m[o - 1] = m[o] = _NAN
 
+
 def elbow_angle_deg(p_s, p_e, p_w) -> float:
     """Angle at the elbow between (shoulder - elbow) and (wrist - elbow), degrees; NaN if undefined."""
     a = np.asarray(p_s, float) - np.asarray(p_e, float)
