@@ -1542,6 +1542,45 @@ def test_an_elbow_whose_2d_position_no_depth_fits_goes_on_the_circle_nearest_its
     assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
 
 
+def test_a_seen_upper_arm_longer_in_the_image_than_its_length_shares_the_misfit_while_the_wrist_is_lost():
+    # The upper arm near the image plane, the shoulder and the elbow seen, the wrist and the hand lost altogether. The
+    # detector's shoulder sits 4 cm off the joint, away from the elbow: the two are 33 cm apart in x, y against a
+    # 29 cm upper arm, so no depth closes the arm and one of the two x, y is off. Nothing (no wrist) tells which: the
+    # arm nearest both in their metric shares the 4 cm, each 2 cm off, where keeping the seen shoulder moved the
+    # elbow by the whole misfit (both 4 cm off).
+    p, dims = arm_pose(elbow_dir_l=(0.3, 0.95, -0.05))
+    akc = settled_corrector(p, dims)
+    u = (p[LS, :2] - p[LE, :2]) / np.linalg.norm(p[LS, :2] - p[LE, :2])
+    f = p.copy()
+    f[LS, :2] += 0.04 * u
+    m = f.copy()
+    m[[LW, INDEX["left_index"], INDEX["left_pinky"]]] = np.nan
+    assert np.linalg.norm(m[LS, :2] - m[LE, :2]) > dims.LUA + 0.035
+    out = akc.correct(f, measured=m, variance=kf_var()).pose
+    for j in (LS, LE):
+        assert np.linalg.norm(out[j] - p[j]) == pytest.approx(0.02, abs=0.002)
+        assert abs(out[j, 2] - p[j, 2]) < 0.002  # (the misfit is in x, y: the depths stay)
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
+def test_a_recorded_upper_arm_longer_in_the_image_than_its_length_shares_the_misfit():
+    # A frame of real motion (mocapbank driven bone by bone; MediaPipe on the skinned body, 10 Hz, after the KF),
+    # frame 57. The left wrist has been lost altogether for 12 frames; MediaPipe's shoulder is 8 cm off the joint
+    # in x, y, the elbow 2.3 cm: 31.6 cm apart in the image against a 29.4 cm upper arm. The seen shoulder kept, the
+    # elbow moved radially 5.3 cm (8.3 cm off, the shoulder 8.9); the arm nearest both in their metric leaves each
+    # 6.6 cm off.
+    akc, dims, d = _recorded_frame("mediapipe_mocapbank_rig_10hz_frame57.npz")
+    truth, m, pose = d["truth"], d["measured"], d["pose"]
+    assert np.isnan(m[LW]).all() and np.isfinite(m[[LS, LE]]).all()
+    assert np.linalg.norm(m[LS, :2] - m[LE, :2]) > dims.LUA + 0.02
+    out = akc.correct(pose, m, d["variance"]).pose
+    assert np.linalg.norm(out[LS] - truth[LS]) < 0.07 and np.linalg.norm(out[LE] - truth[LE]) < 0.07
+    assert np.linalg.norm(out[LS] - pose[LS]) > 0.02  # (the seen shoulder took part of the misfit)
+    assert np.linalg.norm(out[LS] - out[LE]) == pytest.approx(dims.LUA, abs=1e-12)
+    assert np.linalg.norm(out[LE] - out[LW]) == pytest.approx(dims.LLA, abs=1e-12)
+
+
 def test_a_filter_that_followed_a_rejected_depth_is_no_prior_for_the_elbow():
     # A frame of a held-out motion (CMU subject 05, trial 11, driven bone by bone; the simulated detector on the
     # skinned body, 30 Hz, after the KF), frame 29. The left arm reaches back, the elbow 23 cm behind the shoulder;

@@ -86,9 +86,10 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   depth difference, and of its own last depth, beyond the gate) is an occluder's too, held at that difference
   (:meth:`~akc_drake.core.akc_plus_torso.TorsoReference._shoulder_jumped`: MediaPipe's hips, read on a bent body's
   belly, moved with the shoulder read on the head); so is one that jumps behind beyond the shoulder width (the wall).
-* A shoulder the detector lost altogether and a seen elbow that no wrist confirms (the wrist lost, or no
-  anchor): the arm nearest both in their metric with the exact lengths, not the held shoulder kept (a torso that
-  leaned while both were lost moved the seen elbow 7 cm onto the held shoulder; mocapbank driven bone by bone).
+* A seen elbow that no wrist confirms (the wrist lost, or no anchor) and a shoulder the detector lost altogether, or
+  seen farther from it in the image than l_u while the wrist is lost altogether (one x, y is off; which, unknown): the
+  arm nearest both in their metric with the exact lengths, not the shoulder kept (mocapbank driven bone by bone: a
+  torso that leaned moved the seen elbow 7 cm onto the held shoulder, MediaPipe's seen one 8 cm off 5 cm radially).
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
   the correction in the filter's metric (mostly in depth), not the wrist alone.
 * A seen elbow that the arm nearest the filter's (the lengths' projections) puts more than ``consistency_m`` in
@@ -272,10 +273,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
         # Flat indices of each arm's nine coordinates, and (position in the arm, flat index, R) per coordinate.
         self._arm_index = tuple(tuple(o + ax for o in offs for ax in range(3)) for offs in self._offsets)
-        self._sub_index = tuple(
-            tuple((i, j, self._r_axes[i % 3], 9 * side + i) for i, j in enumerate(idx))
-            for side, idx in enumerate(self._arm_index)
-        )
+        self._sub_index = tuple(tuple((i, j, self._r_axes[i % 3], 9 * side + i) for i, j in enumerate(idx))
+                                for side, idx in enumerate(self._arm_index))
         self._no_measurement, self._gate2 = [_NAN] * (3 * NUM_LANDMARKS), config.gate_sigma**2
         # (two measured points farther apart than a width reaches: the gate of both their variances and the width's)
         self._width_gate = self._gate2 * (2.0 * (self._r_axes[0] + self._r_axes[1] + self._r_axes[2]) + self._len_var)
@@ -524,12 +523,13 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                 # (A shoulder kept only for want of the wrist yields to a seen elbow: the module's docstring.)
                 sx, sy, sz = _nearest_depth(ex, ey, ez, sx, sy, sz, lu)
             ts, te = True, False
-        if vs is not None and not sxy and me and not te and prev is not None:
-            # A shoulder the detector lost altogether (its x, y too: held on the torso, a random walk) and a seen
-            # elbow that no wrist confirms (one that fits and is an anchor rebuilds the shoulder, below): the arm
-            # nearest both in their metric with the exact lengths, not the held shoulder kept (a torso that shrugs
-            # or leans while the shoulder and the wrist are lost moved the seen elbow 7 cm to the held shoulder:
-            # mocapbank driven bone by bone, simulated detector).
+        if vs is not None and me and not te and prev is not None and (not sxy or (
+                ms and m is not None and not _isfinite(m[o_w] + m[o_w + 1]) and _hypot(sx - ex, sy - ey, 0.0) > lu)):
+            # A seen elbow that no wrist confirms (one that fits and is an anchor rebuilds the shoulder, below), and
+            # a shoulder the detector lost altogether (held on the torso, a random walk: a torso that leaned moved the
+            # seen elbow 7 cm to it) or seen farther from it in the image than l_u while the wrist is lost altogether
+            # (no depth closes the upper arm; nothing tells whose x, y is off: the elbow moved radially by the whole
+            # misfit): the arm nearest both in their metric with the exact lengths, not the shoulder kept.
             arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, _inf, self._off_var)
             if arm is not None:
                 return arm
