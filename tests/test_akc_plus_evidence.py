@@ -4,7 +4,9 @@ from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     beyond_reach,
     followed_rejected,
+    forearm_misread,
     fuse_held,
+    held_segments,
     hold_blind,
     known_depths,
     unreachable_replacements,
@@ -431,3 +433,48 @@ def test_a_joint_lost_altogether_beyond_the_measured_elbows_reach_is_no_evidence
         vs = [1e-3] * 9
         beyond_reach(f, vs, m2, offsets, p2, *args)
         assert f == [-2.2, 1.5, 1.8, 0.2, 0.3, 2.0, -1.7, 4.0, 1.2] and vs == [1e-3] * 9
+
+
+def test_a_wrist_whose_forearm_misfits_an_arm_that_fits_otherwise_is_misread():
+    # An arm measured whole at flat offsets 0, 3, 6: the shoulder, the elbow 0.30 below it, the wrist 0.27 below the
+    # elbow (lengths 0.30 / 0.27). The wrist read 6 cm short misfits its forearm by more than the 5 cm tolerance
+    # while the upper arm fits: the wrist is the odd one out. 4 cm is within the tolerance; an upper arm that
+    # misfits too leaves it open which reading is off (the elbow's, here); a coordinate not measured says nothing.
+    arm = [0.0, 0.0, 2.0, 0.0, 0.30, 2.0, 0.0, 0.57, 2.0]
+    assert not forearm_misread(arm, 0, 3, 6, 0.30, 0.27, 0.05)
+
+    def read(**moved):
+        m = list(arm)
+        for k, d in moved.items():
+            m[int(k[1:])] += d
+        return m
+
+    assert forearm_misread(read(i7=-0.06), 0, 3, 6, 0.30, 0.27, 0.05)
+    assert not forearm_misread(read(i8=-0.08), 0, 3, 6, 0.30, 0.27, 0.05)  # (8 cm in front: a 28.2 cm forearm)
+    assert forearm_misread(read(i8=-0.25), 0, 3, 6, 0.30, 0.27, 0.05)  # (25 cm in front: 36.8 cm)
+    assert not forearm_misread(read(i7=-0.04), 0, 3, 6, 0.30, 0.27, 0.05)
+    assert not forearm_misread(read(i4=0.06), 0, 3, 6, 0.30, 0.27, 0.05)  # the elbow's reading: both misfit
+    assert not forearm_misread(read(i7=-0.06, i2=NAN), 0, 3, 6, 0.30, 0.27, 0.05)
+    assert not forearm_misread(read(i7=-0.06, i8=NAN), 0, 3, 6, 0.30, 0.27, 0.05)
+
+
+def test_the_held_forearm_is_not_taken_from_a_misread_wrist():
+    # The arm output (nine floats) and the measurement at flat offsets 0, 3, 6: an arm measured whole and fitting its
+    # lengths gives both holds from the output (the forearm, no blind frames, the upper arm it turns with). With
+    # the wrist misread (6 cm short) the forearm held from before is kept and ages a frame; the upper arm is taken.
+    # A wrist not detected keeps its hold as it is (its blind frames are counted where it is used).
+    out = [0.0, 0.0, 2.0, 0.0, 0.30, 2.0, 0.0, 0.57, 2.0]
+    blind, blind_e = held_segments(None, None, out, list(out), 0, 3, 6, 0.30, 0.27, 0.05)
+    assert blind == pytest.approx([0.0, 0.27, 0.0, 0.0, 0.0, 0.30, 0.0])
+    assert blind_e == pytest.approx([0.0, 0.30, 0.0, 0.0])
+    old = [0.01, 0.26, 0.02, 2.0, 0.0, 0.30, 0.0]
+    m = list(out)
+    m[7] -= 0.06
+    blind, blind_e = held_segments(list(old), None, out, m, 0, 3, 6, 0.30, 0.27, 0.05)
+    assert blind == pytest.approx([0.01, 0.26, 0.02, 3.0, 0.0, 0.30, 0.0])
+    assert blind_e == pytest.approx([0.0, 0.30, 0.0, 0.0])
+    m[6] = m[7] = NAN
+    blind, _ = held_segments(list(old), None, out, m, 0, 3, 6, 0.30, 0.27, 0.05)
+    assert blind == old
+    blind, _ = held_segments(None, None, out, None, 0, 3, 6, 0.30, 0.27, 0.05)  # (no measurement: all detected)
+    assert blind[:3] == pytest.approx([0.0, 0.27, 0.0])

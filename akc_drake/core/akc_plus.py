@@ -44,19 +44,20 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   centre (isotropic, ``length_sigma_m^2 / 2`` per axis: what makes a measured segment's length differ from the
   calibrated one), so that a length mismatch of a segment near the image plane is shared with the x, y instead
   of becoming a depth error several times as large. A shoulder so known is kept when the elbow is rebuilt.
-* A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm
-  as our output last had it, carried by this frame's elbow (a random walk of ``sigma_temporal_m^2`` per blind
-  frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity extrapolation runs on
-  while the hand turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost
-  for 6 frames: the filter 24 cm off in x, the previous fusion with our last output 11.5 cm off and 10 cm in
-  y). Known worse than the shoulder and the elbow, it is no anchor (nothing measured it): the arm is built
-  from the shoulder out and the wrist goes to its nearest point at the forearm's length in its own metric
-  (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`; its x, y are no better known than its depth). Nor is a
-  wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
-  measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the
-  silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m). A shoulder
-  kept only for want of the wrist (its own reading rejected, not held) yields to a seen elbow within
-  ``consistency_m`` of its reading: at l_u from it, x, y kept (a KF lagging 90 cm had moved the elbow 85 cm).
+* A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm as our
+  output last had it (not from a wrist misread, the odd one out of an arm measured whole:
+  :func:`~akc_drake.core.akc_plus_evidence.held_segments`), carried by this frame's elbow (a random walk of
+  ``sigma_temporal_m^2`` per blind frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity
+  extrapolation runs on while the hand turns, the forearm moves with the elbow the camera still sees (mocapbank's left
+  wrist, lost for 6 frames: the filter 24 cm off in x, the previous fusion with our last output 11.5 cm off and 10 cm
+  in y). Known worse than the shoulder and the elbow, it is no anchor (nothing measured it): the arm is built from the
+  shoulder out and the wrist goes to its nearest point at the forearm's length in its own metric
+  (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`; its x, y are no better known than its depth). Nor is a wrist
+  whose measured depth the innovation test rejects and no replacement resolved (the filter and the measurement
+  disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the silhouette part of
+  the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m). A shoulder kept only for want of
+  the wrist (its own reading rejected, not held) yields to a seen elbow within ``consistency_m`` of its reading: at
+  l_u from it, x, y kept (a KF lagging 90 cm had moved the elbow 85 cm).
 * An elbow lost altogether likewise: the filter's extrapolation times the upper arm held at this frame's shoulder,
   and a wrist lost with it moves with that elbow (MediaPipe lost bvhtools_a2's left arm for 20 frames: the filter's
   elbow ran 25 cm off in depth, and the elbow rebuilt between it and the held wrist 37 cm). After an EKF
@@ -179,6 +180,7 @@ from akc_drake.core.akc_plus_evidence import (
     beyond_reach,
     followed_rejected,
     fuse_held,
+    held_segments,
     hidden_wrist,
     hold_blind,
     known_depths,
@@ -674,12 +676,10 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out
                 self._remember_surface(side, out, m, o_e)
-                if m is None or _isfinite(m[o_w] + m[o_w + 1]):  # the forearm with the wrist detected, and the
-                    # upper arm then (the held forearm turns with it: ``_arm``)
-                    self._blind[side] = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0,
-                                         out[3] - out[0], out[4] - out[1], out[5] - out[2]]
-                if m is None or _isfinite(m[o_e] + m[o_e + 1]):  # the upper arm with the elbow detected
-                    self._blind_e[side] = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
+                # The segments held for a joint lost altogether (the held forearm turns with the upper arm: ``_arm``).
+                self._blind[side], self._blind_e[side] = held_segments(
+                    self._blind[side], self._blind_e[side], out, m, o_s, o_e, o_w, self._lu[side], self._lf[side],
+                    self._cons)
                 if (hold or others[1 - side] is not None) and m[o_s + 2] == m[o_s + 2]:
                     # The shoulder's depth measured: its offset from the hips' (and from the other shoulder, seen),
                     # a running mean (the depths read as an occluder approaches, just before the occlusion

@@ -376,6 +376,47 @@ def unreachable_replacements(f, vs, f0, m, offsets, sub_index, var, nis, floor, 
     return out
 
 
+def forearm_misread(m, o_s: cython.Py_ssize_t, o_e: cython.Py_ssize_t, o_w: cython.Py_ssize_t, lu: float, lf: float,
+                    tol: float) -> bool:
+    """Whether the measured wrist is the odd one out of an arm measured whole: its forearm to the measured elbow
+    misses ``lf`` by more than ``tol`` while the measured upper arm fits ``lu`` within it (two against one). False
+    when any of the nine coordinates of ``m`` (offsets ``o_s``, ``o_e``, ``o_w``) is NaN.
+
+    Such a reading is no forearm to hold for the frames the wrist is then lost altogether (``fuse_held``): the
+    detector loses a wrist as it goes behind the body or out of view, and the frames before read it off, its 2D
+    short and its depth on whatever covers it. The arm output from it has the forearm's length made up in depth.
+    MediaPipe on bvhtools_c: the last frame before a 15-frame loss read the wrist 11 cm in front with its 2D 7 cm
+    short (the forearm 21.9 cm against 27.4); the projection put the wrist 16.5 cm in front and the hold carried
+    it (18-22 cm in front, the KF 7-15).
+    """
+    d: float; u: float  # (C doubles: setup.py)
+    d = math.hypot(m[o_e] - m[o_w], m[o_e + 1] - m[o_w + 1], m[o_e + 2] - m[o_w + 2]) - lf
+    u = math.hypot(m[o_e] - m[o_s], m[o_e + 1] - m[o_s + 1], m[o_e + 2] - m[o_s + 2]) - lu
+    return abs(d) > tol and abs(u) <= tol
+
+
+def held_segments(blind, blind_e, out, m, o_s: cython.Py_ssize_t, o_e: cython.Py_ssize_t, o_w: cython.Py_ssize_t,
+                  lu: float, lf: float, tol: float):
+    """One arm's segments held for the frames a joint is lost altogether (``fuse_held``), after the arm ``out``
+    (nine floats) was output for the measurement ``m`` (None: no measurement, all detected): ``(blind,
+    blind_e)``, each side's entries of AKC+'s ``_blind`` and ``_blind_e`` (lists, or None before any).
+
+    * ``blind``, the forearm (wrist - elbow) of our output, the blind frames, and the upper arm (elbow - shoulder)
+      the held forearm turns with: taken when the wrist is detected, unless its reading is misread
+      (:func:`forearm_misread`). Then the forearm held from before is kept and ages a frame, a random walk's step.
+    * ``blind_e``, the upper arm and the blind frames: taken when the elbow is detected.
+    """
+    if m is None or m[o_w] == m[o_w] and m[o_w + 1] == m[o_w + 1]:
+        if blind is not None and m is not None and forearm_misread(m, o_s, o_e, o_w, lu, lf, tol):
+            blind[3] += 1.0
+        else:
+            blind = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0, out[3] - out[0], out[4] - out[1],
+                     out[5] - out[2]]
+    if m is None or m[o_e] == m[o_e] and m[o_e + 1] == m[o_e + 1]:
+        blind_e = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
+    return blind, blind_e
+
+
 def wrist_misfit(f, vs, lu, lf, cons, shoulder_kept):
     """Whether a seen wrist's depth, not the seen elbow's, carries a too-long forearm (``|e - w| > lf``).
 
