@@ -391,8 +391,10 @@ def forearm_misread(m, o_s: cython.Py_ssize_t, o_e: cython.Py_ssize_t, o_w: cyth
     """
     d: float; u: float  # (C doubles: setup.py)
     d = math.hypot(m[o_e] - m[o_w], m[o_e + 1] - m[o_w + 1], m[o_e + 2] - m[o_w + 2]) - lf
+    if not abs(d) > tol:  # (the common case: one hypot)
+        return False
     u = math.hypot(m[o_e] - m[o_s], m[o_e + 1] - m[o_s + 1], m[o_e + 2] - m[o_s + 2]) - lu
-    return abs(d) > tol and abs(u) <= tol
+    return abs(u) <= tol
 
 
 def held_segments(blind, blind_e, out, m, o_s: cython.Py_ssize_t, o_e: cython.Py_ssize_t, o_w: cython.Py_ssize_t,
