@@ -526,7 +526,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                 sx, sy, sz = _nearest_depth(ex, ey, ez, sx, sy, sz, lu)
             ts, te = True, False
         if vs is not None and me and not te and prev is not None and (not sxy or (
-                ms and m is not None and not _isfinite(m[o_w] + m[o_w + 1]) and _hypot(sx - ex, sy - ey, 0.0) > lu)):
+                ms and m is not None and not _isfinite(m[o_w] + m[o_w + 1]) and _hypot(sx - ex, sy - ey) > lu)):
             # A seen elbow that no wrist confirms (one that fits and is an anchor rebuilds the shoulder, below), and
             # a shoulder the detector lost altogether (held on the torso, a random walk: a torso that leaned moved the
             # seen elbow 7 cm to it) or seen farther from it in the image than l_u while the wrist is lost altogether

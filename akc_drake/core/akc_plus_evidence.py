@@ -408,13 +408,13 @@ def held_segments(blind, blind_e, out, m, o_s: cython.Py_ssize_t, o_e: cython.Py
       (:func:`forearm_misread`). Then the forearm held from before is kept and ages a frame, a random walk's step.
     * ``blind_e``, the upper arm and the blind frames: taken when the elbow is detected.
     """
-    if m is None or m[o_w] == m[o_w] and m[o_w + 1] == m[o_w + 1]:
+    if m is None or math.isfinite(m[o_w] + m[o_w + 1]):
         if blind is not None and m is not None and forearm_misread(m, o_s, o_e, o_w, lu, lf, tol):
             blind[3] += 1.0
         else:
             blind = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0, out[3] - out[0], out[4] - out[1],
                      out[5] - out[2]]
-    if m is None or m[o_e] == m[o_e] and m[o_e + 1] == m[o_e + 1]:
+    if m is None or math.isfinite(m[o_e] + m[o_e + 1]):
         blind_e = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
     return blind, blind_e
 
