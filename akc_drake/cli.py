@@ -225,6 +225,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="write sweep.md, tables/table7.csv and the figures here")
     p.add_argument("--json", metavar="FILE", help="write the grid, the optima and Table VII as JSON")
 
+    p = sub.add_parser("compare", help="real-motion evaluations side by side, and what changed between two")
+    p.add_argument("runs", nargs="+", metavar="RUN.json", help="JSONs of `evaluate --motion-dir DIR --json FILE`")
+    p.add_argument("--against", nargs="+", metavar="OLD.json",
+                   help="an earlier run of the same clips per run, in order: print what changed")
+    p.add_argument("--methods", metavar="M,M", help="only these corrected methods (default: every one the runs have)")
+    p.add_argument("--target", type=float, default=0.5, metavar="CM",
+                   help="the increase over the filter counted as a miss (default 0.5 cm)")
+    p.add_argument("--min-change", type=float, default=0.1, metavar="CM",
+                   help="with --against, list every clip, joint and axis that moved by this much (default 0.1 cm)")
+    p.add_argument("--json", metavar="FILE", help="write the rows and the changes as JSON")
+
     p = sub.add_parser("cache", help="where the render cache is and how big; --clear empties it")
     p.add_argument("--clear", action="store_true", help="delete every cached rendered session")
 

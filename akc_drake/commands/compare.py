@@ -1,0 +1,64 @@
+"""``akc-drake compare``: real-motion evaluations side by side, and what changed between two.
+
+``akc-drake compare RUN.json [RUN.json ...]`` prints one row per run and corrected method (its worst increase over
+its filter, over all frames and the frames a joint is seen, in 3D, the lost joint-frames and the pooled arm 3D
+RMSE). ``--against OLD.json [...]`` pairs each run with an earlier one of the same clips (in order) and prints what
+moved: the worst figures before -> after, and every (method, clip, joint, axis) that crossed the target or moved by
+``--min-change`` cm. ``--methods`` keeps only the corrected methods named; ``--json FILE`` writes the same as data.
+See :mod:`akc_drake.evaluation.compare`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from akc_drake.errors import UserError
+
+
+def _plain(x):
+    """JSON-safe: infinities and NaN as None."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_plain(v) for v in x]
+    return x
+
+
+def main(args) -> int:
+    from akc_drake.evaluation.compare import changes, format_changes, format_glance, glance, load_run
+    from akc_drake.fileio import atomic_write_text
+
+    if args.target <= 0 or args.min_change <= 0:
+        raise UserError("--target and --min-change must be positive numbers of centimetres")
+    runs = [load_run(p) for p in args.runs]
+    olds = [load_run(p) for p in args.against or []]
+    labels = [r["label"] for r in runs + olds]
+    for r, path in zip(runs + olds, list(args.runs) + list(args.against or []), strict=True):
+        if labels.count(r["label"]) > 1:  # (the same file name in two folders: told apart by their paths)
+            r["label"] = str(path)
+    if olds and len(olds) != len(runs):
+        raise UserError(f"--against: {len(olds)} runs for {len(runs)}; give one earlier run per run, in order")
+    rows = glance(runs)
+    if args.methods:
+        keep = {m.strip() for m in args.methods.split(",") if m.strip()}
+        have = {r["method"] for r in rows}
+        if not keep <= have:
+            raise UserError(f"--methods: {', '.join(sorted(keep - have))} not in the runs "
+                            f"(they have {', '.join(sorted(have))})")
+        rows = [r for r in rows if r["method"] in keep]
+    print(format_glance(rows, args.target))
+    out = {"target_cm": args.target, "runs": rows, "changes": []}
+    for old, new in zip(olds, runs, strict=False):
+        ch = changes(old, new, args.target, args.min_change)
+        if args.methods:
+            ch = {"summary": [x for x in ch["summary"] if x["method"] in keep],
+                  "entries": [x for x in ch["entries"] if x["method"] in keep]}
+        print(f"\n{old['label']} -> {new['label']}:\n")
+        print(format_changes(ch, args.target))
+        out["changes"].append({"old": old["label"], "new": new["label"], **ch})
+    if args.json:
+        atomic_write_text(args.json, json.dumps(_plain(out), indent=1))
+    return 0
