@@ -461,18 +461,21 @@ def test_a_wrist_whose_forearm_misfits_an_arm_that_fits_otherwise_is_misread():
 def test_the_held_forearm_is_not_taken_from_a_misread_wrist():
     # The arm output (nine floats) and the measurement at flat offsets 0, 3, 6: an arm measured whole and fitting its
     # lengths gives both holds from the output (the forearm, no blind frames, the upper arm it turns with). With
-    # the wrist misread (6 cm short) the forearm held from before is kept and ages a frame; the upper arm is taken.
-    # A wrist not detected keeps its hold as it is (its blind frames are counted where it is used).
+    # the wrist misread (6 cm short) the forearm held from before is kept and ages a frame, its misread frames count
+    # one more (the last entry); the upper arm is taken. A wrist not detected keeps its hold as it is (its blind
+    # frames are counted where it is used), and a wrist read right again gives a new hold, no misread frames.
     out = [0.0, 0.0, 2.0, 0.0, 0.30, 2.0, 0.0, 0.57, 2.0]
     blind, blind_e = held_segments(None, None, out, list(out), 0, 3, 6, 0.30, 0.27, 0.05)
-    assert blind == pytest.approx([0.0, 0.27, 0.0, 0.0, 0.0, 0.30, 0.0])
+    assert blind == pytest.approx([0.0, 0.27, 0.0, 0.0, 0.0, 0.30, 0.0, 0.0])
     assert blind_e == pytest.approx([0.0, 0.30, 0.0, 0.0])
-    old = [0.01, 0.26, 0.02, 2.0, 0.0, 0.30, 0.0]
+    old = [0.01, 0.26, 0.02, 2.0, 0.0, 0.30, 0.0, 1.0]
     m = list(out)
     m[7] -= 0.06
     blind, blind_e = held_segments(list(old), None, out, m, 0, 3, 6, 0.30, 0.27, 0.05)
-    assert blind == pytest.approx([0.01, 0.26, 0.02, 3.0, 0.0, 0.30, 0.0])
+    assert blind == pytest.approx([0.01, 0.26, 0.02, 3.0, 0.0, 0.30, 0.0, 2.0])
     assert blind_e == pytest.approx([0.0, 0.30, 0.0, 0.0])
+    blind, _ = held_segments(blind, None, out, list(out), 0, 3, 6, 0.30, 0.27, 0.05)
+    assert blind == pytest.approx([0.0, 0.27, 0.0, 0.0, 0.0, 0.30, 0.0, 0.0])
     m[6] = m[7] = NAN
     blind, _ = held_segments(list(old), None, out, m, 0, 3, 6, 0.30, 0.27, 0.05)
     assert blind == old

@@ -21,6 +21,7 @@ def test_state_round_trips_with_the_running_nis():
     np.testing.assert_allclose(v[62:65], p[LE] - p[LS], atol=1e-9)  # the left upper arm, elbow detected
     assert v[65] == 0.0
     np.testing.assert_allclose(v[78:81], p[LE] - p[LS], atol=1e-9)  # the upper arm the held forearm turns with
+    assert list(v[103:105]) == [0.0, 0.0]  # (no misread frames since either forearm was taken)
     other = ArmKinematicCorrectorPlus(dims)
     other.set_state_vector(v)
     np.testing.assert_array_equal(other.get_state_vector(), v)
@@ -37,6 +38,11 @@ def test_state_round_trips_with_the_running_nis():
     bad[65] = -1.0
     with pytest.raises(ValueError, match="blind-elbow frame count"):
         other.set_state_vector(bad)
+    for k in (-1.0, np.nan):
+        bad = v.copy()
+        bad[104] = k
+        with pytest.raises(ValueError, match=r"misread-frame count \[104\]"):
+            other.set_state_vector(bad)
     with pytest.raises(ValueError, match="variance"):
         akc.correct(p, measured=p, variance=np.zeros((3, 3)))
 

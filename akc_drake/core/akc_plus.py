@@ -45,19 +45,19 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   calibrated one), so that a length mismatch of a segment near the image plane is shared with the x, y instead
   of becoming a depth error several times as large. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm as our
-  output last had it (not from a wrist misread, the odd one out of an arm measured whole:
-  :func:`~akc_drake.core.akc_plus_evidence.held_segments`), carried by this frame's elbow (a random walk of
-  ``sigma_temporal_m^2`` per blind frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity
-  extrapolation runs on while the hand turns, the forearm moves with the elbow the camera still sees (mocapbank's left
-  wrist, lost for 6 frames: the filter 24 cm off in x, the previous fusion with our last output 11.5 cm off and 10 cm
-  in y). Known worse than the shoulder and the elbow, it is no anchor (nothing measured it): the arm is built from the
-  shoulder out and the wrist goes to its nearest point at the forearm's length in its own metric
-  (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`; its x, y are no better known than its depth). Nor is a wrist
-  whose measured depth the innovation test rejects and no replacement resolved (the filter and the measurement
-  disagree and either may be wrong: with MediaPipe, a filter that followed a depth read past the silhouette part of
-  the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m). A shoulder kept only for want of
-  the wrist (its own reading rejected, not held) yields to a seen elbow within ``consistency_m`` of its reading: at
-  l_u from it, x, y kept (a KF lagging 90 cm had moved the elbow 85 cm).
+  output last had it (not from a wrist misread, the odd one out of an arm measured whole; after such readings the hold
+  alone, as the filter took them: :func:`~akc_drake.core.akc_plus_evidence.held_segments`), carried by this frame's
+  elbow (a random walk of ``sigma_temporal_m^2`` per blind frame;
+  :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity extrapolation runs on while the hand
+  turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost for 6 frames: the filter
+  24 cm off in x, the fusion with our last output 11.5 cm off). Known worse than the shoulder and the elbow, it is no
+  anchor (nothing measured it): the arm is built from the shoulder out and the wrist goes to its nearest point at the
+  forearm's length in its own metric (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`; its x, y are no better
+  known than its depth). Nor is a wrist whose measured depth the innovation test rejects and no replacement resolved
+  (the filter and the measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth
+  read past the silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
+  A shoulder kept only for want of the wrist (its own reading rejected, not held) yields to a seen elbow within
+  ``consistency_m`` of its reading: at l_u from it, x, y kept (a KF lagging 90 cm had moved the elbow 85 cm).
 * An elbow lost altogether likewise: the filter's extrapolation times the upper arm held at this frame's shoulder,
   and a wrist lost with it moves with that elbow (MediaPipe lost bvhtools_a2's left arm for 20 frames: the filter's
   elbow ran 25 cm off in depth, and the elbow rebuilt between it and the held wrist 37 cm). After an EKF
@@ -371,7 +371,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                         # its own error (MediaPipe boxing, +3.3 cm).
                         b = [*_turn_with(b[0], b[1], b[2], b[4], b[5], b[6], f[3] - f[0], f[4] - f[1], f[5] - f[2]),
                              b[3]]
-                fuse_held(f, vs, b, f[3:6], self._v_t, 6, _XYZ, self._blind_honest)
+                fuse_held(f, vs, b, f[3:6], self._v_t, 6, _XYZ, self._blind_honest, self._blind[side][7] > 0.0)
                 self._blind[side][3] = b[3]
             if m is not None and (f[2] != sz or f[5] != ez or f[8] != wz):
                 # A measured point that replaced the filter's must be within the arm's reach of its neighbours.

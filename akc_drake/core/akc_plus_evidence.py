@@ -189,7 +189,8 @@ def fuse_held(f, vs, held, anchor, v_step: float, base, axes=(0, 1, 2), honest_f
             filter's, whose bone constraints shrink the posterior of a joint nothing measures): each axis counts
             it at least the hold's variance (inf: always the filter's).
         no_evidence: the filter's estimate is no evidence (it followed a depth judged an occluder's:
-            :class:`~akc_drake.core.akc_plus_lengths.SurfaceMemory`): the hold alone, with its variance.
+            :class:`~akc_drake.core.akc_plus_lengths.SurfaceMemory`; or, for a wrist, readings misread before the
+            loss: :func:`held_segments`): the hold alone, with its variance.
     """
     n: float; v: float
     n = held[3] = held[3] + 1.0
@@ -403,17 +404,20 @@ def held_segments(blind, blind_e, out, m, o_s: cython.Py_ssize_t, o_e: cython.Py
     (nine floats) was output for the measurement ``m`` (None: no measurement, all detected): ``(blind,
     blind_e)``, each side's entries of AKC+'s ``_blind`` and ``_blind_e`` (lists, or None before any).
 
-    * ``blind``, the forearm (wrist - elbow) of our output, the blind frames, and the upper arm (elbow - shoulder)
-      the held forearm turns with: taken when the wrist is detected, unless its reading is misread
-      (:func:`forearm_misread`). Then the forearm held from before is kept and ages a frame, a random walk's step.
+    * ``blind``, the forearm (wrist - elbow) of our output, the blind frames, the upper arm (elbow - shoulder) the
+      held forearm turns with, and the misread frames: taken when the wrist is detected, unless its reading is
+      misread (:func:`forearm_misread`). Then the forearm held from before is kept and ages a frame, a random
+      walk's step, and the misread frames count one more: a filter that took those readings extrapolates their
+      error once the wrist is lost, and is then no evidence of it (``fuse_held``'s ``no_evidence``).
     * ``blind_e``, the upper arm and the blind frames: taken when the elbow is detected.
     """
     if m is None or math.isfinite(m[o_w] + m[o_w + 1]):
         if blind is not None and m is not None and forearm_misread(m, o_s, o_e, o_w, lu, lf, tol):
             blind[3] += 1.0
+            blind[7] += 1.0
         else:
             blind = [out[6] - out[3], out[7] - out[4], out[8] - out[5], 0.0, out[3] - out[0], out[4] - out[1],
-                     out[5] - out[2]]
+                     out[5] - out[2], 0.0]
     if m is None or math.isfinite(m[o_e] + m[o_e + 1]):
         blind_e = [out[3] - out[0], out[4] - out[1], out[5] - out[2], 0.0]
     return blind, blind_e

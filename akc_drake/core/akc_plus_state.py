@@ -10,7 +10,9 @@ side the upper arm when the held forearm was kept (x, y, z; NaN once the forearm
 since the hips were last the torso's reference ``[92]``, and per side the measured depth's running-mean difference
 from the other shoulder's (NaN: none yet), the frames it has held the shoulder, the depth last measured and the
 frames since ``[93:101]``, and per side the elbow's depth read where our output was judged behind the surface it
-read (NaN: none; :class:`~akc_drake.core.akc_plus_lengths.SurfaceMemory`) ``[101:103]``.
+read (NaN: none; :class:`~akc_drake.core.akc_plus_lengths.SurfaceMemory`) ``[101:103]``, and per side the frames
+the wrist was read misread since the held forearm was taken (NaN: no forearm held;
+:func:`~akc_drake.core.akc_plus_evidence.held_segments`) ``[103:105]``.
 """
 
 from __future__ import annotations
@@ -21,8 +23,9 @@ import numpy as np
 
 from akc_drake.core.skeleton import SIDES
 
-STATE_SIZE = 103
+STATE_SIZE = 105
 _NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST, _PAIR_Z, _READ_E = 36, 54, 62, 70, 78, 84, 92, 93, 101
+_MISREAD = 103
 
 
 class StateVector:
@@ -39,8 +42,9 @@ class StateVector:
         self._f0: list[tuple | None] = [None, None, None, None]  # the filter's estimate when last seen
         self._travel = [0.0, 0.0, 0.0, 0.0]  # how far it has moved since
         self._nis = [1.0] * 18  # running mean NIS per arm joint and axis (left s, e, w, right s, e, w)
-        # per side: the forearm (wrist - elbow) of our last output with the wrist detected, the frames since, and
-        # the upper arm (elbow - shoulder) of that output, which the held forearm turns with (NaN: no longer turns)
+        # per side: the forearm (wrist - elbow) of our last output with the wrist detected, the frames since, the
+        # upper arm (elbow - shoulder) of that output, which the held forearm turns with (NaN: no longer turns), and
+        # the frames the wrist was read misread since
         self._blind: list[list | None] = [None, None]
         self._blind_e: list[list | None] = [None, None]  # the upper arm (elbow - shoulder) likewise
         # per side: the shoulder minus the hips' centre (x, y, z) in our outputs with its depth measured (a running
@@ -62,8 +66,8 @@ class StateVector:
         NIS means, per side the held forearm, then upper arm, and its blind frames, the held shoulder offset and
         its frames, then per side the upper arm the held forearm turns with, the shoulder's offset from the
         other shoulder and its frames, the frames since the hips were the torso's reference, and per side the
-        shoulders' measured depth difference, its held frames, the depth last measured and the frames since, and per
-        side the elbow's reading judged in front of it."""
+        shoulders' measured depth difference, its held frames, the depth last measured and the frames since, per
+        side the elbow's reading judged in front of it, and per side the held forearm's misread frames."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -83,9 +87,10 @@ class StateVector:
         for side in (0, 1):
             if self._blind[side] is not None:
                 v[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3] = self._blind[side][4:7]
+                v[_MISREAD + side] = self._blind[side][7]
         v[_HIPS_LOST] = self._hips_lost
         v[_PAIR_Z:_READ_E] = self._pair_z[0] + self._pair_z[1]
-        v[_READ_E:STATE_SIZE] = self._read_e
+        v[_READ_E:_MISREAD] = self._read_e
         return v
 
     def set_state_vector(self, v) -> None:
@@ -128,10 +133,15 @@ class StateVector:
                         raise ValueError(f"AKC+ state vector: {what} count [{base + 4 * side + 3}] must be >= 0")
                     per_side[side] = b.tolist()
             blocks.append(per_side)
-        for side in (0, 1):  # the held forearm's upper arm (NaN: it no longer turns with it)
+        for side in (0, 1):  # the held forearm's upper arm (NaN: it no longer turns with it), its misread frames
             if blocks[0][side] is not None:
                 u = a[_BLIND_U + 3 * side : _BLIND_U + 3 * side + 3]
                 blocks[0][side] += u.tolist() if np.all(np.isfinite(u)) else [np.nan] * 3
+                k = a[_MISREAD + side]
+                if not (math.isfinite(k) and k >= 0):
+                    raise ValueError(f"AKC+ state vector: misread-frame count [{_MISREAD + side}] must be >= 0, "
+                                     f"got {k!r}")
+                blocks[0][side].append(float(k))
         self._blind, self._blind_e, self._held_sh, self._held_ss = blocks
         hl = a[_HIPS_LOST]
         if not (math.isfinite(hl) and hl >= 0):
@@ -143,9 +153,9 @@ class StateVector:
                 raise ValueError(f"AKC+ state vector: shoulder-pair frame count [{_PAIR_Z + i}] must be >= 0, "
                                  f"got {pz[i]!r}")
         self._pair_z = [pz[0:4], pz[4:8]]
-        read = a[_READ_E:STATE_SIZE]
+        read = a[_READ_E:_MISREAD]
         if np.any(np.isinf(read)):
-            raise ValueError(f"AKC+ state vector: elbow readings [{_READ_E}:{STATE_SIZE}] must be finite or NaN, "
+            raise ValueError(f"AKC+ state vector: elbow readings [{_READ_E}:{_MISREAD}] must be finite or NaN, "
                              f"got {read.tolist()}")
         self._read_e = read.tolist()
         self._f0 = f0
