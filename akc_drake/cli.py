@@ -226,9 +226,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="FILE", help="write the grid, the optima and Table VII as JSON")
 
     p = sub.add_parser("compare", help="real-motion evaluations side by side, and what changed between two")
-    p.add_argument("runs", nargs="+", metavar="RUN.json", help="JSONs of `evaluate --motion-dir DIR --json FILE`")
-    p.add_argument("--against", nargs="+", metavar="OLD.json",
-                   help="an earlier run of the same clips per run, in order: print what changed")
+    p.add_argument("runs", nargs="+", metavar="RUN.json|DIR",
+                   help="JSONs of `evaluate --motion-dir DIR --json FILE`, or folders of them")
+    p.add_argument("--against", nargs="+", metavar="OLD.json|DIR",
+                   help="an earlier run of the same clips per run, in order (or one folder: paired by file name): "
+                        "print what changed")
     p.add_argument("--methods", metavar="M,M", help="only these corrected methods (default: every one the runs have)")
     p.add_argument("--target", type=float, default=0.5, metavar="CM",
                    help="the increase over the filter counted as a miss (default 0.5 cm)")

@@ -144,3 +144,15 @@ def test_cli_compare_prints_and_writes_json(tmp_path, capsys):
     assert "AKC(EKF) not in the runs (they have AKC+(KF))" in capsys.readouterr().err
     assert cli.main(["compare", str(tmp_path / "none.json")]) == 2
     assert "no such file" in capsys.readouterr().err
+    # folders: a run per *.json, each paired with the earlier run of its file name
+    assert cli.main(["compare", str(b.parent), "--against", str(a.parent), "--json", str(out)]) == 0
+    assert f"{a} -> {b}:" in capsys.readouterr().out
+    assert [c["old"] for c in json.loads(out.read_text())["changes"]] == [str(a)]
+    (b.parent / "other.json").write_text(json.dumps(_run()))
+    assert cli.main(["compare", str(b.parent), "--against", str(a.parent)]) == 2
+    assert "no earlier run named as" in capsys.readouterr().err
+    (tmp_path / "bench.json").write_text(json.dumps({"tables": {}}))  # (another JSON in a folder: skipped)
+    assert cli.main(["compare", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "skipped" in err and "bench.json: not a real-motion evaluation" in err
+    assert "no real-motion evaluation (.json) in the folder" in err

@@ -1,17 +1,19 @@
 """``akc-drake compare``: real-motion evaluations side by side, and what changed between two.
 
-``akc-drake compare RUN.json [RUN.json ...]`` prints one row per run and corrected method (its worst increase over
-its filter, over all frames and the frames a joint is seen, in 3D, the lost joint-frames and the pooled arm 3D
-RMSE). ``--against OLD.json [...]`` pairs each run with an earlier one of the same clips (in order) and prints what
-moved: the worst figures before -> after, and every (method, clip, joint, axis) that crossed the target or moved by
-``--min-change`` cm. ``--methods`` keeps only the corrected methods named; ``--json FILE`` writes the same as data.
-See :mod:`akc_drake.evaluation.compare`.
+``akc-drake compare RUN.json|DIR [...]`` (a folder: its ``*.json`` runs, by name) prints one row per run and corrected
+method: its worst increase over its filter, over all frames and the frames a joint is seen, in 3D, the lost
+joint-frames and the pooled arm 3D RMSE. ``--against OLD.json [...]`` pairs each run with an earlier one of the same
+clips (in order; one folder: by file name) and prints what moved: the worst figures before -> after, and every
+(method, clip, joint, axis) that crossed the target or moved by ``--min-change`` cm. ``--methods`` keeps only the
+corrected methods named; ``--json FILE`` writes the same as data. See :mod:`akc_drake.evaluation.compare`.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import sys
+from pathlib import Path
 
 from akc_drake.errors import UserError
 
@@ -27,20 +29,54 @@ def _plain(x):
     return x
 
 
+def _expand(args) -> list[Path]:
+    """The runs named: each a file, or a folder whose ``*.json`` files that are real-motion evaluations are the runs
+    (sorted by name; any other JSON there is skipped, and said so)."""
+    from akc_drake.evaluation.compare import load_run
+
+    out: list[Path] = []
+    for a in args:
+        p = Path(a)
+        if not p.is_dir():
+            out.append(p)
+            continue
+        found = []
+        for f in sorted(p.glob("*.json")):
+            try:
+                load_run(f)
+            except ValueError as e:
+                print(f"akc-drake compare: skipped {e}", file=sys.stderr)
+                continue
+            found.append(f)
+        if not found:
+            raise UserError(f"{p}: no real-motion evaluation (.json) in the folder")
+        out += found
+    return out
+
+
 def main(args) -> int:
     from akc_drake.evaluation.compare import changes, format_changes, format_glance, glance, load_run
     from akc_drake.fileio import atomic_write_text
 
     if args.target <= 0 or args.min_change <= 0:
         raise UserError("--target and --min-change must be positive numbers of centimetres")
-    runs = [load_run(p) for p in args.runs]
-    olds = [load_run(p) for p in args.against or []]
+    paths, old_paths = _expand(args.runs), _expand(args.against or [])
+    against_dir = len(args.against or []) == 1 and Path(args.against[0]).is_dir()
+    if against_dir:  # (a folder of earlier runs: each run paired with the earlier one of its file name)
+        by_name = {p.name: p for p in old_paths}
+        missing = [str(p) for p in paths if p.name not in by_name]
+        if missing:
+            raise UserError(f"--against {args.against[0]}: no earlier run named as {', '.join(missing)}")
+        old_paths = [by_name[p.name] for p in paths]
+    runs = [load_run(p) for p in paths]
+    olds = [load_run(p) for p in old_paths]
     labels = [r["label"] for r in runs + olds]
-    for r, path in zip(runs + olds, list(args.runs) + list(args.against or []), strict=True):
+    for r, path in zip(runs + olds, paths + old_paths, strict=True):
         if labels.count(r["label"]) > 1:  # (the same file name in two folders: told apart by their paths)
             r["label"] = str(path)
     if olds and len(olds) != len(runs):
-        raise UserError(f"--against: {len(olds)} runs for {len(runs)}; give one earlier run per run, in order")
+        raise UserError(f"--against: {len(olds)} runs for {len(runs)}; give one earlier run per run, in order, "
+                        f"or a folder of them")
     rows = glance(runs)
     if args.methods:
         keep = {m.strip() for m in args.methods.split(",") if m.strip()}
