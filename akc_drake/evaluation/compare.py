@@ -1,8 +1,8 @@
 """Real-motion evaluations side by side, and what changed between two (``akc-drake compare``).
 
-Reads the JSON that ``akc-drake evaluate --motion-dir`` (or ``--motion-file``) writes with ``--json`` and works only
-from its per-clip records (:mod:`akc_drake.evaluation.set_metrics`), so it compares any corrector the run had,
-a corrector of your own included, against the filter it corrected:
+Reads the JSON that ``akc-drake evaluate --motion-dir DIR`` writes with ``--json`` (one clip: a folder holding it)
+and works only from its per-clip records (:mod:`akc_drake.evaluation.set_metrics`), so it compares any corrector the
+run had, a corrector of your own included, against the filter it corrected:
 
 * :func:`glance`: one row per run and corrector: its worst RMSE increase over its filter per axis over all frames
   and over the frames a joint is seen, the worst in 3D, the lost joint-frames' 3D RMSE (filter -> corrector) and the
@@ -39,8 +39,8 @@ def load_run(path) -> dict:
     """The JSON of ``akc-drake evaluate --json`` for a motion set, with ``"label"`` set to the file's stem.
 
     Raises:
-        ValueError: the file is missing, not JSON, or not a motion-set evaluation (no per-clip records: the
-            bench's ``evaluate`` without ``--motion-dir`` or ``--motion-file`` writes another layout).
+        ValueError: the file is missing, not JSON, or not a motion-set evaluation (no per-clip records: ``evaluate``
+            without ``--motion-dir``, the bench's or one ``--motion-file``'s, writes another layout).
     """
     import json
 
