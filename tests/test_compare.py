@@ -10,7 +10,15 @@ import pytest
 
 from akc_drake import cli
 from akc_drake.core.skeleton import ARM_JOINTS, INDEX, NUM_LANDMARKS
-from akc_drake.evaluation.compare import changes, describe, format_changes, format_glance, glance, load_run
+from akc_drake.evaluation.compare import (
+    changes,
+    corrected_pairs,
+    describe,
+    format_changes,
+    format_glance,
+    glance,
+    load_run,
+)
 from akc_drake.evaluation.set_metrics import paired_errors
 
 T = 100
@@ -103,6 +111,13 @@ def test_changes_refuses_two_different_sets():
         c["name"] = "z" + c["name"]
     with pytest.raises(ValueError, match="share no clip"):
         changes(_run(), other)
+
+
+def test_every_corrected_method_is_paired_with_its_filter_a_corrector_of_your_own_too():
+    run = _run(methods=["KF", "EKF", "AKC+(KF)", "COIK(KF)", "LEN(KF)", "LEN(EKF)", "Raw"],
+               correctors={"LEN": "mine.py:Factory"})
+    assert corrected_pairs(run) == [("AKC+(KF)", "KF"), ("COIK(KF)", "KF"), ("LEN(KF)", "KF"), ("LEN(EKF)", "EKF")]
+    assert corrected_pairs(_run(methods=["KF", "LEN(KF)"])) == []  # (not a corrector the run names)
 
 
 def test_describe_names_what_is_not_the_default():
