@@ -10,44 +10,29 @@ corrected methods named; ``--json FILE`` writes the same as data. See :mod:`akc_
 
 from __future__ import annotations
 
-import json
-import math
 import sys
 from pathlib import Path
 
 from akc_drake.errors import UserError
 
 
-def _plain(x):
-    """JSON-safe: infinities and NaN as None."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _plain(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_plain(v) for v in x]
-    return x
-
-
-def _expand(args) -> list[Path]:
-    """The runs named: each a file, or a folder whose ``*.json`` files that are real-motion evaluations are the runs
-    (sorted by name; any other JSON there is skipped, and said so)."""
+def _load(args) -> list[tuple[Path, dict]]:
+    """The runs named, each read once, with its path: a file, or a folder whose ``*.json`` files that are
+    real-motion evaluations are the runs (sorted by name; any other JSON there is skipped, and said so)."""
     from akc_drake.evaluation.compare import load_run
 
-    out: list[Path] = []
+    out: list[tuple[Path, dict]] = []
     for a in args:
         p = Path(a)
         if not p.is_dir():
-            out.append(p)
+            out.append((p, load_run(p)))
             continue
         found = []
         for f in sorted(p.glob("*.json")):
             try:
-                load_run(f)
+                found.append((f, load_run(f)))
             except ValueError as e:
                 print(f"akc-drake compare: skipped {e}", file=sys.stderr)
-                continue
-            found.append(f)
         if not found:
             raise UserError(f"{p}: no real-motion evaluation (.json) in the folder")
         out += found
@@ -55,23 +40,23 @@ def _expand(args) -> list[Path]:
 
 
 def main(args) -> int:
-    from akc_drake.evaluation.compare import changes, format_changes, format_glance, glance, load_run
-    from akc_drake.fileio import atomic_write_text
+    from akc_drake.evaluation.compare import changes, format_changes, format_glance, glance
+    from akc_drake.evaluation.report import write_json
 
     if args.target <= 0 or args.min_change <= 0:
         raise UserError("--target and --min-change must be positive numbers of centimetres")
-    paths, old_paths = _expand(args.runs), _expand(args.against or [])
-    against_dir = len(args.against or []) == 1 and Path(args.against[0]).is_dir()
-    if against_dir:  # (a folder of earlier runs: each run paired with the earlier one of its file name)
-        by_name = {p.name: p for p in old_paths}
-        missing = [str(p) for p in paths if p.name not in by_name]
+    new, old = _load(args.runs), _load(args.against or [])
+    if len(args.against or []) == 1 and Path(args.against[0]).is_dir():
+        # (a folder of earlier runs: each run paired with the earlier one of its file name)
+        by_name = {p.name: (p, r) for p, r in old}
+        missing = [str(p) for p, _ in new if p.name not in by_name]
         if missing:
             raise UserError(f"--against {args.against[0]}: no earlier run named as {', '.join(missing)}")
-        old_paths = [by_name[p.name] for p in paths]
-    runs = [load_run(p) for p in paths]
-    olds = [load_run(p) for p in old_paths]
+        old = [by_name[p.name] for p, _ in new]
+    paths = [p for p, _ in new + old]
+    runs, olds = [r for _, r in new], [r for _, r in old]
     labels = [r["label"] for r in runs + olds]
-    for r, path in zip(runs + olds, paths + old_paths, strict=True):
+    for r, path in zip(runs + olds, paths, strict=True):
         if labels.count(r["label"]) > 1:  # (the same file name in two folders: told apart by their paths)
             r["label"] = str(path)
     if olds and len(olds) != len(runs):
@@ -96,5 +81,5 @@ def main(args) -> int:
         print(format_changes(ch, args.target))
         out["changes"].append({"old": old["label"], "new": new["label"], **ch})
     if args.json:
-        atomic_write_text(args.json, json.dumps(_plain(out), indent=1))
+        write_json(args.json, out)
     return 0

@@ -172,7 +172,7 @@ def changes(old: dict, new: dict, target_cm: float = TARGET_CM, min_change_cm: f
     """
     if not {c["name"] for c in old["clips"]} & {c["name"] for c in new["clips"]}:
         raise ValueError(f"{old.get('label', 'old')} and {new.get('label', 'new')} share no clip: not the same set")
-    before = {(r["method"]): r for r in glance([old])}
+    before = {r["method"]: r for r in glance([old])}
     summary, entries = [], []
     for r in glance([new]):
         b = before.get(r["method"])
