@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 # The build's record of AKC+'s compiled modules (see below); before `install:`, whose prerequisites expand at once.
 COMPILED := akc_drake/core/_compiled_sources.json
 
-.PHONY: install demo test bench graphs lint system-deps clean mocap-data mocap-heldout mocap-heldout2
+.PHONY: install demo test bench graphs lint system-deps clean mocap-data mocap-heldout mocap-heldout2 mocap-heldout3
 
 install: $(STAMP) $(COMPILED)
 
@@ -120,3 +120,9 @@ mocap-heldout: install
 # data/mocap_heldout2_sources.json. Not fetched by `make test`.
 mocap-heldout2: install
 	$(PY) tools/fetch_mocap.py data/mocap_heldout2 --manifest data/mocap_heldout2_sources.json
+
+# A third held-out set (akc-drake evaluate --motion-dir data/mocap_heldout3): two short Vicon walking recordings (C3D,
+# Plug-in Gait markers) from PyPI's pyc3dsample sdist (0.2 MB); sources and licence in
+# data/mocap_heldout3_sources.json. Not fetched by `make test`.
+mocap-heldout3: install
+	$(PY) tools/fetch_mocap.py data/mocap_heldout3 --manifest data/mocap_heldout3_sources.json

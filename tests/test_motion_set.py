@@ -74,11 +74,12 @@ def test_the_held_out_windows_are_the_unused_parts_of_the_sets_takes(tmp_path):
 
 
 
-@pytest.mark.parametrize("manifest", ["mocap_heldout_sources.json", "mocap_heldout2_sources.json"])
+@pytest.mark.parametrize("manifest", ["mocap_heldout_sources.json", "mocap_heldout2_sources.json",
+                                      "mocap_heldout3_sources.json"])
 def test_a_held_out_set_pins_archives_and_shares_no_recording_with_the_others(manifest):
-    # data/mocap_heldout*_sources.json (make mocap-heldout, make mocap-heldout2): each package an archive at a URL
-    # with its SHA-256 and a licence; its clips none of the other sets' files (by digest) nor names, nor packages;
-    # a clip's file name is unique, so that the fetcher writes each once.
+    # data/mocap_heldout*_sources.json (make mocap-heldout, mocap-heldout2, mocap-heldout3): each package an archive
+    # at a URL with its SHA-256 and a licence; its clips none of the other sets' files (by digest) nor names, nor
+    # packages; a clip's file name is unique, so that the fetcher writes each once.
     repo = Path(__file__).resolve().parents[1]
     held = json.loads((repo / "data" / manifest).read_text())
     others = [json.loads((repo / "akc_drake" / "data" / "mocap_sources.json").read_text())]
