@@ -137,6 +137,11 @@ def test_load_run_says_what_is_wrong(tmp_path):
     (tmp_path / "bench.json").write_text(json.dumps({"tables": {}}))
     with pytest.raises(ValueError, match="not a real-motion evaluation"):
         load_run(tmp_path / "bench.json")
+    # a motion set's sources manifest (make mocap-data writes one beside the clips) has clips, not results
+    manifest = {"packages": {}, "clips": [{"name": "a", "file": "a.bvh"}]}
+    (tmp_path / "mocap_sources.json").write_text(json.dumps(manifest))
+    with pytest.raises(ValueError, match="not a real-motion evaluation"):
+        load_run(tmp_path / "mocap_sources.json")
 
 
 def test_cli_compare_prints_and_writes_json(tmp_path, capsys):

@@ -51,7 +51,10 @@ def load_run(path) -> dict:
         run = json.loads(p.read_text())
     except (ValueError, UnicodeDecodeError) as e:
         raise ValueError(f"{p}: not JSON ({e})") from None
-    if not isinstance(run, dict) or not isinstance(run.get("clips"), list) or not run["clips"]:
+    clips = run.get("clips") if isinstance(run, dict) else None
+    if not isinstance(clips, list) or not clips or not all(
+            isinstance(c, dict) and isinstance(c.get("methods"), dict) for c in clips):
+        # (a set's sources manifest, mocap_sources.json, has clips too: without per-method records)
         raise ValueError(f"{p}: not a real-motion evaluation (write one with `akc-drake evaluate --motion-dir DIR "
                          f"--json FILE`)")
     run["label"] = p.stem
