@@ -282,13 +282,31 @@ def test_run_sim_motion_II_one_cycle(tmp_path, capsys):
     assert f"{n} frames ({n} with a person)" in printed and "latency, median ms" in printed
 
 
-def test_run_sim_teleop(tmp_path):
+def test_run_sim_teleop(tmp_path, capsys):
     out = tmp_path / "t.json"
     rc = cli.main(["run", "--source", "sim", "--teleop", "--seconds", "0.5", "--json", str(out)])
     assert rc == 0
     s = json.loads(out.read_text())
     assert s["frames"] == 5 and s["teleop"]["nan_commands"] == 0
     assert s["latency_ms"]["mapper"]["frames"] == 5 and "latency_note" in s
+    # the differential IK's updates counted (10 ms: 50 in the 0.5 s, and the run's few ms past the last frame)
+    ik = s["teleop"]["ik"]
+    for side in ("left", "right"):
+        assert 50 <= ik["steps"][side] <= 56
+        assert ik["failures"][side] + ik["relaxed"][side] + ik["joint_space"][side] <= ik["steps"][side]
+    assert sum(ik["kinds"].values()) == ik["failures"]["left"] + ik["failures"]["right"]
+    printed = capsys.readouterr().out
+    assert "  robot: EE tracking error L/R " in printed and "NaN commands 0" in printed
+
+
+def test_the_robot_line_gives_each_arms_ik_outcomes_as_shares_of_its_steps():
+    from akc_drake.commands.run import _robot_line
+
+    t = {"ee_tracking_error_cm": {"left": 1.26, "right": None}, "nan_commands": 0, "realtime_factor": 2.5,
+         "ik": {"steps": {"left": 200, "right": 0}, "failures": {"left": 10, "right": 0},
+                "relaxed": {"left": 3, "right": 0}, "joint_space": {"left": 0, "right": 0}, "kinds": {"stuck": 10}}}
+    assert _robot_line(t) == ("EE tracking error L/R 1.3/- cm (median); IK held the command on 5.0/- % of L/R steps "
+                              "(10 stuck), position-only on 1.5/- %; NaN commands 0; realtime factor 2.50")
 
 
 def test_run_teleop_with_the_arms_own_limits(tmp_path):

@@ -6,7 +6,6 @@ realtime factor and the memory of a long run.
 from __future__ import annotations
 
 import gc
-import logging
 import math
 import time
 from collections.abc import Callable
@@ -14,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from akc_drake.bench.core import BenchSettings, peak_rss_bytes, rss_bytes, summarize, time_calls
+from akc_drake.robot.ik_status import quiet_drake_warnings
 
 
 # ================================================================================================ rendering
@@ -110,21 +110,6 @@ def bench_mediapipe(s: BenchSettings, progress: Callable[[str], None] | None = N
 
 
 # ================================================================================================ teleop
-class _QuietDrake:
-    """Raise the ``drake`` logger to ERROR inside the block: the differential IK's status changes (a warning
-    each time it gets stuck at a joint limit and recovers) are part of normal teleoperation, and the
-    benchmark should print figures, not them."""
-
-    def __enter__(self):
-        self._logger = logging.getLogger("drake")
-        self._level = self._logger.level
-        self._logger.setLevel(logging.ERROR)
-        return self
-
-    def __exit__(self, *exc):
-        self._logger.setLevel(self._level)
-
-
 def _teleop(seconds: float, *, log_stages: bool, keep_history: bool, motion: str = "I"):
     from akc_drake.config import PipelineConfig
     from akc_drake.diagrams import build_teleop_diagram
@@ -150,7 +135,7 @@ def bench_teleop(s: BenchSettings, progress: Callable[[str], None] | None = None
     sim.Initialize()
     init_s = time.perf_counter() - t0
     t0 = time.perf_counter()
-    with _QuietDrake():
+    with quiet_drake_warnings():  # (the IK's status notices are part of teleoperation)
         sim.AdvanceTo(s.teleop_seconds)
     wall = time.perf_counter() - t0
     return {
@@ -182,7 +167,7 @@ def bench_memory(s: BenchSettings, progress: Callable[[str], None] | None = None
     t0 = time.perf_counter()
     if progress is not None:
         progress(f"memory ({seconds:g} s simulated teleop)")
-    with _QuietDrake():
+    with quiet_drake_warnings():  # (the IK's status notices are part of teleoperation)
         for k in range(1, n + 1):
             sim.AdvanceTo(k * s.memory_sample_s)
             samples.append((k * s.memory_sample_s, rss_bytes()))

@@ -198,6 +198,8 @@ def _print_summary(summary: dict, wall: float) -> None:
             if s != "SW"
         )
         print(f"  arm-length range (cm), {stage:9s}: {vals}")
+    if summary.get("teleop"):
+        print("  robot: " + _robot_line(summary["teleop"]))
     if "errors" in summary:
         e = summary["errors"]
         for stage in ("raw", "corrected"):
@@ -206,3 +208,25 @@ def _print_summary(summary: dict, wall: float) -> None:
                 f"  RMSE z (cm) left shoulder / elbow, {stage:9s}: "
                 + " / ".join("-" if v is None or not np.isfinite(v) else f"{v:.2f}" for v in z)
             )
+
+
+def _robot_line(t: dict) -> str:
+    """The teleop run's robot side in one line: end-effector tracking, the differential IK's outcomes, the commands."""
+    sides = ("left", "right")
+    ee = t.get("ee_tracking_error_cm") or {}
+    parts = ["EE tracking error L/R " + "/".join("-" if ee.get(s) is None else f"{ee[s]:.1f}" for s in sides)
+             + " cm (median)"]
+    ik = t.get("ik")
+    if ik:
+        def share(key):
+            return "/".join(f"{100 * ik[key].get(s, 0) / ik['steps'][s]:.1f}" if ik["steps"].get(s) else "-"
+                            for s in sides)
+
+        kinds = ", ".join(f"{n} {k}" for k, n in sorted(ik.get("kinds", {}).items()))
+        parts.append(f"IK held the command on {share('failures')} % of L/R steps" + (f" ({kinds})" if kinds else "")
+                     + f", position-only on {share('relaxed')} %")
+    parts.append(f"NaN commands {t.get('nan_commands', 0)}")
+    rtf = t.get("realtime_factor")
+    if rtf is not None:
+        parts.append(f"realtime factor {rtf:.2f}")
+    return "; ".join(parts)

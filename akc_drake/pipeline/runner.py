@@ -97,6 +97,10 @@ class RunResult:
         latency_s: per stage, one wall time per frame, seconds (NaN where a stage did not run).
         stop_reason: ``"frames"`` (the requested count), ``"source ended"``, ``"source error: ..."`` or
             ``"interrupted"``.
+        ik: a teleop diagram's differential-IK updates (:class:`~akc_drake.robot.ik_status.IKStatusCounter`):
+            ``steps``, ``failures`` (no solution and no fallback moved the arm: the command held), ``relaxed``
+            (the position-only fallback moved it) and ``joint_space``, per side, and ``kinds`` (failures per
+            status, both arms); None for a mocap diagram.
     """
 
     log: object
@@ -104,6 +108,7 @@ class RunResult:
     wall_s: float
     latency_s: dict[str, np.ndarray]
     stop_reason: str
+    ik: dict | None = None
 
 
 def _frame_source_system(built):
@@ -176,6 +181,9 @@ def run_pipeline(
 ) -> RunResult:
     """Run a built mocap or teleop diagram frame by frame, timing each stage.
 
+    A teleop diagram's differential-IK outcomes are counted (``RunResult.ik``) and Drake's per-step warnings about
+    them (an arm's IK starting or stopping to find solutions) are silenced for the run: the counts say it once.
+
     Args:
         built: a :class:`~akc_drake.diagrams.MocapDiagram` (or TeleopDiagram).
         num_frames: stop after this many frames; None runs until a frame source ends (required for ``sim``).
@@ -192,6 +200,21 @@ def run_pipeline(
         UserError: the source failed (or ended) before its first frame.
         ValueError: ``num_frames`` is None on a diagram without a frame source.
     """
+    from akc_drake.robot.ik_status import IKStatusCounter, quiet_drake_warnings
+
+    ik = getattr(built, "ik", None)
+    if not ik:
+        return _run_pipeline(built, num_frames, detector, realtime, progress, clock, None)
+    counter = IKStatusCounter(ik, float(built.ik_time_step))
+    with quiet_drake_warnings():
+        result = _run_pipeline(built, num_frames, detector, realtime, progress, clock, counter)
+    result.ik = {"steps": dict(counter.steps), "failures": dict(counter.failures), "relaxed": dict(counter.relaxed),
+                 "joint_space": dict(counter.joint_space), "kinds": dict(counter.kinds)}
+    return result
+
+
+def _run_pipeline(built, num_frames, detector, realtime, progress, clock, counter) -> RunResult:
+    """:func:`run_pipeline`'s run, ``counter`` (an ``IKStatusCounter`` or None) the simulator's monitor."""
     from pydrake.systems.analysis import Simulator
     from tqdm import tqdm
 
@@ -213,6 +236,8 @@ def run_pipeline(
     ]
 
     simulator = Simulator(built.diagram)
+    if counter is not None:
+        simulator.set_monitor(counter)
     simulator.set_target_realtime_rate(0.0)
     simulator.Initialize()
     root = simulator.get_context()

@@ -20,7 +20,6 @@ JSON (``--json``): ``simulated_s``, ``frames``, ``wall_s``, ``realtime_factor``,
 from __future__ import annotations
 
 import gc
-import logging
 import math
 import sys
 import time
@@ -29,6 +28,7 @@ import numpy as np
 
 from akc_drake.bench import rss_bytes
 from akc_drake.errors import UserError
+from akc_drake.robot.ik_status import quiet_drake_warnings
 
 #: Growth of the resident memory (MB) from the end of the warm-up to the end that a soak accepts.
 MAX_RSS_GROWTH_MB = 25.0
@@ -136,11 +136,8 @@ def run_soak(minutes: float = 30.0, *, motion: str = "I", dropout: float = 0.3, 
     warmup_s = min(60.0, 0.25 * t_end)
     gc.collect()
     samples = {"t_s": [0.0], "rss_mb": [rss_bytes() / 2**20], "max_position_variance_m2": [0.0]}
-    drake_log = logging.getLogger("drake")
-    level = drake_log.level
-    drake_log.setLevel(logging.ERROR)  # the IK's "stuck at a joint limit" notices are part of teleoperation
     t_wall = time.perf_counter()
-    try:
+    with quiet_drake_warnings():  # (the IK's "stuck at a joint limit" notices are part of teleoperation)
         with tqdm(total=n, desc="soak", unit="sample", disable=not progress, file=sys.stderr,
                   leave=False) as bar:
             for k in range(1, n + 1):
@@ -150,8 +147,6 @@ def run_soak(minutes: float = 30.0, *, motion: str = "I", dropout: float = 0.3, 
                 samples["rss_mb"].append(rss_bytes() / 2**20)
                 samples["max_position_variance_m2"].append(_max_position_variance(kf, root))
                 bar.update(1)
-    finally:
-        drake_log.setLevel(level)
     wall = time.perf_counter() - t_wall
     m = td.monitor
     t_s = np.asarray(samples["t_s"])

@@ -111,6 +111,7 @@ def run_summary(cfg, inputs, built, result, *, teleop: bool = False, depth_m: fl
                 s: float(np.median(m.ee_errors(s)) * 100) if len(m.ee_errors(s)) else None for s in ("left", "right")
             },
             "realtime_factor": (result.frames / cfg.camera.rate_hz) / wall if wall > 0 else None,
+            "ik": result.ik,
         }
     return summary
 
