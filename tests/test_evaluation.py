@@ -570,6 +570,9 @@ def test_evaluate_cli_motion_file(tmp_path, capsys):
     assert cli_main(argv) == 0
     printed = capsys.readouterr().out
     assert "Motion upper_body" in printed and "(34.86)" not in printed  # no paper figures beside a recording
+    # nor the paper's scenario in the titles (its shoulder held still and occluded): the joint
+    assert "TABLE1: Avg. RMSE (cm) of the left shoulder" in printed and "occluded static" not in printed
+    assert "TABLE2: The left elbow in Motion upper_body" in printed
     doc = json.loads(js.read_text())
     assert doc["config"]["motion_file"] == str(bvh) and doc["config"]["cycles"] is None
     assert {r["motion"] for r in doc["results"]} == {"upper_body"}
