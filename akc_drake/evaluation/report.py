@@ -250,8 +250,8 @@ def plot_depth_cycles(panels: list[dict], path, title: str = "Depth (z) of occlu
         ax.set_ylabel("z (cm)")
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(title)  # (before the layout, which then leaves it room)
     _legend_below(fig, axes[0, 0])
-    fig.suptitle(title)
     return save_png(fig, path)
 
 
@@ -278,8 +278,8 @@ def plot_arm_lengths(t: np.ndarray, lengths: dict[str, dict[str, np.ndarray]], p
             pad = max(2.0, 0.1 * (hi - lo))
             ax.set_ylim(lo - pad, hi + pad)
     axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(title)  # (before the layout, which then leaves it room)
     _legend_below(fig, axes[0, 0])
-    fig.suptitle(title)
     return save_png(fig, path)
 
 
@@ -400,8 +400,9 @@ def evaluation_figures(ev, out_dir) -> list[Path]:
     panels = []
     motions = list(ev.runs)
     dyn_motion = "I" if "I" in ev.runs else motions[0]
-    wanted = [(m, "left_shoulder", "static left shoulder") for m in motions]
-    wanted.append((dyn_motion, "left_elbow", "dynamic left elbow"))
+    rec = bool(ev.config.motion_file)  # (a recording's shoulder is not held still, nor its joints occluded)
+    wanted = [(m, "left_shoulder", "left shoulder" if rec else "static left shoulder") for m in motions]
+    wanted.append((dyn_motion, "left_elbow", "left elbow" if rec else "dynamic left elbow"))
     for motion, joint, what in wanted:
         run = ev.runs[motion]
         w = _window(run.session, excl)
@@ -413,7 +414,8 @@ def evaluation_figures(ev, out_dir) -> list[Path]:
         panels.append({"title": f"Motion {motion}: {what}", "t": run.session.t[w], "series": series})
     paths = [
         plot_depth_cycles(
-            panels, fig_dir / "fig4_depth.png", "Depth (z) of occluded joints over three cycles"
+            panels, fig_dir / "fig4_depth.png",
+            "Depth (z) of the left shoulder and elbow" if rec else "Depth (z) of occluded joints over three cycles"
         )
     ]
     for motion, run in ev.runs.items():
