@@ -50,6 +50,12 @@ def test_each_update_is_counted_once_and_by_its_outcome():
     assert c.failures == {"left": 2, "right": 0}  # updates 2 (stuck) and 3 (no solution); 4 the fallback moved
     assert c.relaxed == {"left": 1, "right": 0} and c.joint_space == {"left": 1, "right": 0}
     assert c.kinds == {"stuck": 1, "no solution": 1} and c.total_failures == 2
+    counts = c.counts()  # (plain copies, as run --json writes them)
+    assert counts == {"steps": {"left": 8, "right": 8}, "failures": {"left": 2, "right": 0},
+                      "relaxed": {"left": 1, "right": 0}, "joint_space": {"left": 1, "right": 0},
+                      "kinds": {"stuck": 1, "no solution": 1}}
+    counts["steps"]["left"] = 0
+    assert c.steps["left"] == 8
 
 
 def test_updates_before_the_start_are_not_counted():

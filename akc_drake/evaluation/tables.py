@@ -338,6 +338,16 @@ def _every_method_table(ev: Evaluation) -> Table:
                  np.full_like(ours_a, np.nan), groups=groups)
 
 
+#: Tables I, II, IV and V's titles for a recording (``--motion-file``): its shoulder is not held still and occluded,
+#: nor its elbow occluded, as in the paper's motions; the titles name the joint only.
+_RECORDING_TITLES = {
+    "table1": "Avg. RMSE (cm) of the left shoulder",
+    "table2": "The left elbow in Motion {motion}",
+    "table4": "Avg. RMSE (cm) of the right shoulder",
+    "table5": "The right elbow in Motion {motion}",
+}
+
+
 def _title(ev: Evaluation, key: str, paper_title: str) -> str:
     """The paper's title of table ``key``; for a recording (``--motion-file``) the joint's, ``_RECORDING_TITLES``."""
     return _RECORDING_TITLES[key] if ev.config.motion_file else paper_title
@@ -410,12 +420,3 @@ def build_tables(ev: Evaluation) -> list[Table]:
                 t.paper[:] = np.nan
     return tables
 
-
-#: Tables I, II, IV and V's titles for a recording (``--motion-file``): its shoulder is not held still and occluded,
-#: nor its elbow occluded, as in the paper's motions; the titles name the joint only.
-_RECORDING_TITLES = {
-    "table1": "Avg. RMSE (cm) of the left shoulder",
-    "table2": "The left elbow in Motion {motion}",
-    "table4": "Avg. RMSE (cm) of the right shoulder",
-    "table5": "The right elbow in Motion {motion}",
-}

@@ -208,8 +208,7 @@ def run_pipeline(
     counter = IKStatusCounter(ik, float(built.ik_time_step))
     with quiet_drake_warnings():
         result = _run_pipeline(built, num_frames, detector, realtime, progress, clock, counter)
-    result.ik = {"steps": dict(counter.steps), "failures": dict(counter.failures), "relaxed": dict(counter.relaxed),
-                 "joint_space": dict(counter.joint_space), "kinds": dict(counter.kinds)}
+    result.ik = counter.counts()
     return result
 
 

@@ -101,3 +101,13 @@ class IKStatusCounter:
     @property
     def total_failures(self) -> int:
         return int(sum(self.failures.values()))
+
+    def counts(self) -> dict:
+        """The counts as plain data (copies): ``steps``, ``failures``, ``relaxed``, ``joint_space``, ``kinds``."""
+        return {
+            "steps": dict(self.steps),
+            "failures": dict(self.failures),
+            "relaxed": dict(self.relaxed),
+            "joint_space": dict(self.joint_space),
+            "kinds": dict(self.kinds),
+        }

@@ -36,6 +36,7 @@ What is measured (the robot side of the loop, :class:`~akc_drake.systems.teleop_
 * **Realtime factor**: simulated seconds / wall-clock seconds of ``simulate`` (construction excluded).
 """
 
+from akc_drake.robot.ik_status import IKStatusCounter, quiet_drake_warnings
 from akc_drake.teleop.demo import DemoOptions, run_demo
 from akc_drake.teleop.metrics import pooled_jitter, run_metrics
 from akc_drake.teleop.report import format_table, plot_errors, plot_paths
@@ -51,12 +52,10 @@ from akc_drake.teleop.scenario import (
     SETTLING_S,
     SIDES,
     Calibration,
-    IKStatusCounter,
     TeleopRun,
     calibrate_from_tpose,
     make_meshcat,
     operator_targets,
-    quiet_drake_warnings,
     render_motion,
     run_teleop,
     truncate_motion,

@@ -14,6 +14,7 @@ import numpy as np
 
 from akc_drake.errors import UserError
 from akc_drake.fileio import atomic_write_text
+from akc_drake.robot.ik_status import quiet_drake_warnings
 from akc_drake.teleop.metrics import run_metrics
 from akc_drake.teleop.report import _lr, plot_errors, plot_paths
 from akc_drake.teleop.scenario import (
@@ -29,7 +30,6 @@ from akc_drake.teleop.scenario import (
     TeleopRun,
     calibrate_from_tpose,
     make_meshcat,
-    quiet_drake_warnings,
     run_teleop,
     truncate_motion,
 )

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from akc_drake.robot.ik_status import IKStatusCounter, quiet_drake_warnings  # noqa: F401 (re-exported)
+from akc_drake.robot.ik_status import IKStatusCounter, quiet_drake_warnings
 
 #: The correctors compared: display name -> (filter, corrector) of the PipelineConfig.
 CORRECTORS: dict[str, tuple[str, str]] = {

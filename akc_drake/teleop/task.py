@@ -30,11 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from akc_drake.robot.ik_status import quiet_drake_warnings
 from akc_drake.teleop.scenario import (
     CORRECTORS,
     MAIN_CORRECTOR,
     make_meshcat,
-    quiet_drake_warnings,
     render_motion,
     run_teleop,
 )
