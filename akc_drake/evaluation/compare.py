@@ -23,9 +23,9 @@ from akc_drake.core.skeleton import ARM_JOINTS
 from akc_drake.evaluation.methods import parse_method
 from akc_drake.evaluation.set_metrics import (
     AXES,
-    _joint_pairs,
-    _norm3,
+    joint_pairs,
     lost_frames,
+    norm3,
     pooled,
     worst_regression,
     worst_regression_3d,
@@ -97,7 +97,7 @@ def corrected_pairs(run: dict) -> list[tuple[str, str]]:
 
 def _pooled_3d(pool: dict, method: str) -> float:
     """The mean over the arm joints of their pooled 3D RMSE (cm)."""
-    v = [_norm3(pool[method][j]) for j in ARM_JOINTS]
+    v = [norm3(pool[method][j]) for j in ARM_JOINTS]
     return sum(v) / len(v)
 
 
@@ -157,7 +157,7 @@ def format_glance(rows: list[dict], target_cm: float = TARGET_CM) -> str:
 def _increases(run: dict, method: str, filt: str) -> dict:
     """``{(clip, joint, axis): increase over the filter (cm)}`` over all frames."""
     return {(c, j, AXES[i]): a[i] - b[i]
-            for c, j, a, b, _, _ in _joint_pairs(run["clips"], method, filt) for i in range(3)}
+            for c, j, a, b, _, _ in joint_pairs(run["clips"], method, filt) for i in range(3)}
 
 
 def changes(old: dict, new: dict, target_cm: float = TARGET_CM, min_change_cm: float = 0.1) -> dict:

@@ -92,7 +92,7 @@ def _compared(r: dict, corrected: str, filt: str):
     return r["methods"][corrected]["rmse_cm"], r["methods"][filt]["rmse_cm"], None
 
 
-def _joint_pairs(results: list[dict], corrected: str, filt: str, frames: str = "both"):
+def joint_pairs(results: list[dict], corrected: str, filt: str, frames: str = "both"):
     """``(clip name, arm joint, corrected's RMSE, filt's RMSE, paired, frames)`` for every clip that ran both
     methods (:func:`_compared`); with ``frames="seen"`` (``"lost"``) over the frames where the joint was seen
     (lost), and only for the clips and joints that recorded such frames (their number; None for ``"both"``)."""
@@ -121,7 +121,7 @@ def worst_regression(results: list[dict], corrected: str, filt: str, frames: str
     them where the joint was seen (lost: :func:`paired_errors`), whose number is then the record's ``frames``.
     """
     worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired, n in _joint_pairs(results, corrected, filt, frames):
+    for name, joint, a, b, paired, n in joint_pairs(results, corrected, filt, frames):
         for i, ax in enumerate(AXES):
             dlt = a[i] - b[i]
             if dlt > worst["delta_cm"]:
@@ -131,7 +131,7 @@ def worst_regression(results: list[dict], corrected: str, filt: str, frames: str
     return worst
 
 
-def _norm3(v) -> float:
+def norm3(v) -> float:
     """The 3D RMSE from per-axis RMSEs: the root of the sum of the three axes' mean squared errors."""
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
@@ -144,8 +144,8 @@ def worst_regression_3d(results: list[dict], corrected: str, filt: str, frames: 
     depth for its x, y) shows here what the per-axis figure does not.
     """
     worst = {"delta_cm": -math.inf}
-    for name, joint, a, b, paired, n in _joint_pairs(results, corrected, filt, frames):
-        dlt = _norm3(a) - _norm3(b)
+    for name, joint, a, b, paired, n in joint_pairs(results, corrected, filt, frames):
+        dlt = norm3(a) - norm3(b)
         if dlt > worst["delta_cm"]:
             worst = {"delta_cm": dlt, "clip": name, "joint": joint, "paired": paired}
             if n is not None:
@@ -172,8 +172,8 @@ def lost_joint_gain(results: list[dict], corrected: str, filt: str) -> dict:
             if r["lost_share"][joint] >= LOST_SHARE:
                 a.append(b_all[joint][2])
                 b.append(a_all[joint][2])
-                a3.append(_norm3(b_all[joint]))
-                b3.append(_norm3(a_all[joint]))
+                a3.append(norm3(b_all[joint]))
+                b3.append(norm3(a_all[joint]))
             if p is not None and p["only_n"][joint][2]:
                 only_n += p["only_n"][joint][2]
                 only_sse += p["only_n"][joint][2] * (p["only_rmse_cm"][joint][2] / 100.0) ** 2
@@ -194,7 +194,7 @@ def lost_frames(results: list[dict], corrected: str, filt: str) -> dict:
     figures for results recorded without the mask.
     """
     n, sse_a, sse_b, pairs, worse = 0, 0.0, 0.0, 0, 0
-    for _, _, a, b, _, k in _joint_pairs(results, corrected, filt, "lost"):
+    for _, _, a, b, _, k in joint_pairs(results, corrected, filt, "lost"):
         sa, sb = sum(x * x for x in a), sum(x * x for x in b)
         n, sse_a, sse_b, pairs, worse = n + k, sse_a + k * sa, sse_b + k * sb, pairs + 1, worse + (sa > sb)
     return {"frames": n, "filter_3d_cm": math.sqrt(sse_b / n) if n else None,
