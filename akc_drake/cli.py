@@ -182,6 +182,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "front, 0.45 m up, level) or distance_m=D,height_m=H,lateral_m=L (to the operator's left),"
                    "aim_height_m=A (it faces the operator's vertical axis, aimed A above the pelvis; default level), "
                    "fields left out the default's, or a JSON file; the calibration T-pose is rendered from it too")
+    p.add_argument("--depth-noise", default="default", metavar="MODEL",
+                   help="the simulated camera's depth error model: default (sub-pixel disparity noise 0.08 px, "
+                   "independent per pixel: a joint's 15-pixel depth window averages it to about 0.1 cm at 2 m) or "
+                   "field=value,... of sigma_disparity_px, correlation_px (the noise's correlation length: at 4 a "
+                   "window keeps two thirds of it, as a real stereo camera's does), baseline_m, edge_width_px, "
+                   "edge_disparity_px, min_depth_m, max_depth_m; or a JSON file; the calibration T-pose too")
     p.add_argument("--body-scale", type=float, default=1.0, metavar="K",
                    help="the rendered operator's size: every length times K, 0.6-1.4 (default 1: the paper's "
                    "participant); the calibration T-pose too")

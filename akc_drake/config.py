@@ -67,8 +67,18 @@ class CameraConfig:
     #: Stereo model: baseline (m) and sub-pixel disparity noise (px); sigma_z = z^2 sigma_d / (f b).
     baseline_m: float = 0.05
     disparity_noise_px: float = 0.08
+    #: The disparity noise's correlation length in pixels (0: independent per pixel, which the depth lookup's
+    #: window averages away; :class:`~akc_drake.core.depth_noise.StereoDepthNoise`).
+    noise_correlation_px: float = 0.0
     #: Render the colour image even when the detector does not need it (the simulated detector uses depth).
     render_color: bool = False
+
+    def depth_noise(self):
+        """The :class:`~akc_drake.core.depth_noise.StereoDepthNoise` of this camera."""
+        from akc_drake.core.depth_noise import StereoDepthNoise
+
+        return StereoDepthNoise(baseline_m=float(self.baseline_m), sigma_disparity_px=float(self.disparity_noise_px),
+                                correlation_px=float(self.noise_correlation_px))
 
     def intrinsics(self):
         """The :class:`~akc_drake.core.camera.CameraIntrinsics` of this camera (pinhole, centred)."""
@@ -427,6 +437,77 @@ def parse_camera(text: str, option: str = "--camera") -> dict | str:
     if camera["aim_height_m"] is not None and camera["aim_height_m"] == camera["height_m"]:
         camera["aim_height_m"] = None  # (aimed level: the same camera)
     return "default" if camera == DEFAULT_CAMERA else camera
+
+
+#: ``--depth-noise`` fields: :class:`~akc_drake.core.depth_noise.StereoDepthNoise`'s.
+DEPTH_NOISE_FIELDS = ("sigma_disparity_px", "correlation_px", "baseline_m", "edge_width_px", "edge_disparity_px",
+                      "min_depth_m", "max_depth_m")
+
+
+def parse_depth_noise(text: str, option: str = "--depth-noise") -> dict | str:
+    """The simulated camera's depth error model from the command line: ``default``, ``field=value[,...]`` inline
+    (:data:`DEPTH_NOISE_FIELDS`; a field left out is the default model's) or a JSON file holding an object with
+    those fields.
+
+    Returns:
+        ``"default"`` for the default model (however it was spelt), else the fields given that differ from the
+        default's (the form a render spec keys renders by); :func:`depth_noise_model` makes the model.
+
+    Raises:
+        UserError: as :func:`~akc_drake.option_maps.read_option_map`, an unknown field (the known ones listed) or
+            a value the model refuses, each naming ``option``.
+    """
+    if str(text).strip().lower() == "default":
+        return "default"
+
+    def number(name, value):
+        try:
+            return int(value) if name == "edge_width_px" else float(value)
+        except ValueError:
+            raise UserError(f"{option}: {name}={value!r} is not a number") from None
+
+    found = read_option_map(text, option, "field=value", "sigma_disparity_px=0.16,correlation_px=4",
+                            "field -> number", number)
+    unknown = sorted(set(found) - set(DEPTH_NOISE_FIELDS))
+    if unknown:
+        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(DEPTH_NOISE_FIELDS)}; "
+                        "or default)")
+    try:
+        model = depth_noise_model(found)
+    except (TypeError, ValueError) as e:
+        raise UserError(f"{option}: {e}") from None
+    from akc_drake.core.depth_noise import StereoDepthNoise
+
+    base = StereoDepthNoise()
+    changed = {k: getattr(model, k) for k in DEPTH_NOISE_FIELDS if getattr(model, k) != getattr(base, k)}
+    return changed or "default"
+
+
+def depth_noise_model(noise):
+    """The :class:`~akc_drake.core.depth_noise.StereoDepthNoise` of :func:`parse_depth_noise`'s result
+    (``"default"``/None: the default model).
+
+    Raises:
+        ValueError: an unknown field or a value the model refuses.
+    """
+    from akc_drake.core.depth_noise import StereoDepthNoise
+
+    if noise in (None, "default"):
+        return StereoDepthNoise()
+    if not isinstance(noise, dict):
+        raise ValueError(f"depth noise: expected 'default' or a map of fields, got {noise!r}")
+    unknown = sorted(set(noise) - set(DEPTH_NOISE_FIELDS))
+    if unknown:
+        raise ValueError(f"depth noise: unknown field(s) {', '.join(unknown)}")
+    return StereoDepthNoise(**noise)
+
+
+def describe_depth_noise(noise) -> str:
+    """A depth error model (:func:`parse_depth_noise`'s result) in words for the tables' titles: ``default depth
+    noise`` or its changed fields, e.g. ``depth noise sigma_disparity_px=0.16, correlation_px=4``."""
+    if noise in (None, "default"):
+        return "default depth noise"
+    return "depth noise " + ", ".join(f"{k}={v:g}" for k, v in noise.items())
 
 
 def describe_camera(camera) -> str:

@@ -89,14 +89,13 @@ def _config_for_source(cfg: PipelineConfig | None, frame_source) -> PipelineConf
 
 def sim_camera(cfg: PipelineConfig):
     """``(intrinsics, placement, noise)`` of the simulated camera described by ``cfg.camera``."""
-    from akc_drake.core.depth_noise import StereoDepthNoise
     from akc_drake.systems.depth_camera_source import CameraPlacement
 
     cam = cfg.camera
     return (
         cam.intrinsics(),
         CameraPlacement.facing_operator(cam.distance_m, cam.height_m, cam.lateral_m, cam.aim_height_m),
-        StereoDepthNoise(baseline_m=cam.baseline_m, sigma_disparity_px=cam.disparity_noise_px),
+        cam.depth_noise(),
     )
 
 

@@ -265,6 +265,31 @@ def test_a_camera_placement_is_in_the_key_and_reaches_the_renderer(tmp_path):
     assert np.isfinite(seen_high.raw[0, shoulders + hips, 2]).all()  # the simulated detector still finds them
 
 
+def test_a_depth_noise_model_is_in_the_key_and_reaches_the_renderer():
+    """``--depth-noise``: another model keys its own renders (the default's key unchanged: no field) and the
+    renderer gets that model; a rendered T-pose's depth readings carry its error."""
+    from akc_drake.config import parse_depth_noise
+    from akc_drake.core.skeleton import INDEX
+    from akc_drake.evaluation.motion_set import tpose_spec
+
+    real = parse_depth_noise("sigma_disparity_px=0.3,correlation_px=4")
+    assert "depth_noise" not in spec() and "depth_noise" not in spec(depth_noise="default")
+    assert spec(depth_noise=real)["depth_noise"] == real
+    assert len({C.spec_key(spec()), C.spec_key(spec(depth_noise=real))}) == 2
+    noise = C._render_kwargs(spec(depth_noise=real))["noise"]
+    assert (noise.sigma_disparity_px, noise.correlation_px) == (0.3, 4.0)
+    assert "noise" not in C._render_kwargs(spec())
+    with pytest.raises(ValueError, match="unknown depth noise"):
+        spec(depth_noise="loud")
+    # The same T-pose through both models: the correlated one's joint depths scatter several times more.
+    spread = {}
+    for name, model in (("default", "default"), ("real", real)):
+        session = C.render_uncached(tpose_spec(seconds=1.0, depth_noise=model))
+        shoulders = [INDEX["left_shoulder"], INDEX["right_shoulder"]]
+        spread[name] = np.nanstd(session.raw[:, shoulders, 2] - session.truth[:, shoulders, 2], axis=0).mean()
+    assert spread["real"] > 3.0 * spread["default"], spread
+
+
 def test_a_scaled_operator_is_in_the_key_and_reaches_the_renderer():
     """``--body-scale``: a scaled operator keys its own renders (the default's key unchanged: no field), the
     renderer gets the scaled ``OperatorParams``, and a rendered T-pose has the scaled arms."""

@@ -126,6 +126,8 @@ def test_describe_names_what_is_not_the_default():
                       camera={"distance_m": 3.0, "height_m": 0.45, "lateral_m": 0.0, "aim_height_m": None}))
     assert d == ("sim, primitive, `ours`, drive rig, 30 Hz, camera distance_m=3,height_m=0.45,lateral_m=0, "
                  "operator x 1.2, seed 2")
+    noisy = describe(_run(depth_noise={"sigma_disparity_px": 0.16, "correlation_px": 4.0}))
+    assert noisy == "sim, primitive, `ours`, 10 Hz, depth noise sigma_disparity_px=0.16,correlation_px=4"
 
 
 def test_load_run_says_what_is_wrong(tmp_path):

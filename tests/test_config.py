@@ -6,12 +6,15 @@ from akc_drake.config import (
     ArmLimitsConfig,
     CameraConfig,
     PipelineConfig,
+    depth_noise_model,
     describe_camera,
+    describe_depth_noise,
     dump_config,
     load_config,
     parse_akc_plus,
     parse_arm_limits,
     parse_camera,
+    parse_depth_noise,
     parse_filter_settings,
 )
 from akc_drake.errors import UserError
@@ -221,3 +224,30 @@ def test_depth_lookup_settings_load_validate_and_reach_the_extractor(tmp_path):
         cfg = PipelineConfig(source="sim", motion="I", cycles=1, camera=camera).validate()
         src = diagrams.AddMeasurementSource(DiagramBuilder(), cfg)
         assert (src["systems"]["extractor"].depth_rule, src["systems"]["extractor"].window) == ("nearest", window)
+
+
+def test_depth_noise_from_the_command_line(tmp_path):
+    """``--depth-noise``: the default model however spelt (one render-cache key), the changed fields only, inline or
+    in JSON, the model they make, words for the tables, and errors that name the option and the field."""
+    for text in ("default", " DEFAULT ", "sigma_disparity_px=0.08", "correlation_px=0,edge_width_px=1"):
+        assert parse_depth_noise(text) == "default", text
+    real = parse_depth_noise("sigma_disparity_px=0.16, correlation_px=4")
+    assert real == {"sigma_disparity_px": 0.16, "correlation_px": 4.0}
+    model = depth_noise_model(real)
+    assert (model.sigma_disparity_px, model.correlation_px, model.baseline_m) == (0.16, 4.0, 0.05)
+    assert depth_noise_model("default") == depth_noise_model(None) == CameraConfig().depth_noise()
+    path = tmp_path / "noise.json"
+    path.write_text('{"edge_width_px": 3, "baseline_m": 0.095}')
+    assert parse_depth_noise(str(path)) == {"edge_width_px": 3, "baseline_m": 0.095}
+    assert describe_depth_noise("default") == "default depth noise"
+    assert describe_depth_noise(real) == "depth noise sigma_disparity_px=0.16, correlation_px=4"
+    for text, match in (("sigma=0.2", "unknown field.*sigma.*sigma_disparity_px"),
+                        ("correlation_px=-2", "correlation_px must be a number >= 0"),
+                        ("edge_width_px=1.5", "edge_width_px='1.5' is not a number"),
+                        ("baseline_m=wide", "baseline_m='wide' is not a number"), ("", "empty")):
+        with pytest.raises(UserError, match="--depth-noise.*" + match):
+            parse_depth_noise(text)
+    with pytest.raises(ValueError, match="unknown field.*sigma"):
+        depth_noise_model({"sigma": 1.0})
+    # The diagrams' camera carries the correlation too (a YAML key).
+    assert CameraConfig(noise_correlation_px=3.0).depth_noise().correlation_px == 3.0

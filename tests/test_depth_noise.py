@@ -84,3 +84,41 @@ def test_parameter_validation():
         StereoDepthNoise(edge_width_px=1.5)
     with pytest.raises(ValueError, match="depth_m"):
         StereoDepthNoise().apply(np.zeros(5), F, None)
+
+
+def test_correlated_noise_keeps_its_rms_and_survives_a_window_median():
+    """``correlation_px``: the per-pixel RMS is still ``sigma_z``, but a joint's 15-pixel median window no longer
+    averages it away (independent noise: about a tenth of it left)."""
+    z = np.full((240, 320), 2.0, dtype=np.float32)
+    sigma = StereoDepthNoise().sigma_z(2.0, F)
+    medians = {}
+    for corr in (0.0, 4.0):
+        model = StereoDepthNoise(correlation_px=corr)
+        errs, meds = [], []
+        for k in range(40):
+            err = model.apply(z, F, frame_rng(3, k)).astype(float) - 2.0
+            errs.append(err[20:-20, 20:-20].ravel())
+            meds.append(np.median(err[113:128, 153:168]))  # one joint's window
+        assert np.concatenate(errs).std() == pytest.approx(sigma, rel=0.05), corr
+        medians[corr] = np.std(meds)
+    assert medians[0.0] < 0.15 * sigma
+    assert 0.45 * sigma < medians[4.0] < 1.0 * sigma
+    # Correlated: neighbours 2 px apart nearly agree, 30 px apart do not.
+    err = StereoDepthNoise(correlation_px=4.0).apply(z, F, frame_rng(3, 99)).astype(float) - 2.0
+    near = np.corrcoef(err[:, :-2].ravel(), err[:, 2:].ravel())[0, 1]
+    far = np.corrcoef(err[:, :-30].ravel(), err[:, 30:].ravel())[0, 1]
+    assert near > 0.8 and abs(far) < 0.1
+
+
+def test_independent_noise_is_unchanged_by_the_correlation_field():
+    """``correlation_px`` 0 (the default) draws exactly what the model drew before it had the field."""
+    z = np.full((20, 30), 1.7, dtype=np.float32)
+    model = StereoDepthNoise()
+    scale = model.sigma_disparity_px / (F * model.baseline_m)
+    rng = frame_rng(5, 12)
+    expected = z + z * z * np.float32(scale) * rng.standard_normal(z.shape, dtype=np.float32)
+    np.testing.assert_array_equal(model.apply(z, F, frame_rng(5, 12)), expected)
+    with pytest.raises(ValueError, match="correlation_px"):
+        StereoDepthNoise(correlation_px=-1.0)
+    with pytest.raises(ValueError, match="correlation_px"):
+        StereoDepthNoise(correlation_px=float("nan"))

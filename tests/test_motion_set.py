@@ -398,6 +398,15 @@ def test_a_placed_camera_renders_the_clips_and_the_t_pose_from_where_it_stands(t
     assert all(t.title.endswith("(ours protocol, the operator scaled 0.8)") for t in motion_dir_tables(small))
     with pytest.raises(ValueError, match="body scale"):
         evaluate_motion_dir(tmp_path, body_scale=2.0, **kw)
+    # A noisier depth camera (--depth-noise): recorded, in the titles, and its readings scatter more.
+    noisy_model = {"sigma_disparity_px": 0.3, "correlation_px": 4.0}
+    noisy = evaluate_motion_dir(tmp_path, depth_noise=noisy_model, **kw)
+    assert noisy["depth_noise"] == noisy_model and level["depth_noise"] == "default" and noisy["failures"] == []
+    assert all(t.title.endswith("(ours protocol, depth noise sigma_disparity_px=0.3, correlation_px=4)")
+               for t in motion_dir_tables(noisy))
+    assert noisy["pooled_rmse_cm"]["KF"] != level["pooled_rmse_cm"]["KF"]
+    with pytest.raises(ValueError, match="unknown field.*loud"):
+        evaluate_motion_dir(tmp_path, depth_noise={"loud": 1.0}, **kw)
 
 
 def test_a_bad_clip_fails_alone(tmp_path, capsys):

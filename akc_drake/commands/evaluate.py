@@ -115,6 +115,13 @@ def _camera(args):
     return parse_camera(getattr(args, "camera", None) or "default")
 
 
+def _depth_noise(args):
+    """``--depth-noise``, read (:func:`~akc_drake.config.parse_depth_noise`)."""
+    from akc_drake.config import parse_depth_noise
+
+    return parse_depth_noise(getattr(args, "depth_noise", None) or "default")
+
+
 def _body_scale(args) -> float:
     """``--body-scale``, checked (a UserError names the range)."""
     from akc_drake.evaluation.cache import check_body_scale
@@ -170,6 +177,7 @@ def build_config(args):
             filter_settings=_filter_settings(args),
             camera=_camera(args),
             body_scale=_body_scale(args),
+            depth_noise=_depth_noise(args),
         )
     except ValueError as e:
         raise UserError(str(e)) from None
@@ -277,7 +285,7 @@ def run_motion_dir(args) -> int:
                                  scheduler=scheduler, n_workers=workers, drive=drive, clips=clips,
                                  akc_plus=_akc_plus(args), correctors=correctors, rate_hz=rate,
                                  filter_settings=_filter_settings(args), camera=_camera(args),
-                                 body_scale=_body_scale(args))
+                                 body_scale=_body_scale(args), depth_noise=_depth_noise(args))
     tables = motion_dir_tables(result)
     for t in tables:
         print(format_table(t))

@@ -119,6 +119,7 @@ def render_spec(
     camera: str | dict = "default",
     options: dict | None = None,
     body_scale: float = 1.0,
+    depth_noise: str | dict = "default",
 ) -> dict:
     """The plain-JSON description of one rendered session.
 
@@ -138,6 +139,9 @@ def render_spec(
         options: more keyword arguments of ``render_session`` (plain values, e.g. ``surface_offset_m``).
         body_scale: the operator's size, every length times this (``OperatorParams.scaled``); recorded in the spec
             only when not 1.
+        depth_noise: the depth error model, ``"default"`` or the fields of
+            :func:`~akc_drake.config.parse_depth_noise` that differ from the default's; recorded in the spec only
+            when not the default.
 
     Raises:
         ValueError: an unknown motion kind; UserError (from reading) a missing motion file.
@@ -173,6 +177,10 @@ def render_spec(
     }
     if float(body_scale) != 1.0:
         spec["body_scale"] = float(body_scale)
+    if depth_noise not in (None, "default"):
+        if not isinstance(depth_noise, dict):
+            raise ValueError(f"render spec: unknown depth noise {depth_noise!r} (default, or the model's fields)")
+        spec["depth_noise"] = json.loads(json.dumps(depth_noise, sort_keys=True))
     return spec
 
 
@@ -422,6 +430,10 @@ def _render_kwargs(spec: dict) -> dict:
         from akc_drake.operator.model import OperatorParams
 
         kwargs["params"] = OperatorParams().scaled(check_body_scale(spec["body_scale"]))
+    if spec.get("depth_noise") not in (None, "default"):
+        from akc_drake.config import depth_noise_model
+
+        kwargs["noise"] = depth_noise_model(spec["depth_noise"])
     kwargs.update(spec.get("options") or {})
     if kwargs:
         import inspect

@@ -62,8 +62,8 @@ def load_run(path) -> dict:
 
 
 def describe(run: dict) -> str:
-    """What a run was: detector, body, protocol, drive, rate, and any camera, operator size or noise seed that is
-    not the default."""
+    """What a run was: detector, body, protocol, drive, rate, and any camera, operator size, depth noise or noise
+    seed that is not the default."""
     parts = [str(run.get("detector", "?")), str(run.get("body", "?")), f"`{run.get('protocol', '?')}`"]
     if run.get("drive", "angles") != "angles":
         parts.append(f"drive {run['drive']}")
@@ -75,6 +75,10 @@ def describe(run: dict) -> str:
                      if isinstance(cam, dict) else f"camera {cam}")
     if run.get("body_scale", 1.0) not in (None, 1.0):
         parts.append(f"operator x {run['body_scale']:g}")
+    noise = run.get("depth_noise", "default")
+    if noise not in (None, "default"):
+        parts.append("depth noise " + ",".join(f"{k}={v:g}" for k, v in noise.items())
+                     if isinstance(noise, dict) else f"depth noise {noise}")
     if run.get("seed", 0):
         parts.append(f"seed {run['seed']}")
     return ", ".join(parts)

@@ -95,6 +95,8 @@ class ExperimentConfig:
             (``--camera``); Motions I and II reach toward it wherever it is.
         body_scale: the rendered operator's size, every length times this (``--body-scale``,
             :meth:`~akc_drake.operator.model.OperatorParams.scaled`; the calibration sees it as it is).
+        depth_noise: the camera's depth error model, "default" or the fields of
+            :func:`~akc_drake.config.parse_depth_noise` (``--depth-noise``; the calibration's too).
     """
 
     motions: tuple[str, ...] = ("I", "II")
@@ -119,6 +121,7 @@ class ExperimentConfig:
     filter_settings: dict | None = None
     camera: str | dict = "default"
     body_scale: float = 1.0
+    depth_noise: str | dict = "default"
 
     def __post_init__(self):
         from akc_drake.evaluation.protocol import PROTOCOLS
@@ -152,6 +155,9 @@ class ExperimentConfig:
 
         camera_placement(self.camera)  # (an unknown camera fails here)
         check_body_scale(self.body_scale)
+        from akc_drake.config import depth_noise_model
+
+        depth_noise_model(self.depth_noise)  # (an unknown field or a bad value fails here)
         if self.options.akc_plus_config is not None:
             from akc_drake.core.akc_plus_config import akc_plus_config
 
@@ -429,6 +435,7 @@ class Evaluation:
             "akc_plus": akc_plus_record(cfg.options.akc_plus_config),
             "camera": dict(cfg.camera) if isinstance(cfg.camera, dict) else cfg.camera,
             "body_scale": cfg.body_scale,
+            "depth_noise": dict(cfg.depth_noise) if isinstance(cfg.depth_noise, dict) else cfg.depth_noise,
             "elapsed_s": self.elapsed_s,
             "render_s": self.render_s,
         }

@@ -114,11 +114,12 @@ def clip_spec(
     rate_hz: float = 10.0,
     camera: str | dict = "default",
     body_scale: float = 1.0,
+    depth_noise: str | dict = "default",
 ) -> dict:
     """The render spec (:func:`~akc_drake.evaluation.cache.render_spec`) of one clip: its file's and skeleton's
     content, its joint-name map and window, the seed, the camera (its rate ``rate_hz``, which the clip is retargeted
-    at, and its placement), the body, the detector and the protocol's depth extraction: everything that changes
-    its rendered session (and the body's scale), so that the render cache keys it.
+    at, its placement and its depth noise), the body, the detector and the protocol's depth extraction: everything
+    that changes its rendered session (and the body's scale), so that the render cache keys it.
 
     Raises:
         UserError: the clip's file is missing.
@@ -148,14 +149,15 @@ def clip_spec(
         camera=camera,
         options=options,
         body_scale=body_scale,
+        depth_noise=depth_noise,
     )
 
 
 def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive", detector: str = "sim",
                seconds: float = 10.0, width: int = 640, height: int = 480, rate_hz: float = 10.0,
-               camera: str | dict = "default", body_scale: float = 1.0) -> dict:
-    """The render spec of the calibration T-pose held ``seconds`` (same camera, placement and frame rate, body and
-    detector as the clips)."""
+               camera: str | dict = "default", body_scale: float = 1.0, depth_noise: str | dict = "default") -> dict:
+    """The render spec of the calibration T-pose held ``seconds`` (same camera, placement, frame rate and depth
+    noise, body and detector as the clips)."""
     from akc_drake.evaluation.cache import render_spec
     from akc_drake.evaluation.experiment import scaled_intrinsics
     from akc_drake.evaluation.protocol import render_kwargs
@@ -170,6 +172,7 @@ def tpose_spec(*, protocol: str = "paper", seed: int = 0, body: str = "primitive
         camera=camera,
         options=render_kwargs(protocol),
         body_scale=body_scale,
+        depth_noise=depth_noise,
     )
 
 
@@ -201,7 +204,8 @@ def evaluate_clip(item: dict) -> dict:
             ``"filter_settings"`` (the filters' settings changed from the protocol's, field -> value, or None),
             ``"correctors"`` (correctors of your own, name -> import path, which the worker imports),
             ``"camera"`` (the camera's placement: "default" or :func:`~akc_drake.config.parse_camera`'s fields),
-            ``"body_scale"`` (the operator's size, ``OperatorParams.scaled``) and
+            ``"body_scale"`` (the operator's size, ``OperatorParams.scaled``), ``"depth_noise"`` (the depth error
+            model: "default" or :func:`~akc_drake.config.parse_depth_noise`'s fields) and
             ``"frame_progress"`` (a progress bar over the clip's frames as they render, on stderr).
 
     Returns:
@@ -221,7 +225,8 @@ def evaluate_clip(item: dict) -> dict:
     spec = clip_spec(clip, protocol=protocol, seed=int(item.get("seed", 0)), body=item.get("body", "primitive"),
                      detector=item.get("detector", "sim"), drive=item.get("drive", "angles"),
                      rate_hz=float(item.get("rate_hz", 10.0)), camera=item.get("camera", "default"),
-                     body_scale=float(item.get("body_scale", 1.0)))
+                     body_scale=float(item.get("body_scale", 1.0)),
+                     depth_noise=item.get("depth_noise", "default"))
     t0 = time.perf_counter()
     if item.get("frame_progress"):  # in-process only: a worker's stderr is not the user's terminal
         from tqdm import tqdm
@@ -315,6 +320,7 @@ def evaluate_motion_dir(
     filter_settings: dict | None = None,
     camera: str | dict = "default",
     body_scale: float = 1.0,
+    depth_noise: str | dict = "default",
 ) -> dict:
     """Calibrate once on a rendered T-pose, then :func:`evaluate_clip` on every clip of ``motion_dir``.
 
@@ -349,24 +355,28 @@ def evaluate_motion_dir(
             filter too.
         camera: the camera's placement, "default" or :func:`~akc_drake.config.parse_camera`'s (the T-pose's too).
         body_scale: the operator's size: every length times this (``--body-scale``; the T-pose's too).
+        depth_noise: the depth error model, "default" or :func:`~akc_drake.config.parse_depth_noise`'s fields
+            (``--depth-noise``; the T-pose's too).
 
     Returns:
-        ``{"protocol", "seed", "rate_hz", "camera", "body", "detector", "akc_plus", "filter_settings", "correctors",
-        "methods", "dims_cm",
+        ``{"protocol", "seed", "rate_hz", "camera", "depth_noise", "body", "detector", "akc_plus", "filter_settings",
+        "correctors", "methods", "dims_cm",
         "clips": [evaluate_clip results],
         "failures": [...], "pooled_rmse_cm", "worst_regression", "worst_regression_3d", "worst_regression_seen",
         "worst_regression_seen_3d" (the same over the frames each joint was seen), "worst_regression_lost",
         "worst_regression_lost_3d" (over the frames each joint was lost), "lost_joint_gain", "lost_frames",
         "render_cache": {"dir", "hits", "misses"}, "elapsed_s"}``.
     """
+    from akc_drake.config import depth_noise_model
     from akc_drake.evaluation.cache import _resolve, camera_placement, check_body_scale
     from akc_drake.evaluation.executor import TaskFailure, run_tasks
     from akc_drake.evaluation.experiment import akc_plus_record, calibrate_session
     from akc_drake.evaluation.protocol import check_protocol, method_options, with_filter_settings
 
     check_protocol(protocol)
-    camera_placement(camera)  # (an unknown camera or size fails here, before anything renders)
+    camera_placement(camera)  # (an unknown camera, size or depth noise fails here, before anything renders)
     body_scale = check_body_scale(body_scale)
+    depth_noise_model(depth_noise)
     filter_settings = dict(filter_settings) if filter_settings else None
     options = with_filter_settings(method_options(protocol), filter_settings)  # (a bad setting fails here)
     if akc_plus:
@@ -379,7 +389,7 @@ def evaluate_motion_dir(
     from tqdm import tqdm
 
     spec = tpose_spec(protocol=protocol, seed=seed, body=body, detector=detector, seconds=tpose_seconds,
-                      rate_hz=rate_hz, camera=camera, body_scale=body_scale)
+                      rate_hz=rate_hz, camera=camera, body_scale=body_scale, depth_noise=depth_noise)
     with tqdm(desc="T-pose", unit="frame", file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
         tpose, tpose_hit = render_clip(spec, cache=cache, progress=lambda n, _name: bar.update(n))
     dims = calibrate_session(tpose, "tpose", options)
@@ -388,7 +398,7 @@ def evaluate_motion_dir(
         {"clip": c, "dims": dims.as_dict(), "methods": list(methods), "seed": seed, "protocol": protocol,
          "weights": weights, "body": body, "detector": detector, "cache": cache_arg, "drive": drive,
          "akc_plus": settings, "correctors": dict(correctors or {}), "rate_hz": float(rate_hz), "camera": camera,
-         "body_scale": float(body_scale), "filter_settings": filter_settings,
+         "body_scale": float(body_scale), "depth_noise": depth_noise, "filter_settings": filter_settings,
          "frame_progress": bool(progress) and scheduler == "inprocess"}
         for c in clips
     ]
@@ -403,6 +413,7 @@ def evaluate_motion_dir(
         "seed": seed,
         "rate_hz": float(rate_hz),
         "camera": camera,
+        "depth_noise": depth_noise,
         "body": body,
         "body_scale": float(body_scale),
         "detector": detector,
@@ -444,13 +455,15 @@ def evaluate_motion_dir(
 def _setup(result: dict) -> str:
     """", skinned body, mediapipe detector" when not the default primitive body and simulated detector, ", 30
     Hz" when not the default 10 Hz camera and the camera's placement when not the default one."""
-    from akc_drake.config import describe_camera
+    from akc_drake.config import describe_camera, describe_depth_noise
 
     body, det, camera = result.get("body", "primitive"), result.get("detector", "sim"), result.get("camera", "default")
     rate, scale = float(result.get("rate_hz", 10.0)), float(result.get("body_scale", 1.0))
+    noise = result.get("depth_noise", "default")
     return ("" if (body, det) == ("primitive", "sim") else f", {body} body, {det} detector") + (
         "" if rate == 10.0 else f", {rate:g} Hz") + ("" if camera == "default" else f", {describe_camera(camera)}") + (
-        "" if scale == 1.0 else f", the operator scaled {scale:g}")
+        "" if scale == 1.0 else f", the operator scaled {scale:g}") + (
+        "" if noise in (None, "default") else f", {describe_depth_noise(noise)}")
 
 
 def motion_dir_tables(result: dict) -> list:

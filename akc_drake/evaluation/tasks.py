@@ -157,7 +157,7 @@ def session_specs(config) -> dict[str, dict]:
 
     intr = config.intrinsics()
     common = {"intrinsics": intr, "seed": config.seed}
-    for extra in ("body", "detector", "camera", "body_scale"):
+    for extra in ("body", "detector", "camera", "body_scale", "depth_noise"):
         if hasattr(config, extra):
             common[extra] = getattr(config, extra)
     common["options"] = render_options(config)

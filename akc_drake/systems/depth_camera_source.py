@@ -176,7 +176,7 @@ def add_sim_camera_source(builder: DiagramBuilder, cfg, motion: OperatorMotion |
             motion = motion_from_spec(name, cycles=int(cfg.cycles), seed=int(cfg.seed),
                                       skeleton=cfg.skeleton or None, rate_hz=K.rate_hz,
                                       names=cfg.joint_names or None)
-    noise = StereoDepthNoise(baseline_m=float(cam.baseline_m), sigma_disparity_px=float(cam.disparity_noise_px))
+    noise = cam.depth_noise()
     # The pipeline's simulated detector reads depth and truth only: skip the label render (~5 ms a frame).
     source = builder.AddSystem(DepthCameraSource(motion, intrinsics=K, camera_pose=placement, noise=noise,
                                                  seed=int(cfg.seed), render_label=False,
