@@ -318,6 +318,15 @@ def _switch_or_number(option: str, name: str, text: str):
         raise UserError(f"{option}: {name}={text!r} is not a number (nor true / false)") from None
 
 
+def _check_fields(found: dict, known, option: str, alternative: str) -> None:
+    """Refuse a command-line map's fields outside ``known``: one UserError naming ``option``, the unknown fields,
+    the known ones and the option's word form (``alternative``: ``default``, ``teleop``, ``off``)."""
+    unknown = sorted(set(found) - set(known))
+    if unknown:
+        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(known)}; "
+                        f"or {alternative})")
+
+
 def parse_akc_plus(text: str, option: str = "--akc-plus") -> dict:
     """AKC+ settings (field -> value, :class:`~akc_drake.core.akc_plus_config.AKCPlusConfig`) from the command
     line: ``field=value[,field=value...]`` inline, or a JSON file holding an object
@@ -369,10 +378,7 @@ def parse_filter_settings(text: str, option: str = "--filter-settings") -> dict:
     if rest.strip() or not settings:
         settings.update(read_option_map(rest, option, "field=value", "gate_sigma=5,gate_speed_m_s=6",
                                         "setting -> value", lambda name, text: _switch_or_number(option, name, text)))
-    unknown = sorted(set(settings) - set(_FILTER_FIELDS))
-    if unknown:
-        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(_FILTER_FIELDS)}; "
-                        "or teleop)")
+    _check_fields(settings, _FILTER_FIELDS, option, "teleop")
     for name in ("gate_sigma", "gate_speed_m_s"):
         if settings.get(name) == 0:
             settings[name] = None
@@ -422,10 +428,7 @@ def parse_camera(text: str, option: str = "--camera") -> dict | str:
 
     found = read_option_map(text, option, "field=value", "distance_m=3,height_m=1,aim_height_m=0.45",
                             "field -> metres", number)
-    unknown = sorted(set(found) - set(CAMERA_FIELDS))
-    if unknown:
-        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(CAMERA_FIELDS)}; "
-                        "or default)")
+    _check_fields(found, CAMERA_FIELDS, option, "default")
     camera = dict(DEFAULT_CAMERA)
     for name, value in found.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -468,10 +471,7 @@ def parse_depth_noise(text: str, option: str = "--depth-noise") -> dict | str:
 
     found = read_option_map(text, option, "field=value", "sigma_disparity_px=0.16,correlation_px=4",
                             "field -> number", number)
-    unknown = sorted(set(found) - set(DEPTH_NOISE_FIELDS))
-    if unknown:
-        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(DEPTH_NOISE_FIELDS)}; "
-                        "or default)")
+    _check_fields(found, DEPTH_NOISE_FIELDS, option, "default")
     try:
         model = depth_noise_model(found)
     except (TypeError, ValueError) as e:
@@ -539,9 +539,7 @@ def parse_arm_limits(text: str, option: str = "--arm-limits") -> ArmLimitsConfig
     fields = ("enabled", "acceleration", "jerk")
     found = read_option_map(text, option, "field=value", "acceleration=10,jerk=5000", "field -> value",
                             lambda name, text: _switch_or_number(option, name, text))
-    unknown = sorted(set(found) - set(fields))
-    if unknown:
-        raise UserError(f"{option}: unknown field(s) {', '.join(unknown)} (known: {', '.join(fields)}; or off)")
+    _check_fields(found, fields, option, "off")
     enabled = found.get("enabled", True)
     if not isinstance(enabled, bool):
         raise UserError(f"{option}: enabled must be true or false, got {enabled!r}")
