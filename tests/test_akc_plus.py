@@ -1339,12 +1339,17 @@ def test_after_an_ekf_a_long_lost_wrist_counts_the_filter_no_surer_than_the_hold
     assert err[False][7] == pytest.approx(0.160, abs=0.005) and err[True][7] == pytest.approx(0.101, abs=0.005)
 
 
-def recorded_state(d):
+def recorded_state(d, seen_depth_sigma_m=None):
     """A recorded frame's state vector, extended to today's layout: a state recorded before the held forearms'
-    misread frames were kept (103 floats) has none since each forearm was taken (0; NaN without one)."""
+    misread frames were kept (103 floats) has none since each forearm was taken (0; NaN without one); one
+    recorded before the depth reading noise was measured (105) has no residual and the noise assumed before any
+    frame."""
     state = d["state"]
     if state.size == 103:
         state = np.concatenate([state, np.where(np.isfinite(state[[57, 61]]), 0.0, np.nan)])
+    if state.size == 105:
+        sd = AKCPlusConfig().seen_depth_sigma_m if seen_depth_sigma_m is None else seen_depth_sigma_m
+        state = np.concatenate([state, [np.nan, sd**2] * 6])
     return state
 
 
@@ -1354,12 +1359,13 @@ def _recorded_frame(name, constrained_filter=False, **settings):
     data)``; ``data`` holds ``pose``, ``measured``, ``variance`` (the corrector's inputs) and ``truth``. Recorded
     with ``get_state_vector`` while the evaluation ran; a state that grew since is extended with the new entries'
     values before any frame (``[101:103]``, the elbows' remembered readings: NaN; ``[103:105]``, the held forearms'
-    misread frames: 0, or NaN without a held forearm), and a reordered one needs them recorded again."""
+    misread frames: 0, or NaN without a held forearm; ``[105:117]``, no depth residual and the reading noise
+    assumed), and a reordered one needs them recorded again."""
     d = np.load(Path(__file__).parent / "data" / "akc_plus" / name)
     dims = BodyDimensions(**dict(zip(("LUA", "LLA", "RUA", "RLA", "SW"), d["dims"].tolist(), strict=True)))
     akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=constrained_filter, **settings),
                                     period_s=1.0 / float(d["rate_hz"]))
-    akc.set_state_vector(recorded_state(d))
+    akc.set_state_vector(recorded_state(d, akc.config.seen_depth_sigma_m))
     return akc, dims, d
 
 
@@ -1387,7 +1393,8 @@ def test_after_an_ekf_a_seen_arm_keeps_the_depths_it_read():
     # swings away and held by its bone constraints, has them 2.5, 3.5 and 4.2 cm off. MediaPipe's 2D wrist is 4 cm
     # off in y, so the arm as read has a forearm 5 cm short. Refitted by the running NIS (``seen_depth_sigma_m``
     # 0), the depths stayed near the EKF's and the projection put the shortfall into depth: the wrist 6.6 cm in
-    # front. Taken as read (1.5 cm), the depths stay within 1.2 cm and the shortfall goes to the wrist's y.
+    # front. Fused with the EKF's at the reading noise the frames before measured (the right arm's stillest joint
+    # 0.28 cm, recorded with the frame), the depths stay within 1.3 cm and the shortfall goes to the wrist's y.
     z_err = {}
     for sd in (0.015, 0.0):
         akc, dims, d = _recorded_frame("mediapipe_mocapbank_ekf_10hz_frame40.npz", True, seen_depth_sigma_m=sd)
@@ -1398,8 +1405,27 @@ def test_after_an_ekf_a_seen_arm_keeps_the_depths_it_read():
         z_err[sd] = np.abs(out[[RS, RE, RW], 2] - truth[[RS, RE, RW], 2])
         assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
         assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
-    assert z_err[0.015].max() < 0.012
+    assert z_err[0.015].max() < 0.013
     assert z_err[0.0][2] > 0.06
+
+
+def test_after_an_ekf_a_seen_depth_follows_the_reading_as_far_as_its_measured_noise_allows():
+    # The frame above with the reading noise not yet measured (assumed 1.5 cm, as before any frame): against the
+    # EKF's error the residuals showed before this frame, the reading weighs less and the shoulder's and elbow's
+    # depths stay nearer the EKF's (2.5, 3.0 cm off, against its 2.5, 3.5); measured (0.28 cm), they follow the
+    # readings (0.5, 1.2 cm off). The same state without the fusion (``seen_depth_fusion`` False) takes them as read.
+    errs = {}
+    for noise, fusion in ((None, True), (0.015, True), (0.015, False)):
+        akc, dims, d = _recorded_frame("mediapipe_mocapbank_ekf_10hz_frame40.npz", True, seen_depth_fusion=fusion)
+        state = akc.get_state_vector()
+        assert np.sqrt(state[106::2]).min() == pytest.approx(0.0028, abs=1e-4)  # (the recorded right shoulder's)
+        if noise is not None:
+            state[105:117] = [np.nan, noise**2] * 6
+            akc.set_state_vector(state)
+        out = akc.correct(d["pose"], d["measured"], d["variance"]).pose
+        errs[noise, fusion] = np.abs(out[[RS, RE], 2] - d["truth"][[RS, RE], 2])
+    assert errs[None, True].max() < 0.013 and errs[0.015, False].max() < 0.013
+    assert errs[0.015, True].min() > 0.02
 
 
 def test_an_elbow_judged_behind_the_chest_stays_behind_it_once_its_wrist_is_lost():

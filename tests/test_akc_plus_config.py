@@ -18,6 +18,8 @@ def test_defaults_are_the_measurement_model_of_the_kf():
     assert c.constrained_filter is None and AKCPlusConfig(constrained_filter=True).constrained_filter is True
     # None: set by where AKC+ runs (on in the teleop diagram); True / False force it.
     assert c.seen_wrist_anchor is None and AKCPlusConfig(seen_wrist_anchor=False).seen_wrist_anchor is False
+    # A seen depth after an EKF: fused with the filter's at the measured reading noise (False: taken as read).
+    assert c.seen_depth_fusion is True and c.seen_depth_sigma_m == 0.015
 
 
 @pytest.mark.parametrize("field, value", [("recent_frames", -1.0), ("gate_sigma", math.nan),
@@ -26,7 +28,8 @@ def test_defaults_are_the_measurement_model_of_the_kf():
                                           ("shoulder_alpha", 0.0),
                                           ("shoulder_alpha", 1.5), ("sigma_shoulder_m", -0.01),
                                           ("arm_radius_m", -0.05), ("arm_cover_deg", 90.5), ("constrained_filter", 1),
-                                          ("constrained_filter", "yes"), ("seen_wrist_anchor", 0.0)])
+                                          ("constrained_filter", "yes"), ("seen_wrist_anchor", 0.0),
+                                          ("seen_depth_fusion", "no")])
 def test_bad_settings_name_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         AKCPlusConfig(**{field: value})
@@ -53,6 +56,7 @@ def test_settings_resolve_for_the_filter_they_follow():
     assert akc_plus_config(None, "KF").seen_wrist_anchor is None
     assert akc_plus_config({"seen_wrist_anchor": 0}, "KF", True).seen_wrist_anchor is False
     assert akc_plus_config(AKCPlusConfig(seen_wrist_anchor=True), "EKF", False).seen_wrist_anchor is True
+    assert akc_plus_config({"seen_depth_fusion": 0}, "EKF").seen_depth_fusion is False
 
 
 @pytest.mark.parametrize("settings, match", [({"gate_sgima": 2.5}, "unknown AKC\\+ setting.*'gate_sgima'.*gate_sigma"),

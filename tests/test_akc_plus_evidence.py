@@ -1,8 +1,10 @@
+import numpy as np
 import pytest
 
 from akc_drake.core.akc_plus_evidence import (
     arm_variances,
     beyond_reach,
+    depth_reading_noise,
     followed_rejected,
     forearm_misread,
     fuse_held,
@@ -116,6 +118,110 @@ def test_after_a_constrained_filter_a_seen_depth_is_taken_as_read():
     f = list(v)
     arm_variances(SUB, var, m, v, f, [k] * 9, 0.0, 0.01, 9.0, seen_var=0.015**2)
     assert f == v
+
+
+
+def _noise_run(readings, filtered, alpha=0.2, prior=0.015**2):
+    """``depth_reading_noise`` over a sequence of one arm's depth readings and the filter's (frames x 3: shoulder,
+    elbow, wrist; NaN: not read): the noise list after the last frame, the arm's estimate per frame and the three
+    joints' running means per frame."""
+    noise = [NAN, prior] * 3
+    est, means = [], []
+    for z, fz in zip(readings, filtered, strict=True):
+        m, v = [0.0] * 9, [0.0] * 9
+        m[2::3], v[2::3] = list(z), list(fz)
+        est.append(depth_reading_noise(SUB, m, v, noise, alpha, prior))
+        means.append(noise[1::2])
+    return noise, est, np.array(means)
+
+
+def test_the_reading_noise_is_the_residuals_frame_to_frame_change_and_the_arm_takes_its_stillest():
+    rng = np.random.default_rng(0)
+    n = 400
+    truth = np.stack([np.full(n, 2.0), 2.0 + 0.3 * np.sin(np.arange(n) / 3.0), np.full(n, 2.1)], axis=1)
+    # The filter: exact on the still shoulder and wrist, lagging the swinging elbow by a frame (up to 10 cm).
+    filtered = truth.copy()
+    filtered[1:, 1] = truth[:-1, 1]
+    readings = truth + rng.normal(0.0, [0.01, 0.01, 0.03], size=(n, 3))  # (the wrist read 3 times as noisily)
+    noise, est, means = _noise_run(readings, filtered)
+    settled = means[50:].mean(axis=0)  # (a running mean of weight 0.2 averages about 10 frames: its mean over 350)
+    assert settled[0] == pytest.approx(1e-4, rel=0.2)  # the shoulder's white noise, 1 cm: its variance
+    assert settled[2] == pytest.approx(9e-4, rel=0.2)  # the wrist's, 3 cm
+    assert settled[1] > 3 * settled[0]  # the elbow's residual also changes with the filter's lag (2 cm a frame)
+    assert est == [min(row) for row in means.tolist()]  # the arm's estimate: its stillest joint's
+    assert noise[4] == pytest.approx(readings[-1, 2] - filtered[-1, 2], abs=1e-15)  # the last residual
+
+
+def test_the_reading_noise_needs_two_consecutive_readings_and_one_misread_frame_moves_it_at_most_2_6_times():
+    prior = 0.015**2
+    z = np.full((6, 3), 2.0)
+    z[2, 1] = np.nan  # the elbow not read in frame 2: frames 2 and 3 give no change to measure
+    noise, est, _ = _noise_run(z, np.full((6, 3), 2.0), alpha=0.5, prior=prior)
+    assert noise[3] == pytest.approx(prior * 0.5**3, rel=1e-12)  # three changes (of 0), against the shoulder's five
+    assert noise[1] == pytest.approx(prior * 0.5**5, rel=1e-12) == est[-1]
+    z[5, 0] = 2.5  # a 50 cm misread: winsorised at 9 times the mean
+    noise, _, _ = _noise_run(z, np.full((6, 3), 2.0), alpha=0.5, prior=prior)
+    assert noise[1] == pytest.approx(prior * 0.5**4 * (0.5 + 0.5 * 9), rel=1e-12)
+    assert depth_reading_noise(SUB, [NAN] * 9, [0.0] * 9, noise, 0.5, prior) == min(noise[1::2])
+    assert all(x != x for x in noise[0::2])  # nothing read: no last residual
+
+
+def _fused_run(readings, filtered, fusion=True, seen_var=0.015**2):
+    """One joint's depth (the shoulder) through ``arm_variances`` after a constrained filter, frame by frame, with
+    the running NIS and the reading noise carried: the fused depths and their variances."""
+    var = [5e-5, 5e-5, 4e-4] * 3
+    nis, noise = [1.0] * 9, [NAN, seen_var] * 3
+    out, vs = [], []
+    for z, fz in zip(readings, filtered, strict=True):
+        m, v = [0.0, 0.0, z] + [NAN] * 6, [0.0, 0.0, fz] + [0.0, 0.0, 2.0] * 2
+        f = list(v)
+        vv = arm_variances(SUB, var, m, v, f, nis, 0.2, 0.01, 9.0, refit=True, seen_var=seen_var,
+                           noise=noise if fusion else None)
+        out.append(f[2])
+        vs.append(vv[2])
+    return np.array(out), np.array(vs)
+
+
+def test_after_a_constrained_filter_a_seen_depth_is_fused_by_the_variances_its_residuals_show():
+    """A still joint read with 1.3 cm of white noise, the filter's average within 0.2 cm: fused, the depth keeps
+    most of the average; taken as read it is as noisy as the readings. A filter lagging a moving joint by 6 cm,
+    read to 0.2 cm: fused, the depth is the reading. The variance is never below ``seen_var``."""
+    rng = np.random.default_rng(1)
+    n = 300
+    truth = np.full(n, 2.0)
+    filtered = truth + 0.002 * np.sin(np.arange(n) / 20.0)
+    readings = truth + rng.normal(0.0, 0.013, n)
+    fused, vs = _fused_run(readings, filtered)
+    read, _ = _fused_run(readings, filtered, fusion=False)
+    rmse = lambda x: float(np.sqrt(np.mean((x[50:] - truth[50:]) ** 2)))  # noqa: E731 (after the estimates settle)
+    assert rmse(read) == pytest.approx(rmse(readings), rel=1e-12) and rmse(read) > 0.012
+    assert rmse(fused) < 0.45 * rmse(read)
+    assert vs.min() >= 0.015**2
+    truth = 2.0 + 0.03 * np.arange(n) / 10.0
+    filtered = truth - 0.06
+    readings = truth + rng.normal(0.0, 0.002, n)
+    fused, vs = _fused_run(readings, filtered)
+    assert rmse(fused) < 0.004 and vs.min() >= 0.015**2
+    # A plain KF (no refit) neither fuses nor measures: the filter's depth, the noise list as it was.
+    noise = [NAN, 1e-4] * 3
+    f = [0.0, 0.0, 2.0] + [0.0, 0.0, 2.0] * 2
+    arm_variances(SUB, [4e-4] * 9, [0.0, 0.0, 2.03] + [NAN] * 6, list(f), f, [1.0] * 9, 0.2, 0.01, 9.0,
+                  seen_var=0.015**2, noise=noise)
+    assert f[2] == 2.0 and noise[1::2] == [1e-4] * 3 and all(x != x for x in noise[0::2])
+
+
+def test_a_seen_depth_misread_for_one_frame_does_not_vouch_for_itself():
+    """The filter's error variance is the residuals' before this frame: a still joint read to 0.3 cm, the filter
+    within 0.1 cm, then one reading 10 cm off (inside the gate): fused, the depth moves a fraction of it; taken
+    as read, all of it."""
+    n = 60
+    truth = np.full(n, 2.0)
+    readings = truth + 0.003 * np.cos(np.arange(n) * 2.0)
+    readings[-1] = 2.10
+    fused, _ = _fused_run(readings, truth + 0.001)
+    read, _ = _fused_run(readings, truth + 0.001, fusion=False)
+    assert read[-1] == 2.10
+    assert fused[-1] - 2.001 < 0.3 * (2.10 - 2.001)
 
 
 def test_an_extrapolated_blind_depth_is_held_at_the_last_output():

@@ -110,3 +110,32 @@ def test_state_round_trips_the_elbows_remembered_readings():
     v[102] = np.inf
     with pytest.raises(ValueError, match="elbow readings"):
         other.set_state_vector(v)
+
+
+def test_state_round_trips_the_depth_reading_noise():
+    # After an EKF: per side and joint the last depth residual and the reading noise. Restored, a corrector goes on
+    # exactly as the original; a negative noise or an infinite residual is refused, naming the entries.
+    from akc_drake.core.akc_plus_config import AKCPlusConfig
+
+    p, dims = arm_pose()
+    rng = np.random.default_rng(0)
+    akc = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=True))
+    fresh = akc.get_state_vector()
+    assert np.isnan(fresh[105:117:2]).all() and (fresh[106:117:2] == 0.015**2).all()  # (assumed before any frame)
+    for _ in range(4):
+        m = p.copy()
+        m[:, 2] += rng.normal(0.0, 0.01, len(p))
+        akc.correct(p, measured=m, variance=kf_var())
+    v = akc.get_state_vector()
+    k = 2  # (the left elbow's pair: side 0, joint 1)
+    assert v[105 + k] == pytest.approx(m[LE, 2] - p[LE, 2], abs=1e-15)
+    assert 0.0 < v[106 + k] < 0.015**2  # measured: under the assumed noise
+    other = ArmKinematicCorrectorPlus(dims, AKCPlusConfig(constrained_filter=True))
+    other.set_state_vector(v)
+    np.testing.assert_array_equal(other.get_state_vector(), v)
+    np.testing.assert_array_equal(other.correct(p, m, kf_var()).pose, akc.correct(p, m, kf_var()).pose)
+    for i, bad_value in ((106, -1e-4), (108, np.nan), (105, np.inf)):
+        bad = v.copy()
+        bad[i] = bad_value
+        with pytest.raises(ValueError, match=r"depth residuals \[105:117:2\]"):
+            other.set_state_vector(bad)

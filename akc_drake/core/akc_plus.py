@@ -30,8 +30,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
   that passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's. After an EKF
   (``constrained_filter``: its posterior also holds the bone lengths, which pull a seen joint off its measurement)
-  a depth passing the test is taken as read (``seen_depth_sigma_m``), an x or y whose running NIS ``k`` exceeds 1
-  refitted at the NIS's prior variance, ``z - (z - f) / k`` (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`).
+  a depth passing the test is fused with the filter's by their residuals' variances (``seen_depth_fusion``), an x or
+  y of running NIS ``k`` > 1 refitted, ``z - (z - f) / k`` (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`).
 * *Minimal change*: when both depths are known (seen; or not measured this frame and known by the filter as
   well as a measurement would know them or, dropped at most ``recent_frames`` ago, better than eq. 7-8 would
   rebuild them from their neighbours: :func:`~akc_drake.core.arm_geometry.rebuild_variance`, which is large
@@ -250,7 +250,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_fa_r", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost",
                  "_s_floor", "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor", "_seen_var",
-                 "_read_e", "_verdict")
+                 "_read_e", "_verdict", "_depth_noise", "_fuse")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -267,7 +267,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         self._inv_t2, self._t_cap = 1.0 / pf.step_sigma_m**2, config.temporal_cap**2
         self._v_t, self._v_s, self._a_s = pf.temporal_walk_var, pf.shoulder_walk_var, pf.shoulder_alpha
         self._inv_w2 = 1.0 / config.sigma_width_m**2 if config.sigma_width_m > 0 else 0.0
-        self._inv_wrist2 = 1.0 / config.sigma_filter_m**2
+        self._inv_wrist2, self._fuse = 1.0 / config.sigma_filter_m**2, config.seen_depth_fusion is not False
         self._inv_torso2 = 1.0 / config.sigma_torso_m**2 if config.sigma_torso_m > 0 else 0.0
         self._no_prior, self._fits, self._cos_min = set(), set(), math.cos(math.radians(config.elbow_min_deg))
         self._r_z, self._len_var = config.depth_sigma_m**2, config.length_sigma_m**2
@@ -326,7 +326,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             f = [sx, sy, sz, ex, ey, ez, wx, wy, wz]
             vs = self._cur_var = arm_variances(self._sub_index[side], var, self._no_measurement if m is None else m,
                                                self._v, f, self._nis, self._nis_a, self._nis_floor, self._gate2,
-                                               self._refit, self._seen_var)
+                                               self._refit, self._seen_var, self._depth_noise if self._fuse else None)
             if m is not None and m[o_s + 2] != m[o_s + 2]:  # (a shoulder's depth not read: the seen elbow carries it)
                 vs[5] += covered_excess(*m[o_e:o_e + 3], *m[o_w:o_w + 3], self._lf[side], self._fa_r) ** 2
             if m is not None and (m[o_s] != m[o_s] or m[o_w] != m[o_w]):  # (a joint lost altogether that its
