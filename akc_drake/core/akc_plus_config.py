@@ -148,7 +148,7 @@ class AKCPlusConfig:
             stereo camera's do not average away over the depth window (``--depth-noise
             sigma_disparity_px=0.16,correlation_px=4``: 1.3 cm per reading at 2 m); there a still joint's reading
             taken as read was worse than the EKF's average, AKC+(EKF)'s worst increase +0.61 cm (the third held-out
-            set) and +0.75 (MediaPipe's clips); fused, +0.36 and +0.46, the pooled 3D arm RMSE as good or better.
+            set) and +0.75 (MediaPipe's clips); fused, +0.36 and +0.46, the pooled 3D arm RMSE within 0.05 cm.
             False: taken as read (session 46's rule); None: on (the default, True).
         seen_wrist_anchor: a wrist measured in 3D is kept where the fit of its forearm would move its x, y beyond
             the gate: its elbow goes on the circle between the kept shoulder and the wrist, nearest the elbow's
