@@ -129,7 +129,6 @@ def arm_variances(sub_index, var, m, v, f, nis, alpha: float, floor: float, g2: 
     return out
 
 
-
 def depth_reading_noise(sub_index, m, v, noise, alpha: float, prior: float) -> float:
     """The arm's depth reading noise: each joint's running estimate updated with this frame, and the arm's
     smallest (a variance, m^2).
@@ -153,12 +152,10 @@ def depth_reading_noise(sub_index, m, v, noise, alpha: float, prior: float) -> f
         The smallest of the arm's three running means.
     """
     q: float; d: float; s: float; best: float  # (C doubles when compiled: setup.py)
-    i: cython.Py_ssize_t; j: cython.Py_ssize_t; n: cython.Py_ssize_t; o: cython.Py_ssize_t
+    j: cython.Py_ssize_t; n: cython.Py_ssize_t; o: cython.Py_ssize_t
     b = 1.0 - alpha
     best = _INF
-    for i, j, _, n in sub_index:
-        if i % 3 != 2:
-            continue
+    for _, j, _, n in sub_index[2::3]:  # (the arm's three depths)
         o = 2 * (n // 3)
         q = m[j]
         if q != q:  # (not read: the next reading starts afresh)
@@ -176,6 +173,7 @@ def depth_reading_noise(sub_index, m, v, noise, alpha: float, prior: float) -> f
         if s < best:
             best = s
     return best
+
 
 def beyond_reach(f, vs, m, offsets, prev, lu, lf, r_axes, length_var, g2):
     """A shoulder or a wrist lost altogether (no x, y) whose filtered position lies beyond the reach of the elbow
