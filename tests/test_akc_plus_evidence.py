@@ -202,12 +202,34 @@ def test_after_a_constrained_filter_a_seen_depth_is_fused_by_the_variances_its_r
     readings = truth + rng.normal(0.0, 0.002, n)
     fused, vs = _fused_run(readings, filtered)
     assert rmse(fused) < 0.004 and vs.min() >= 0.015**2
-    # A plain KF (no refit) neither fuses nor measures: the filter's depth, the noise list as it was.
-    noise = [NAN, 1e-4] * 3
-    f = [0.0, 0.0, 2.0] + [0.0, 0.0, 2.0] * 2
-    arm_variances(SUB, [4e-4] * 9, [0.0, 0.0, 2.03] + [NAN] * 6, list(f), f, [1.0] * 9, 0.2, 0.01, 9.0,
-                  seen_var=0.015**2, noise=noise)
-    assert f[2] == 2.0 and noise[1::2] == [1e-4] * 3 and all(x != x for x in noise[0::2])
+
+
+def test_after_a_kf_a_depth_that_would_replace_the_filters_is_fused_instead():
+    """After a plain KF (no refit), with ``seen_var`` and ``noise``: a depth whose filter's covariance-matched error
+    is below R stays the filter's (its residual is recorded for the noise); one that would replace the filter's moves
+    ``w = e2 / (e2 + s2)`` of the way, e2 the residual's mean square less the reading noise s2, at the variance of
+    that combination in the KF's model (``(1 - w)^2 p k + w^2 R``); without ``noise`` it replaces the filter's."""
+    var = [1e-4] * 9
+    m, v = [NAN] * 9, [0.0] * 9
+    m[5], v[5] = 2.10, 2.0  # the elbow's depth read 10 cm from the filter's
+    s2 = 0.08**2  # a noisy camera: every joint's reading noise (8 cm)^2, as measured before this frame
+    noise = [NAN, s2] * 3
+    f = list(v)
+    out = arm_variances(SUB, var, m, v, f, [8.0] * 9, 0.0, 0.01, 9.0, seen_var=0.015**2, noise=noise)
+    assert f[5] == 2.0 and out[5] == pytest.approx(8e-4, rel=1e-12)  # p k = 8e-4 < R: the filter's
+    assert noise[2] == pytest.approx(0.10, abs=1e-12) and noise[3] == s2  # the residual kept for the next frame
+    k = 40.0  # p k = 4e-3 > R: the filter lags more than a measurement errs
+    noise = [NAN, s2] * 3
+    f = list(v)
+    out = arm_variances(SUB, var, m, v, f, [k] * 9, 0.0, 0.01, 9.0, seen_var=0.015**2, noise=noise)
+    e2 = k * (R_Z - 1e-4) - s2
+    w = e2 / (e2 + s2)
+    assert 0.8 < w < 0.95
+    assert f[5] == pytest.approx(2.0 + w * 0.10, abs=1e-12)
+    assert out[5] == pytest.approx((1.0 - w) ** 2 * 1e-4 * k + w * w * R_Z, rel=1e-12) and out[5] < R_Z
+    f = list(v)
+    out = arm_variances(SUB, var, m, v, f, [k] * 9, 0.0, 0.01, 9.0, seen_var=0.015**2)  # no noise: replaced
+    assert f[5] == 2.10 and out[5] == R_Z
 
 
 def test_a_seen_depth_misread_for_one_frame_does_not_vouch_for_itself():

@@ -27,11 +27,11 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   and variances come back (:func:`~akc_drake.core.akc_plus_evidence.unreachable_replacements`).
 * *Covariance matching*: a running mean of each arm coordinate's NIS (each frame's winsorised at the gate,
   weight ``nis_alpha``) scales the filter's variance into the error variance its residuals show: a lagging
-  filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured coordinate
-  that passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's. After an EKF
-  (``constrained_filter``: its posterior also holds the bone lengths, which pull a seen joint off its measurement)
-  a depth passing the test is fused with the filter's by their residuals' variances (``seen_depth_fusion``), an x or
-  y of running NIS ``k`` > 1 refitted, ``z - (z - f) / k`` (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`).
+  filter on a fast joint gets more, a still joint less (a blind axis is never shrunk). A measured x or y that
+  passes the test, of a filter whose error variance so exceeds ``R``, replaces the filter's; such a depth is fused
+  with the filter's by their residuals' variances (``seen_depth_fusion``), and after an EKF (``constrained_filter``:
+  its bone lengths pull a seen joint off its measurement) every depth passing the test, an x or y of running NIS
+  ``k`` > 1 refitted, ``z - (z - f) / k`` (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`).
 * *Minimal change*: when both depths are known (seen; or not measured this frame and known by the filter as
   well as a measurement would know them or, dropped at most ``recent_frames`` ago, better than eq. 7-8 would
   rebuild them from their neighbours: :func:`~akc_drake.core.arm_geometry.rebuild_variance`, which is large
@@ -284,8 +284,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         self._nis_a, self._nis_floor, self._tol = pf.nis_alpha, config.nis_floor, config.length_tol_m
         self._refit, self._wrist_anchor = config.constrained_filter is True, config.seen_wrist_anchor is True
         # A constrained filter's variance of a joint lost altogether is no error measure after ``recent_frames``.
-        self._blind_honest = pf.recent_frames if self._refit else _inf
-        self._seen_var, self._fa_r = config.seen_depth_sigma_m**2 if self._refit else 0.0, config.forearm_radius_m
+        self._blind_honest, self._fa_r = pf.recent_frames if self._refit else _inf, config.forearm_radius_m
+        self._seen_var = config.seen_depth_sigma_m**2 if self._refit or self._fuse else 0.0
         self._cons, self._xy_tol, self._occ_r2 = config.consistency_m, config.xy_tol_m, config.occlusion_radius_m**2
         # The foreshortened upper arm's rule (``arm_radius_m``): d_xy (r + consistency_m) < r l_u, squared.
         self._fs_r, self._fs_k2 = config.arm_radius_m, (config.arm_radius_m + config.consistency_m) ** 2

@@ -137,7 +137,7 @@ class AKCPlusConfig:
             and 2 cm gave within 0.1 cm of 1.5. Off under the ``paper`` protocol (no depth offset: a reading is
             the surface's, 4-5 cm in front of the joint; taken as read, AKC+(EKF)'s worst increase on the rig
             went +0.19 -> +0.78 cm). With ``seen_depth_fusion`` it is also the reading noise assumed until
-            frames have measured it, and the smallest error a seen depth is given.
+            frames have measured it, and the smallest error a seen depth is given (after a KF too).
         seen_depth_fusion: with ``seen_depth_sigma_m``, a seen depth passing the test is the reading and the
             filter's fused by the variances their residuals show, not taken as read
             (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`): the reading's frame-to-frame noise (the
@@ -149,7 +149,11 @@ class AKCPlusConfig:
             sigma_disparity_px=0.16,correlation_px=4``: 1.3 cm per reading at 2 m); there a still joint's reading
             taken as read was worse than the EKF's average, AKC+(EKF)'s worst increase +0.61 cm (the third held-out
             set) and +0.75 (MediaPipe's clips); fused, +0.36 and +0.46, the pooled 3D arm RMSE within 0.05 cm.
-            False: taken as read (session 46's rule); None: on (the default, True).
+            After a KF, a seen depth that covariance matching would let replace the filter's (its error variance
+            above ``R``) is fused so instead, its variance the combination's in the KF's model (session 54): a
+            single misread frame was taken whole; AKC+(KF)'s worst increase with the noisier camera on the second
+            held-out set +0.55 -> +0.48 cm, every other set's worst and pooled 3D within 0.01 cm.
+            False: taken as read (session 46's rule; after a KF, the filter's replaced); None: on (the default, True).
         seen_wrist_anchor: a wrist measured in 3D is kept where the fit of its forearm would move its x, y beyond
             the gate: its elbow goes on the circle between the kept shoulder and the wrist, nearest the elbow's
             estimate. Without it, a kept shoulder and a seen elbow whose lengths misfit the wrist share the misfit
