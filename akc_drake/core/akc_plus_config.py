@@ -152,7 +152,7 @@ class AKCPlusConfig:
             After a KF, a seen depth that covariance matching would let replace the filter's (its error variance
             above ``R``) is fused so instead, its variance the combination's in the KF's model (session 54): a
             single misread frame was taken whole; AKC+(KF)'s worst increase with the noisier camera on the second
-            held-out set +0.55 -> +0.48 cm, every other set's worst and pooled 3D within 0.01 cm.
+            held-out set +0.55 -> +0.48 cm, every other set's worst within 0.02 cm and pooled 3D within 0.01.
             False: taken as read (session 46's rule; after a KF, the filter's replaced); None: on (the default, True).
         seen_wrist_anchor: a wrist measured in 3D is kept where the fit of its forearm would move its x, y beyond
             the gate: its elbow goes on the circle between the kept shoulder and the wrist, nearest the elbow's
