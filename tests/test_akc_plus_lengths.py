@@ -9,6 +9,7 @@ from akc_drake.core.akc_plus_lengths import (
     SurfaceMemory,
     behind_surface,
     circle_pair,
+    learn_elbow_offset,
     measured_arm,
     project_arm,
     project_forearm,
@@ -164,6 +165,66 @@ def test_offset_variance_is_added_to_each_variance():
         assert project_arm((*s, *e, *w), var, 0.29, 0.26, 0.0, 13.8, ov) == want
         want = project_forearm(s, (*e, *w), [x + ov for x in var[3:]], 0.29, 0.26)
         assert project_forearm(s, (*e, *w), var[3:], 0.29, 0.26, ov) == want
+
+
+def test_elbow_variance_is_added_to_the_elbows_variances():
+    rng = random.Random(12)
+    for _ in range(300):
+        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
+        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
+        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        var = [rng.uniform(1e-5, 1e-2) for _ in range(9)]
+        ev = rng.uniform(1e-5, 1e-3)
+        ov = rng.choice((0.0, 2e-4))
+        bumped = [x + ov + ev if 3 <= i < 6 else x + ov for i, x in enumerate(var)]
+        want = project_arm((*s, *e, *w), bumped, 0.29, 0.26, 0.0, 13.8)
+        assert project_arm((*s, *e, *w), var, 0.29, 0.26, 0.0, 13.8, ov, None, ev) == want
+
+
+def _measured_arms(seed, n, sigma_s, sigma_e, sigma_w, lu=0.29, lf=0.26, du=0.0):
+    """``n`` measured arms (flat: shoulder, elbow, wrist), exact arms of random poses (the upper arm ``du`` longer than
+    ``lu``) with isotropic landmark offsets of these standard deviations; the forearm mostly along the upper arm."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        s = np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.8, 2.2)])
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        v = rng.normal(size=3) + 1.5 * u
+        v /= np.linalg.norm(v)
+        e = s + (lu + du) * u
+        w = e + lf * v
+        yield np.concatenate([s + rng.normal(0.0, sigma_s, 3), e + rng.normal(0.0, sigma_e, 3),
+                              w + rng.normal(0.0, sigma_w, 3)]).tolist()
+
+
+def _learnt(arms, alpha=0.003, offset_var=0.5e-4):
+    acc, extra = [0.5 * offset_var, 0.5], 0.0
+    for m in arms:
+        extra = learn_elbow_offset(acc, m, 0, 3, 6, 0.29, 0.26, alpha, 0.05, offset_var)
+    return extra
+
+
+def test_the_elbows_offset_is_learnt_from_the_two_segments_misfits():
+    # An elbow 2 cm off its joint (4e-4 m^2 per axis), the shoulder and the wrist 0.5 cm: the excess over the
+    # projections' 0.5e-4 is learnt, about 3.5e-4.
+    assert _learnt(_measured_arms(1, 4000, 0.005, 0.02, 0.005)) == pytest.approx(3.5e-4, rel=0.25)
+    # The shoulder and the wrist 2 cm off, the elbow 0.5 cm: each misfits one segment, and their product is no
+    # elbow's offset.
+    assert _learnt(_measured_arms(2, 4000, 0.02, 0.005, 0.02)) < 0.5e-4
+    # Nor is a calibrated length 3 cm short (a constant misfit of the upper arm).
+    assert _learnt(_measured_arms(3, 4000, 0.005, 0.005, 0.005, du=0.03)) < 0.3e-4
+
+
+def test_learn_elbow_offset_needs_a_whole_measured_arm_and_a_weight():
+    arm = next(_measured_arms(4, 1, 0.0, 0.05, 0.0))
+    acc = [2.5e-5, 0.5]
+    assert learn_elbow_offset(acc, arm, 0, 3, 6, 0.29, 0.26, 0.0, 0.05, 0.5e-4) == 0.0 and acc == [2.5e-5, 0.5]
+    for m in (None, [math.nan] + arm[1:]):
+        assert learn_elbow_offset(acc, m, 0, 3, 6, 0.29, 0.26, 0.1, 0.05, 0.5e-4) == 0.0 and acc == [2.5e-5, 0.5]
+    learn_elbow_offset(acc, arm, 0, 3, 6, 0.29, 0.26, 0.1, 0.05, 0.5e-4)
+    assert acc != [2.5e-5, 0.5]
+    acc = [1.0, 0.05]  # (too few arms that were not bent at a right angle: nothing added yet)
+    assert learn_elbow_offset(acc, None, 0, 3, 6, 0.29, 0.26, 0.1, 0.05, 0.5e-4) == 0.0
 
 
 def test_circle_pair_is_circle_point_twice():

@@ -142,3 +142,27 @@ def test_state_round_trips_the_depth_reading_noise():
         bad[i] = bad_value
         with pytest.raises(ValueError, match=r"depth residuals \[105:117:2\]"):
             other.set_state_vector(bad)
+
+
+def test_state_round_trips_the_elbows_learnt_offset():
+    # Per side the running means the elbow's offset is learnt from (a prior worth half a straight arm at the
+    # projections' offset variance). Restored, a corrector goes on exactly as the original; a negative mean of
+    # c^2 or a non-finite mean is refused, naming the entries.
+    p, dims = arm_pose()
+    akc = ArmKinematicCorrectorPlus(dims)
+    np.testing.assert_array_equal(akc.get_state_vector()[117:121], [0.25e-4, 0.5, 0.25e-4, 0.5])
+    m = p.copy()
+    m[LE] += 0.02 * (p[LS] - p[LE]) / np.linalg.norm(p[LS] - p[LE])  # (the elbow's landmark 2 cm up the arm)
+    for _ in range(5):
+        akc.correct(m, measured=m, variance=kf_var())
+    v = akc.get_state_vector()
+    assert v[117] > 0.25e-4 and list(v[119:121]) != [0.25e-4, 0.5]  # (the left one learnt; the right too: exact arm)
+    other = ArmKinematicCorrectorPlus(dims)
+    other.set_state_vector(v)
+    np.testing.assert_array_equal(other.get_state_vector(), v)
+    np.testing.assert_array_equal(other.correct(m, m, kf_var()).pose, akc.correct(m, m, kf_var()).pose)
+    for i, bad_value in ((118, -0.1), (117, np.nan), (120, np.inf)):
+        bad = v.copy()
+        bad[i] = bad_value
+        with pytest.raises(ValueError, match=r"elbow offset's means \[117:121\]"):
+            other.set_state_vector(bad)

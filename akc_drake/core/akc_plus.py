@@ -43,7 +43,10 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   the filter is least sure of moves, mostly in depth. The metric adds each landmark's offset from its joint
   centre (isotropic, ``length_sigma_m^2 / 2`` per axis: what makes a measured segment's length differ from the
   calibrated one), so that a length mismatch of a segment near the image plane is shared with the x, y instead
-  of becoming a depth error several times as large. A shoulder so known is kept when the elbow is rebuilt.
+  of becoming a depth error several times as large (a segment near the image plane turned 1-2 cm of length into
+  5-10 cm of a seen shoulder's depth). The elbow's, which misfits both segments, is learnt from their misfits'
+  product (``elbow_offset_alpha``, :func:`~akc_drake.core.akc_plus_lengths.learn_elbow_offset`): MediaPipe's 2D
+  elbow off the joint moved a seen shoulder 1-2 cm. A shoulder so known is kept when the elbow is rebuilt.
 * A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm as our
   output last had it (not from a wrist misread, the odd one out of an arm measured whole; after such readings the hold
   alone, as the filter took them: :func:`~akc_drake.core.akc_plus_evidence.held_segments`), carried by this frame's
@@ -192,6 +195,7 @@ from akc_drake.core.akc_plus_lengths import (
     anchored_wrist,
     behind_surface,
     circle_pair,
+    learn_elbow_offset,
     measured_arm,
     project_arm,
     project_forearm,
@@ -250,7 +254,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                  "_travel", "_v", "_v0", "_var", "_blind", "_blind_e", "_held_sh", "_v_s", "_a_s", "_hips", "_tz",
                  "_inv_tz2", "_fs_r", "_fs_k2", "_fa_r", "_refit", "_pf", "_held_ss", "_anchor", "_hips_lost",
                  "_s_floor", "_pair_z", "_blind_honest", "_cover2", "_width_gate", "_wrist_anchor", "_seen_var",
-                 "_read_e", "_verdict", "_depth_noise", "_fuse")
+                 "_read_e", "_verdict", "_depth_noise", "_fuse", "_e_acc",
+                 "_e_var", "_e_alpha", "_e_cap")
 
     def __init__(self, dims: BodyDimensions, config: AKCPlusConfig | None = None, period_s: float | None = None):
         if not isinstance(dims, BodyDimensions):
@@ -272,6 +277,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         self._no_prior, self._fits, self._cos_min = set(), set(), math.cos(math.radians(config.elbow_min_deg))
         self._r_z, self._len_var = config.depth_sigma_m**2, config.length_sigma_m**2
         self._off_var = 0.5 * self._len_var  # (the projections' landmark-offset variance per coordinate: ``_arm``)
+        self._e_alpha, self._e_cap = config.elbow_offset_alpha, 5.0 * config.length_sigma_m  # (``learn_elbow_offset``)
         self._r_axes = (config.image_sigma_m**2, config.image_sigma_m**2, config.depth_sigma_m**2)
         # Flat indices of each arm's nine coordinates, and (position in the arm, flat index, R) per coordinate.
         self._arm_index = tuple(tuple(o + ax for o in offs for ax in range(3)) for offs in self._offsets)
@@ -365,10 +371,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                         b[4] = b[5] = b[6] = _NAN  # (the upper arm not followed: the forearm no longer turns)
                     else:
                         # The held forearm turns with the upper arm since the wrist was last seen (one arm swinging
-                        # about the shoulder); held fixed in the camera frame, it lagged a swinging arm's wrist
-                        # (mocapbank, simulated detector: +0.54 cm over the KF in y -> +0.33). Only while the
-                        # elbow has been seen throughout: an upper arm rebuilt without it turned the forearm with
-                        # its own error (MediaPipe boxing, +3.3 cm).
+                        # about the shoulder; held fixed in the camera frame, it lagged: mocapbank, simulated, +0.54
+                        # cm over the KF in y -> +0.33), only while the elbow has been seen throughout (an upper arm
+                        # rebuilt without it turned the forearm with its own error: MediaPipe boxing, +3.3 cm).
                         b = [*_turn_with(b[0], b[1], b[2], b[4], b[5], b[6], f[3] - f[0], f[4] - f[1], f[5] - f[2]),
                              b[3]]
                 fuse_held(f, vs, b, f[3:6], self._v_t, 6, _XYZ, self._blind_honest, self._blind[side][7] > 0.0)
@@ -381,7 +386,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             sx, sy, sz, ex, ey, ez, wx, wy, wz = f
         else:
             vs = self._cur_var = None
-        lf, lu = self._lf[side], self._lu[side]
+        lf, lu, ev = self._lf[side], self._lu[side], self._e_var[side]  # (ev: ``learn_elbow_offset``, ``correct``)
         ke, ks = 2 * side, 2 * side + 1
         no_prior = self._no_prior = set()
         tol = self._tol
@@ -436,10 +441,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                     (sx, sy, sz), held = hold_blind((sx, sy, sz), vs, 0, self._f0[ks], prev, self._r_z)
                     if held:
                         no_prior.add(ks)
-        # Our proximity rule for the pair the paper's occlusion filter lacks: a shoulder within occlusion_radius_m of
-        # its elbow in the image, or whose upper arm points at the camera (``arm_radius_m``), may read the arm's
-        # surface. Only a detected elbow is evidence (a lost one's is a guess: docs/results.md, session 35). Not one
-        # read behind the elbow's reading beyond l_u's reach (no arm's surface) unless a measured wrist fits the elbow.
+        # Our proximity rule for the pair the paper's occlusion filter lacks (a shoulder within occlusion_radius_m of
+        # its detected elbow in the image, or whose upper arm points at the camera: the module docstring), unless read
+        # behind the elbow's reading beyond l_u's reach (no arm's surface) and no measured wrist fits the elbow.
         if ms and exy:
             d2 = (sx - ex) ** 2 + (sy - ey) ** 2
             if d2 < self._occ_r2 or (ez < sz and d2 * self._fs_k2 < (self._fs_r * lu) ** 2):
@@ -480,18 +484,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                                       self._len_var, no_prior, self._lost, self._pf.recent_frames)
         projected = vs is not None and kn_e and kn_s  # (the projection of the filter's arm, tried)
         if projected:
-            # Both depths known: if the filter's arm is consistent with the calibrated lengths (chi2 of its covariance),
-            # the arm nearest it in that metric with the exact lengths (least where it is surest, mostly in depth).
-            # The metric: the filter's variances plus each landmark's offset from its joint centre (isotropic,
-            # persistent, variance ``_off_var`` per axis), which is what makes a measured segment's length differ
-            # from the calibrated one (variance ``_len_var`` = 2 ``_off_var``): a length mismatch is then shared
-            # with the precise x, y instead of going wholly into the depth of the joint the filter is least sure
-            # of (a segment near the image plane turned 1-2 cm of length into 5-10 cm of a seen shoulder's depth).
-            # The chi2 test uses the same model (project_arm adds the offsets' variance to each of vs); after an
-            # EKF, whose posterior already holds the lengths, it tests the arm as measured (when measured whole).
+            # Both depths known: the arm nearest the filter's in its metric with the exact lengths, if it passes the
+            # lengths' chi2 test (the module docstring's "Minimal change": the metric adds each landmark's offset,
+            # ``_off_var``, the elbow's learnt, ``_e_var``); after an EKF the test judges the arm as measured.
             t = measured_arm(m, offsets) if self._refit else None
             a9 = (sx, sy, sz, ex, ey, ez, wx, wy, wz)
-            arm = project_arm(a9, vs, lu, lf, 0.0, self._chi2_gate, self._off_var, t)
+            arm = project_arm(a9, vs, lu, lf, 0.0, self._chi2_gate, self._off_var, t, ev)
             if arm is not None:  # (an elbow not in front of the surface its pixel read: ``behind_surface``)
                 if me and prev is not None and (t := self._surface_tol(side, m[o_e + 2], arm[5], o_e)) == t:
                     return self._judged(arm, behind_surface(arm, a9, vs, lu, lf, m[o_e + 2], t, prev[5], self._off_var))
@@ -532,7 +530,7 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             # seen elbow 7 cm to it) or seen farther from it in the image than l_u while the wrist is lost altogether
             # (no depth closes the upper arm; nothing tells whose x, y is off: the elbow moved radially by the whole
             # misfit): the arm nearest both in their metric with the exact lengths, not the shoulder kept.
-            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, _inf, self._off_var)
+            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, _inf, self._off_var, None, ev)
             if arm is not None:
                 return arm
         if ts:
@@ -612,12 +610,12 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                     else self._rebuild_from_wrist(f6, w, pe, ps, ke, ks, lu, lf, exy, sxy, other))
         if (vs is not None and not projected and exy and sxy and m is not None and ke not in no_prior
                 and ks not in no_prior and _isfinite(m[offsets[2]] + m[offsets[2] + 1])):
-            # The candidates chose the configuration (which side of the image plane each segment points to);
-            # when the filter's arm has the same one and passes the lengths' chi2 test, the arm nearest it with
-            # the exact lengths (the projection above) is the estimate: the rebuilt depths take eq. 7-8's x, y
-            # as exact, the projection weighs them, the filter's depths and the lengths by their variances.
-            # (Not when the projection above was tried: the same arm, the same variances, again no arm.)
-            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var)
+            # The candidates chose the configuration (which side of the image plane each segment points to); when
+            # the filter's arm has the same one and passes the lengths' chi2 test, the arm nearest it with the exact
+            # lengths (the projection above) is the estimate: the rebuilt depths take eq. 7-8's x, y as exact, the
+            # projection weighs them, the filter's depths and the lengths by their variances (not when tried above).
+            arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, self._chi2_gate, self._off_var,
+                              None, ev)
             if arm is not None and same_configuration(arm, s[2], e[2], wz):
                 return arm
         return (*s, *e, *w)
@@ -672,6 +670,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             ke = 2 * side
             lost_e, lost_s = lost[ke], lost[ke + 1]
             o_s, o_e, o_w = offsets[side]
+            self._e_var[side] = learn_elbow_offset(self._e_acc[side], m, o_s, o_e, o_w, self._lu[side], self._lf[side],
+                                                   self._e_alpha, self._e_cap, self._off_var)
             out = self._arm(v, m, side)  # (the other shoulder for the width term: ``_other_shoulder``, lazily)
             if out is not None and _isfinite(sum(out)):
                 prevs[side] = out

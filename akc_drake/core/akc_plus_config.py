@@ -99,6 +99,16 @@ class AKCPlusConfig:
             variance times that mean is the error variance the residuals show (covariance matching): a lagging
             joint's grows, a still one's shrinks.
         nis_floor: the smallest factor the running mean may apply to the filter's variance.
+        elbow_offset_alpha: weight of the newest frame in the running means from which the elbow's landmark offset
+            is learnt (:func:`~akc_drake.core.akc_plus_lengths.learn_elbow_offset`; 0.05: 20 measured arms, at any
+            frame rate, as ``nis_alpha``); 0 keeps every landmark's offset at ``length_sigma_m^2 / 2``. The elbow
+            ends both segments: its offset from the joint lengthens one and shortens the other as far as they are
+            aligned, which a shoulder's or a wrist's offset, each in one segment, does not; the two misfits'
+            product measures it. MediaPipe's 2D elbow is 1.5-2 cm off the joint in y on the skinned body where its
+            shoulder is 0.2 cm off, and the projections shared each upper arm's misfit equally: a seen shoulder moved
+            1-2 cm (bvhtools_a1's left shoulder y over the KF +0.79 cm on its seen frames). Learnt (session 55),
+            the elbow takes it: that shoulder +0.79 -> +0.12 (+0.73 -> +0.11 after the EKF); on the 18 evaluation
+            sets each worst increase moved by -0.47 to +0.18 cm and each pooled 3D RMSE by -0.17 to +0.03 cm.
         hand_length_m: the wrist to its index and pinky knuckles' midpoint. A measured wrist its own hand hides
             (the forearm toward the camera) reads the hand, up to a hand's length in front: it is put that far behind
             the knuckles (:func:`~akc_drake.core.arm_geometry.behind_hand`). None (the default): the calibrated
@@ -191,6 +201,7 @@ class AKCPlusConfig:
     gate_sigma: float = 3.0
     nis_alpha: float = 0.2
     nis_floor: float = 0.01
+    elbow_offset_alpha: float = 0.05
     recent_frames: float = 3.0
     hips_lost_frames: float = 10.0
     hand_length_m: float | None = None
@@ -217,6 +228,8 @@ class AKCPlusConfig:
         for name in ("shoulder_alpha", "nis_alpha"):  # (a running mean's weight of the newest frame)
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise ValueError(f"AKCPlusConfig.{name} must be in (0, 1], got {getattr(self, name)!r}")
+        if self.elbow_offset_alpha > 1.0:
+            raise ValueError(f"AKCPlusConfig.elbow_offset_alpha must be in [0, 1], got {self.elbow_offset_alpha!r}")
         if self.arm_cover_deg > 90.0:
             raise ValueError(f"AKCPlusConfig.arm_cover_deg must be at most 90, got {self.arm_cover_deg!r}")
         if self.elbow_min_deg >= 180.0:

@@ -14,7 +14,8 @@ read (NaN: none; :class:`~akc_drake.core.akc_plus_lengths.SurfaceMemory`) ``[101
 the wrist was read misread since the held forearm was taken (NaN: no forearm held;
 :func:`~akc_drake.core.akc_plus_evidence.held_segments`) ``[103:105]``, and per side and joint (shoulder, elbow,
 wrist) the last depth residual (NaN: not read last frame) and the running reading noise
-(:func:`~akc_drake.core.akc_plus_evidence.depth_reading_noise`) ``[105:117]``.
+(:func:`~akc_drake.core.akc_plus_evidence.depth_reading_noise`) ``[105:117]``, and per side the running means from
+which the elbow's landmark offset is learnt (:func:`~akc_drake.core.akc_plus_lengths.learn_elbow_offset`) ``[117:121]``.
 """
 
 from __future__ import annotations
@@ -25,15 +26,15 @@ import numpy as np
 
 from akc_drake.core.skeleton import SIDES
 
-STATE_SIZE = 117
+STATE_SIZE = 121
 _NIS, _BLIND, _BLIND_E, _HELD, _BLIND_U, _HELD_SS, _HIPS_LOST, _PAIR_Z, _READ_E = 36, 54, 62, 70, 78, 84, 92, 93, 101
-_MISREAD, _NOISE = 103, 105
+_MISREAD, _NOISE, _ELBOW = 103, 105, 117
 
 
 class StateVector:
     """:meth:`reset`, :meth:`get_state_vector` and :meth:`set_state_vector` of AKC+ (its attributes ``_prev``,
     ``_lost``, ``_f0``, ``_travel``, ``_nis``, ``_blind``, ``_blind_e``, ``_held_sh``, ``_held_ss``, ``_hips_lost``,
-    ``_pair_z``, ``_read_e``, ``_depth_noise``)."""
+    ``_pair_z``, ``_read_e``, ``_depth_noise``, ``_e_acc``)."""
 
     __slots__ = ()
 
@@ -64,6 +65,10 @@ class StateVector:
         # per side and joint: the depth read less the filter's last frame, and the reading's noise variance (its
         # running mean; ``seen_depth_sigma_m`` squared until frames have measured it)
         self._depth_noise = [math.nan, self.config.seen_depth_sigma_m**2] * 6
+        # per side: the running means ``learn_elbow_offset`` regresses (from a prior worth half a straight arm at the
+        # projections' offset variance), and what they add to the elbow's variances
+        v0 = 0.5 * self.config.length_sigma_m**2
+        self._e_acc, self._e_var = [[0.5 * v0, 0.5], [0.5 * v0, 0.5]], [0.0, 0.0]
 
     def get_state_vector(self) -> np.ndarray:
         """``(STATE_SIZE,)``: per side shoulder, elbow, wrist xyz (NaN if none), 2 validity flags, 4 counters, the
@@ -72,8 +77,8 @@ class StateVector:
         its frames, then per side the upper arm the held forearm turns with, the shoulder's offset from the
         other shoulder and its frames, the frames since the hips were the torso's reference, and per side the
         shoulders' measured depth difference, its held frames, the depth last measured and the frames since, per
-        side the elbow's reading judged in front of it, per side the held forearm's misread frames, and per side
-        and joint the last depth residual and the reading noise."""
+        side the elbow's reading judged in front of it, per side the held forearm's misread frames, per side
+        and joint the last depth residual and the reading noise, and per side the elbow offset's running means."""
         v = np.full(STATE_SIZE, np.nan)
         for side in (0, 1):
             p = self._prev[side]
@@ -97,7 +102,8 @@ class StateVector:
         v[_HIPS_LOST] = self._hips_lost
         v[_PAIR_Z:_READ_E] = self._pair_z[0] + self._pair_z[1]
         v[_READ_E:_MISREAD] = self._read_e
-        v[_NOISE:STATE_SIZE] = self._depth_noise
+        v[_NOISE:_ELBOW] = self._depth_noise
+        v[_ELBOW:STATE_SIZE] = self._e_acc[0] + self._e_acc[1]
         return v
 
     def set_state_vector(self, v) -> None:
@@ -165,11 +171,16 @@ class StateVector:
             raise ValueError(f"AKC+ state vector: elbow readings [{_READ_E}:{_MISREAD}] must be finite or NaN, "
                              f"got {read.tolist()}")
         self._read_e = read.tolist()
-        noise = a[_NOISE:STATE_SIZE]
+        noise = a[_NOISE:_ELBOW]
         if np.any(np.isinf(noise[0::2])) or not np.all(np.isfinite(noise[1::2]) & (noise[1::2] >= 0)):
-            raise ValueError(f"AKC+ state vector: depth residuals [{_NOISE}:{STATE_SIZE}:2] must be finite or NaN "
-                             f"and reading noises [{_NOISE + 1}:{STATE_SIZE}:2] >= 0, got {noise.tolist()}")
+            raise ValueError(f"AKC+ state vector: depth residuals [{_NOISE}:{_ELBOW}:2] must be finite or NaN "
+                             f"and reading noises [{_NOISE + 1}:{_ELBOW}:2] >= 0, got {noise.tolist()}")
+        elbow = a[_ELBOW:STATE_SIZE]
+        if not (np.all(np.isfinite(elbow)) and np.all(elbow[1::2] >= 0)):
+            raise ValueError(f"AKC+ state vector: the elbow offset's means [{_ELBOW}:{STATE_SIZE}] must be finite, "
+                             f"[{_ELBOW + 1}:{STATE_SIZE}:2] >= 0, got {elbow.tolist()}")
         self._depth_noise = noise.tolist()
+        self._e_acc = [elbow[0:2].tolist(), elbow[2:4].tolist()]
         self._f0 = f0
         self._travel = [0.0, 0.0, 0.0, 0.0]
         self._nis = nis.tolist()
