@@ -147,7 +147,9 @@ class AKCPlusConfig:
             and 2 cm gave within 0.1 cm of 1.5. Off under the ``paper`` protocol (no depth offset: a reading is
             the surface's, 4-5 cm in front of the joint; taken as read, AKC+(EKF)'s worst increase on the rig
             went +0.19 -> +0.78 cm). With ``seen_depth_fusion`` it is also the reading noise assumed until
-            frames have measured it, and the smallest error a seen depth is given (after a KF too).
+            frames have measured it, and the smallest error a seen depth is given (after a KF too). It is also the
+            gate of a seen shoulder's reading against eq. 8's rebuild in front of it, which an elbow that fits the
+            wrist would otherwise make (``CandidateSearch._outvoted``; the filter's ``R`` when 0).
         seen_depth_fusion: with ``seen_depth_sigma_m``, a seen depth passing the test is the reading and the
             filter's fused by the variances their residuals show, not taken as read
             (:func:`~akc_drake.core.akc_plus_evidence.arm_variances`): the reading's frame-to-frame noise (the

@@ -289,10 +289,13 @@ class CandidateSearch:
         occluding upper arm's depth read at the shoulder's pixel), unless
         * the shoulder's depth agrees with the shoulder held on the torso (two against two: MediaPipe's 2D elbow
           5 cm short of the joint leaves both segments short, and eq. 8 moved such a shoulder 12-18 cm);
-        * or eq. 8's shoulder would lie in front of the depth its own pixel reads, beyond the gate: an occluder
-          reads in front of the joint, so a rebuild in front contradicts the one reason to outvote the reading
-          (MediaPipe, cmu_01_01 driven bone by bone at 30 Hz: the upper arm 5.7 cm short in the image, the
-          shoulder read within 0.1 cm and rebuilt 17.5 cm in front for six frames);
+        * or eq. 8's shoulder would lie in front of the depth its own pixel reads, beyond the gate of a seen
+          reading's error (``seen_depth_sigma_m``; without it the filter's ``R``): an occluder reads in front of the
+          joint, so a rebuild in front contradicts the one reason to outvote the reading (MediaPipe, cmu_01_01
+          driven bone by bone at 30 Hz: the upper arm 5.7 cm short in the image, the shoulder read within 0.1 cm
+          and rebuilt 17.5 cm in front for six frames; bvhtools_a2's window, its 2D elbow 6 cm off and the hip under
+          the hand read 21 cm in front: rebuilt 12-15 cm in front, inside the gate of ``R``, on four frames, which
+          made up AKC+(KF)'s worst increase on the MediaPipe windows' seen frames, +0.71 -> +0.48 cm, session 55);
         * or eq. 8's shoulder lies behind the reading but nothing of its own arm can cover its pixel: the upper
           arm farther than ``arm_cover_deg`` from the line of sight (its image length at least ``l_u`` times the
           sine) and the forearm (elbow to wrist, in the image) farther than ``occlusion_radius_m`` from it
@@ -311,6 +314,9 @@ class CandidateSearch:
         if s[2] > mz:
             return rebuilt if ((sx - ex) ** 2 + (sy - ey) ** 2 < self._cover2 * lu * lu
                                or segment_distance2(sx, sy, ex, ey, w[0], w[1]) < self._occ_r2) else None
+        c = self.config  # (a seen reading's error; 0 under ``paper``: the filter's R alone)
+        if c.seen_depth_sigma_m > 0.0:
+            return None if mz - s[2] > c.arm_radius_m + c.gate_sigma * c.seen_depth_sigma_m else rebuilt
         return None if (mz - s[2]) ** 2 > self._gate2 * self._r_z else rebuilt
 
     def _rebuild_shoulder(self, f, w, ps, ks, lu, lf, sxy, other):
