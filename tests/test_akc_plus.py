@@ -463,6 +463,23 @@ def test_a_wrist_lost_altogether_is_no_anchor():
     np.testing.assert_allclose(out[LW], want, atol=1e-9)
 
 
+def test_a_wrist_lost_beyond_the_arms_reach_is_no_anchor():
+    # A frame of real motion (boxing driven bone by bone; the simulated detector, 10 Hz, after the KF), frame 246.
+    # The right elbow and wrist have been lost altogether for frames and the right shoulder's depth reads the fist
+    # 51 cm in front (held on the other shoulder). The KF extrapolates the wrist 1.25 m from the shoulder, out of any
+    # arm's reach, with a smaller variance than the elbow's, lost longer: the wrist counted as the anchor and the arm
+    # rebuilt from it moved the shoulder's detected x, y by 15 cm (y 13.6 cm off the truth, z 25). A wrist the arm
+    # cannot reach from the shoulder is no anchor: the arm is built from the shoulder out.
+    akc, dims, d = _recorded_frame("sim_boxing_rig_10hz_frame246.npz")
+    truth, m, f = d["truth"], d["measured"], d["pose"]
+    assert np.isnan(m[[RE, RW]]).all() and np.linalg.norm(f[RW] - f[RS]) > dims.RUA + dims.RLA + 0.5
+    assert d["variance"][RW].max() < d["variance"][RE].min()
+    out = akc.correct(f, m, d["variance"]).pose
+    assert np.linalg.norm(out[RS, :2] - m[RS, :2]) < 0.05 and np.linalg.norm(out[RS] - truth[RS]) < 0.04
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+    assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
+
+
 def test_a_rebuilt_shoulder_is_fused_with_a_filter_of_the_same_configuration():
     # The upper arm near the image plane, the shoulder's depth dropped (not seen; the filter's estimate right
     # but with a blind sigma of 6 cm: no known depth) and the elbow's image position 1 cm off towards it. Eq. 8

@@ -53,12 +53,13 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   elbow (a random walk of ``sigma_temporal_m^2`` per blind frame;
   :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity extrapolation runs on while the hand
   turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost for 6 frames: the filter
-  24 cm off in x, the fusion with our last output 11.5 cm off). Known worse than the shoulder and the elbow, it is no
-  anchor (nothing measured it): the arm is built from the shoulder out and the wrist goes to its nearest point at the
-  forearm's length in its own metric (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`; its x, y are no better
-  known than its depth). Nor is a wrist whose measured depth the innovation test rejects and no replacement resolved
-  (the filter and the measurement disagree and either may be wrong: with MediaPipe, a filter that followed a depth
-  read past the silhouette part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
+  24 cm off in x, the fusion with our last output 11.5 cm off). Known worse than the shoulder and the elbow, or than
+  the shoulder and beyond the arm's reach from it (boxing, simulated moving torso: 1.25 m off, it moved the seen x, y
+  14 cm), it is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist goes to its
+  nearest point at the forearm's length in its own metric (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`).
+  Nor is a wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
+  measurement disagree, either may be wrong: with MediaPipe, a filter that followed a depth read past the silhouette
+  part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
   A shoulder kept only for want of the wrist (its own reading rejected, not held) yields to a seen elbow within
   ``consistency_m`` of its reading: at l_u from it, x, y kept (a KF lagging 90 cm had moved the elbow 85 cm).
 * An elbow lost altogether likewise: the filter's extrapolation times the upper arm held at this frame's shoulder,
@@ -113,9 +114,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   the wrist's pixel reads the hand, up to a hand's length in front (the elbow's depth is dropped then, its pixel
   near the wrist's). The measured knuckles (index and pinky; their midpoint ``hand_length_m``, by default a share
   of the forearm, from the wrist) put it on its pixel ray that far behind them; the filter's wrist moves likewise
-  (:func:`~akc_drake.core.arm_geometry.behind_hand`, the teleoperation's rule; the simulated detector read the
-  wrist 10-16 cm in front on bvhtools_a4, MediaPipe 10-14 on cmu_01_01, where the elbow put on the circle to it
-  was as far off).
+  (:func:`~akc_drake.core.arm_geometry.behind_hand`, the teleoperation's rule; the simulated detector read the wrist
+  10-16 cm in front on bvhtools_a4, MediaPipe 10-14 on cmu_01_01; the elbow put on the circle to it as far off).
 * A seen forearm too long, its wrist the nearer end and the seen elbow fitting its shoulder (seen or held), or
   its wrist behind beyond reach and known worse than the elbow (the wall, followed): the wrist takes the
   correction (``wrist_misfit``). A camera reads a joint in front of where it is (the hand over the wrist) far
@@ -505,16 +505,16 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
         outvoted = ms and te and self._outvoted(side, (sx, sy, sz, ex, ey, ez), w, prev, ks, lu, lf, sxy, df,
                                                 m[o_s + 2])
         ts = (ms and not outvoted) or (not sxy and prev is not None and not te) or (kn_s and not te)
-        # A wrist lost altogether (no x, y) and known worse than the elbow and shoulder is no anchor (eq. 7-8 would
-        # carry its extrapolation into the seen joints): the arm is built from the shoulder out; so is a wrist whose
-        # measured depth was rejected (``w_bad``: the filter or the measurement is wrong about it).
+        # A wrist lost altogether (no x, y), known worse than the elbow and shoulder or than the shoulder and beyond
+        # the arm's reach from it, is no anchor (eq. 7-8 would carry its extrapolation into the seen joints): the arm
+        # is built from the shoulder out; so is a wrist whose measured depth was rejected (the filter or the reading).
         w_lost, w_read = False, _NAN
         if vs is not None and m is not None:
             # (``w_bad``: the innovation test of the wrist's depth, NaN passing; run only here, where it can act.)
             z, q = m[o_w + 2], self._r_z - self._var[o_w + 2]
             w_lost = z == z and (z - wz) ** 2 > self._gate2 * (q if q > 0.0 else 0.0) + 1e-12
             if not w_lost and not _isfinite(m[o_w] + m[o_w + 1]):
-                w_lost = vs[8] > vs[2] and vs[8] > vs[5]
+                w_lost = vs[8] > vs[2] and (vs[8] > vs[5] or _hypot(wx - sx, wy - sy, wz - sz) > lu + lf + tol)
             if not w_lost and me and z == z and _isfinite(m[o_w] + m[o_w + 1]):
                 # A wrist too far from a seen elbow: its nearer end (two against one), or behind beyond reach.
                 w_lost = wrist_misfit((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, self._cons, ms or s_held)
