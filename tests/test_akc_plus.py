@@ -480,6 +480,22 @@ def test_a_wrist_lost_beyond_the_arms_reach_is_no_anchor():
     assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
 
 
+def test_a_detected_wrist_beyond_the_kept_shoulders_reach_gets_the_straight_arm():
+    # A frame of real motion seen from the side (cmu_01_03, the simulated detector, the camera 1 m to the side, 10
+    # Hz, after the KF), frame 2. The clip starts in a T-pose; by frame 1 the right arm has swung 35 cm, the elbow's
+    # reading is dropped and the KF holds it where it was. The wrist is detected, but the KF's wrist, lagging 5 cm in
+    # y, is just beyond the arm's reach from the kept shoulder: no circle of elbows, and the wrist went onto the
+    # forearm's sphere about the stale elbow, 25 cm off. Now the arm reaches straight for it: the wrist within 3 cm.
+    akc, dims, d = _recorded_frame("sim_cmu_01_03_side_camera_10hz_frame2.npz")
+    truth, m, f = d["truth"], d["measured"], d["pose"]
+    assert np.isnan(m[RE]).all() and np.isfinite(m[RW]).all()
+    assert np.linalg.norm(f[RW] - f[RS]) > dims.RUA + dims.RLA
+    out = akc.correct(f, m, d["variance"]).pose
+    assert np.linalg.norm(out[RW] - truth[RW]) < 0.03 and np.linalg.norm(out[RE] - truth[RE]) < 0.09
+    assert np.linalg.norm(out[RS] - out[RE]) == pytest.approx(dims.RUA, abs=1e-12)
+    assert np.linalg.norm(out[RE] - out[RW]) == pytest.approx(dims.RLA, abs=1e-12)
+
+
 def test_a_rebuilt_shoulder_is_fused_with_a_filter_of_the_same_configuration():
     # The upper arm near the image plane, the shoulder's depth dropped (not seen; the filter's estimate right
     # but with a blind sigma of 6 cm: no known depth) and the elbow's image position 1 cm off towards it. Eq. 8

@@ -21,6 +21,7 @@ from akc_drake.core.arm_geometry import (
     ray_check,
     segment_distance2,
     signed_elbow_angle_deg,
+    straight_arm,
     torso_axes,
     turn_with,
 )
@@ -391,3 +392,26 @@ def test_body_covers_an_elbow_inside_the_torsos_outline_or_near_another_limb_or_
     assert not _covers(v, "left_elbow", 0)
     v[INDEX["left_hip"]] = np.nan  # a torso not known cannot be ruled out
     assert _covers(v, "left_elbow", 0)
+
+
+def test_straight_arm_reaches_towards_a_wrist_beyond_the_arm():
+    s, lu, lf = (-0.16, -0.05, 2.49), 0.29, 0.27
+    # Within reach: a circle of elbows exists, no straight arm.
+    assert straight_arm(*s, -0.2, 0.45, 2.5, lu, lf) is None
+    assert circle_of(-0.2, 0.45, 2.5, *s, lf, lu) is not None
+    # 2 cm beyond, pointing away from the camera: the wrist keeps its x, y at the depth nearest its own that reaches
+    # (2.3 cm nearer; as ``follow``, which moves it radially when that would move it much farther).
+    w = (-0.16, 0.30, 2.95)
+    arm = straight_arm(*s, *w, lu, lf)
+    assert arm[6:8] == pytest.approx(w[:2], abs=1e-12)
+    assert w[2] - arm[8] == pytest.approx(2.95 - 2.49 - math.sqrt(0.56**2 - 0.35**2), abs=1e-12)
+    # Beyond in the image plane itself (no depth reaches): radially, towards the shoulder.
+    far = (-0.16, 0.60, 2.49)
+    arm_far = straight_arm(*s, *far, lu, lf)
+    assert arm_far[6:] == pytest.approx((-0.16, -0.05 + lu + lf, 2.49), abs=1e-12)
+    for a in (arm, arm_far):
+        sh, el, wr = np.array(a[0:3]), np.array(a[3:6]), np.array(a[6:9])
+        assert tuple(sh) == s
+        assert np.linalg.norm(el - sh) == pytest.approx(lu, abs=1e-12)
+        assert np.linalg.norm(wr - el) == pytest.approx(lf, abs=1e-12)
+        assert np.cross(el - sh, wr - sh) == pytest.approx(np.zeros(3), abs=1e-12)  # (straight)

@@ -50,18 +50,18 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
 * A wrist the detector lost altogether (no x, y): its prior is the filter's extrapolation times the forearm as our
   output last had it (not from a wrist misread, the odd one out of an arm measured whole; after such readings the hold
   alone, as the filter took them: :func:`~akc_drake.core.akc_plus_evidence.held_segments`), carried by this frame's
-  elbow (a random walk of ``sigma_temporal_m^2`` per blind frame;
-  :func:`~akc_drake.core.akc_plus_evidence.fuse_held`): a constant-velocity extrapolation runs on while the hand
-  turns, the forearm moves with the elbow the camera still sees (mocapbank's left wrist, lost for 6 frames: the filter
-  24 cm off in x, the fusion with our last output 11.5 cm off). Known worse than the shoulder and the elbow, or than
-  the shoulder and beyond the arm's reach from it (boxing, simulated moving torso: 1.25 m off, it moved the seen x, y
-  14 cm), it is no anchor (nothing measured it): the arm is built from the shoulder out and the wrist goes to its
-  nearest point at the forearm's length in its own metric (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`).
-  Nor is a wrist whose measured depth the innovation test rejects and no replacement resolved (the filter and the
-  measurement disagree, either may be wrong: with MediaPipe, a filter that followed a depth read past the silhouette
-  part of the way, and the arm rebuilt from it moved the seen elbow and shoulder up to 1 m).
-  A shoulder kept only for want of the wrist (its own reading rejected, not held) yields to a seen elbow within
-  ``consistency_m`` of its reading: at l_u from it, x, y kept (a KF lagging 90 cm had moved the elbow 85 cm).
+  elbow (a random walk of ``sigma_temporal_m^2`` per blind frame; :func:`~akc_drake.core.akc_plus_evidence.fuse_held`):
+  a constant-velocity extrapolation runs on while the hand turns, the forearm moves with the elbow the camera still sees
+  (mocapbank's left wrist, lost for 6 frames: the filter 24 cm off in x, the fusion with our last output 11.5 cm off).
+  Known worse than the shoulder and the elbow, or than the shoulder and beyond the arm's reach from it (boxing,
+  simulated moving torso: 1.25 m off, it moved the seen x, y 14 cm), it is no anchor (nothing measured it): the arm is
+  built from the shoulder out and the wrist goes to its nearest point at the forearm's length in its own metric
+  (:func:`~akc_drake.core.akc_plus_lengths.sphere_point`). Nor is a wrist whose measured depth the innovation test
+  rejects and no replacement resolved (the filter and the measurement disagree, either may be wrong: with MediaPipe, a
+  filter that followed a depth read past the silhouette part of the way, and the arm rebuilt from it moved the seen
+  elbow and shoulder up to 1 m). A shoulder kept only for want of the wrist (its own reading rejected, not held) yields
+  to a seen elbow within ``consistency_m`` of its reading: at l_u from it, x, y kept (a KF lagging 90 cm had moved the
+  elbow 85 cm).
 * An elbow lost altogether likewise: the filter's extrapolation times the upper arm held at this frame's shoulder,
   and a wrist lost with it moves with that elbow (MediaPipe lost bvhtools_a2's left arm for 20 frames: the filter's
   elbow ran 25 cm off in depth, and the elbow rebuilt between it and the held wrist 37 cm). After an EKF
@@ -95,8 +95,8 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   seen farther from it in the image than l_u while the wrist is lost altogether (one x, y is off; which, unknown): the
   arm nearest both in their metric with the exact lengths, not the shoulder kept (mocapbank driven bone by bone: a
   torso that leaned moved the seen elbow 7 cm onto the held shoulder, MediaPipe's seen one 8 cm off 5 cm radially).
-* A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share
-  the correction in the filter's metric (mostly in depth), not the wrist alone.
+* A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share the
+  correction in the filter's metric (mostly in depth), not the wrist alone (a detected wrist out of reach: straight).
 * A seen elbow that the arm nearest the filter's (the lengths' projections) puts more than ``consistency_m`` in
   front of the depth its pixel read: a camera reads the first surface on the ray, so the joint is at or behind it.
   The filter followed an elbow read on a surface in front (MediaPipe on the skinned body, bvhtools_a2: 12-19 cm),
@@ -214,6 +214,7 @@ from akc_drake.core.arm_geometry import follow as _follow
 from akc_drake.core.arm_geometry import nearest_depth as _nearest_depth
 from akc_drake.core.arm_geometry import pythagoras as _pythagoras
 from akc_drake.core.arm_geometry import radial as _radial
+from akc_drake.core.arm_geometry import straight_arm as _straight
 from akc_drake.core.arm_geometry import turn_with as _turn_with
 from akc_drake.core.skeleton import INDEX, NUM_LANDMARKS, SIDES, BodyDimensions, side_indices
 
@@ -525,11 +526,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
             ts, te = True, False
         if vs is not None and me and not te and prev is not None and (not sxy or (
                 ms and m is not None and not _isfinite(m[o_w] + m[o_w + 1]) and _hypot(sx - ex, sy - ey) > lu)):
-            # A seen elbow that no wrist confirms (one that fits and is an anchor rebuilds the shoulder, below), and
-            # a shoulder the detector lost altogether (held on the torso, a random walk: a torso that leaned moved the
-            # seen elbow 7 cm to it) or seen farther from it in the image than l_u while the wrist is lost altogether
-            # (no depth closes the upper arm; nothing tells whose x, y is off: the elbow moved radially by the whole
-            # misfit): the arm nearest both in their metric with the exact lengths, not the shoulder kept.
+            # A seen elbow that no wrist confirms, and a shoulder the detector lost altogether or seen farther from it
+            # in the image than l_u while the wrist is lost altogether: the arm nearest both in their metric with the
+            # exact lengths, not the shoulder kept (the module docstring).
             arm = project_arm((sx, sy, sz, ex, ey, ez, wx, wy, wz), vs, lu, lf, 0.0, _inf, self._off_var, None, ev)
             if arm is not None:
                 return arm
@@ -543,10 +542,9 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                 if e is not None and _d2(e, ex, ey, ez) > self._xy_tol ** 2:
                     e = None  # the wrist (a lagging filter's) would move the seen elbow: the wrist moves instead
             elif not me and not w_lost:
-                # A wrist measured in 3D (its depth passed the innovation test) and a kept shoulder: the elbow
-                # whose depth was lost goes on the circle between them even off its image x, y (the detector's
-                # 2D elbow is a few cm off the joint centre too; with MediaPipe 3-7 cm: moving the measured wrist
-                # instead to keep them carried that error into the wrist's and the elbow's depths, 10-20 cm).
+                # A wrist measured in 3D (its depth passed the innovation test) and a kept shoulder: the elbow whose
+                # depth was lost goes on the circle between them even off its image x, y (MediaPipe's 2D elbow is 3-7
+                # cm off the joint: the wrist moved instead carried it into the depths, 10-20 cm).
                 w_seen = vs is not None and m is not None and _isfinite(m[o_w] + m[o_w + 1] + m[o_w + 2])
                 pair = _pythagoras(wx, wy, wz, ex, ey, lf) if exy else None
                 if pair is not None or (exy and w_seen):
@@ -591,6 +589,8 @@ class ArmKinematicCorrectorPlus(CandidateSearch, TorsoReference, SurfaceMemory, 
                             return self._judged(arm, behind_surface(arm, (*s, ex, ey, e[2], wx, wy, wz), vs, lu, lf,
                                                                     m[o_e + 2], t, pe[2], self._off_var, True))
                         return arm
+                    if m is not None and _isfinite(m[o_w] + m[o_w + 1]) and (arm := _straight(*s, wx, wy, wz, lu, lf)):
+                        return arm  # (a detected wrist beyond the kept shoulder's reach: ``straight_arm``)
                 if w_lost and vs is not None:  # A wrist no anchor: at l_f from the elbow, behind a reading of its
                     # forearm, nearest in its own metric (depth rejected) or radially (not detected: README "AKC+").
                     w = (w_read == w_read and _behind_reading(*e, wx, wy, w_read, lf)) or (

@@ -453,6 +453,20 @@ def follow(ax: float, ay: float, az: float, px: float, py: float, pz: float, len
     return r
 
 
+def straight_arm(sx: float, sy: float, sz: float, wx: float, wy: float, wz: float, lu: float, lf: float):
+    """The arm from the shoulder ``s`` straight towards a wrist ``w`` beyond its reach (farther than ``lu + lf``):
+    the wrist moved to ``lu + lf`` from the shoulder as :func:`follow` moves it (its x, y kept at the Pythagorean
+    depth nearest its own, else radially) and the elbow on the segment at ``lu``; the nine floats, or None when the
+    wrist is within reach (a circle of elbows exists: :func:`circle_of`)."""
+    c: float; ex: float; ey: float; ez: float
+    if not _hypot(wx - sx, wy - sy, wz - sz) > lu + lf:
+        return None
+    wx, wy, wz = follow(sx, sy, sz, wx, wy, wz, lu + lf)
+    c = lu / (lu + lf)
+    ex, ey, ez = sx + c * (wx - sx), sy + c * (wy - sy), sz + c * (wz - sz)
+    return (sx, sy, sz, ex, ey, ez, wx, wy, wz)
+
+
 def d2(p, qx: float, qy: float, qz: float):
     dx: float; dy: float; dz: float
     dx, dy, dz = p[0] - qx, p[1] - qy, p[2] - qz
