@@ -96,7 +96,7 @@ each coordinate; the evaluation always gives it), "trustworthy" is a statistical
   arm nearest both in their metric with the exact lengths, not the shoulder kept (mocapbank driven bone by bone: a
   torso that leaned moved the seen elbow 7 cm onto the held shoulder, MediaPipe's seen one 8 cm off 5 cm radially).
 * A lost elbow that cannot close the arm at its image x, y from a kept shoulder: the elbow and the wrist share the
-  correction in the filter's metric (mostly in depth), not the wrist alone (a detected wrist out of reach: straight).
+  correction in the filter's metric (in depth mostly), not the wrist alone; a detected wrist out of reach: arm straight.
 * A seen elbow that the arm nearest the filter's (the lengths' projections) puts more than ``consistency_m`` in
   front of the depth its pixel read: a camera reads the first surface on the ray, so the joint is at or behind it.
   The filter followed an elbow read on a surface in front (MediaPipe on the skinned body, bvhtools_a2: 12-19 cm),
