@@ -20,15 +20,21 @@ from akc_drake.core.arm_geometry import circle_point
 from akc_drake.core.skeleton import INDEX
 
 
+def random_arm(rng):
+    """A random arm about 2 m from the camera near the lengths 0.29 and 0.26: shoulder, elbow and wrist."""
+    s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
+    e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
+    w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+    return s, e, w
+
+
 def test_forearm_projection_is_the_arm_projection_with_a_fixed_shoulder():
     # Bit-identical to project_arm with zero shoulder variances (no calibration variance, no gate) over random
     # arms near the lengths.
     rng = random.Random(11)
     solved = 0
     for _ in range(2000):
-        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
-        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
-        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        s, e, w = random_arm(rng)
         v = tuple(rng.uniform(1e-5, 1e-2) for _ in range(6))
         want = project_arm((*s, *e, *w), (0.0, 0.0, 0.0, *v), 0.29, 0.26, 0.0, math.inf)
         got = project_forearm(s, (*e, *w), v, 0.29, 0.26)
@@ -156,9 +162,7 @@ def test_offset_variance_is_added_to_each_variance():
     # offset_var gives the arm of the variances with the offset added by the caller (bit-identical).
     rng = random.Random(9)
     for _ in range(500):
-        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
-        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
-        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        s, e, w = random_arm(rng)
         var = [rng.uniform(1e-5, 1e-2) for _ in range(9)]
         ov = rng.choice((5e-5, 2e-4))
         want = project_arm((*s, *e, *w), [x + ov for x in var], 0.29, 0.26, 0.0, 13.8)
@@ -170,9 +174,7 @@ def test_offset_variance_is_added_to_each_variance():
 def test_elbow_variance_is_added_to_the_elbows_variances():
     rng = random.Random(12)
     for _ in range(300):
-        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
-        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
-        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        s, e, w = random_arm(rng)
         var = [rng.uniform(1e-5, 1e-2) for _ in range(9)]
         ev = rng.uniform(1e-5, 1e-3)
         ov = rng.choice((0.0, 2e-4))

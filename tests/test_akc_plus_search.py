@@ -7,6 +7,7 @@ from akc_drake.core.akc_plus import ArmKinematicCorrectorPlus
 from akc_drake.core.akc_plus_search import BACKWARDS
 from akc_drake.core.arm_geometry import bends_backwards, torso_axes
 from akc_drake.core.skeleton import INDEX, BodyDimensions
+from tests.test_akc_plus_lengths import random_arm
 
 DIMS = BodyDimensions(LUA=0.29, LLA=0.26, RUA=0.29, RLA=0.26, SW=0.36)
 
@@ -116,9 +117,7 @@ def test_penalty_is_the_angle_test_and_bends_backwards():
     cos_min = math.cos(math.radians(akc.config.elbow_min_deg))
     verdicts = set()
     for _ in range(3000):
-        s = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(1.7, 2.3))
-        e = tuple(c + rng.gauss(0.0, 0.17) for c in s)
-        w = tuple(c + rng.gauss(0.0, 0.15) for c in e)
+        s, e, w = random_arm(rng)
         u = [(a - b) / 0.29 for a, b in zip(s, e, strict=True)]
         f = [a - b for a, b in zip(w, e, strict=True)]
         folded = ((s[0] - e[0]) * f[0] + (s[1] - e[1]) * f[1] + (s[2] - e[2]) * f[2]) / (0.29 * 0.26) > cos_min
